@@ -1,0 +1,46 @@
+// core/parallel.hpp — thread count control and a deterministic parallel_for over blocks (OpenMP, static).
+// Depends on the standard library and OpenMP only.
+#pragma once
+#include <algorithm>
+#include <cstddef>
+#include <omp.h>
+
+namespace evnerf {
+
+/// Number of threads evnerf uses (defaults to OpenMP's). Set once at start-up.
+inline int& thread_count_ref() {
+  static int n = omp_get_max_threads();
+  return n;
+}
+inline int thread_count() { return thread_count_ref(); }
+inline void set_thread_count(int n) { thread_count_ref() = std::max(1, n); }
+
+/// Calls fn(begin, end, thread) for contiguous blocks of [0, n). The split depends only on n, the thread
+/// count and `min_per_thread`, so per-thread partial results reduce in a fixed order. Below
+/// `min_per_thread` items per thread it runs on fewer threads (threading tiny work makes it slower).
+template <class Fn>
+void parallel_blocks(std::size_t n, std::size_t min_per_thread, Fn&& fn) {
+  const int max_t = thread_count();
+  const int t = static_cast<int>(std::clamp<std::size_t>(n / std::max<std::size_t>(1, min_per_thread), 1,
+                                                          static_cast<std::size_t>(max_t)));
+  if (t <= 1) {
+    fn(std::size_t{0}, n, 0);
+    return;
+  }
+#pragma omp parallel num_threads(t)
+  {
+    const int id = omp_get_thread_num();
+    const std::size_t b = n * id / t, e = n * (id + 1) / t;
+    fn(b, e, id);
+  }
+}
+
+/// Elementwise parallel loop: fn(i) for i in [0, n).
+template <class Fn>
+void parallel_for(std::size_t n, std::size_t min_per_thread, Fn&& fn) {
+  parallel_blocks(n, min_per_thread, [&](std::size_t b, std::size_t e, int) {
+    for (std::size_t i = b; i < e; ++i) fn(i);
+  });
+}
+
+}  // namespace evnerf

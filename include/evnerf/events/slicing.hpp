@@ -1,0 +1,94 @@
+// events/slicing.hpp — cut an event stream into time slices [T_i, T_i+1) and count, per slice and pixel,
+// the positive and negative events; noise injection as in Ev-NeRF. Depends on core/ and events/ only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "../core/error.hpp"
+#include "../core/rng.hpp"
+#include "event_stream.hpp"
+
+namespace evnerf::events {
+
+/// Per-pixel positive and negative counts of one slice (row-major H×W), plus the pixels with events.
+struct SliceCounts {
+  int width = 0, height = 0;
+  std::vector<std::int16_t> pos, neg;   ///< n⁺ and n⁻ (both non-negative)
+  std::vector<std::uint32_t> active;    ///< pixel indices with at least one event, increasing
+  std::size_t total = 0;                ///< events counted (Σ n⁺ + n⁻)
+
+  std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
+  int signed_count(std::size_t pix) const { return pos[pix] - neg[pix]; }
+};
+
+/// Slices of a stream: boundaries T_0 < … < T_N and counts for each [T_i, T_i+1).
+struct SliceSet {
+  std::vector<double> boundaries;
+  std::vector<SliceCounts> slices;
+  std::size_t size() const { return slices.size(); }
+};
+
+/// Boundaries every `dt` seconds from the stream's first to its last event (the last slice may be shorter).
+inline std::vector<double> uniform_boundaries(double t0, double t1, std::size_t n_slices) {
+  require(n_slices > 0 && t1 > t0, "uniform_boundaries: need t1 > t0 and at least one slice");
+  std::vector<double> b(n_slices + 1);
+  for (std::size_t i = 0; i <= n_slices; ++i) b[i] = t0 + (t1 - t0) * static_cast<double>(i) / n_slices;
+  return b;
+}
+
+/// Counts events per slice and pixel. Events before T_0 or at/after T_N are ignored; the boundaries must
+/// increase strictly. Counts saturate at int16 max with an error rather than wrapping.
+inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& boundaries) {
+  require(boundaries.size() >= 2, "slice_events: need at least two boundaries");
+  for (std::size_t i = 1; i < boundaries.size(); ++i)
+    require(boundaries[i] > boundaries[i - 1], "slice_events: boundaries must increase strictly");
+  SliceSet set;
+  set.boundaries = boundaries;
+  const std::size_t n_slices = boundaries.size() - 1, hw = static_cast<std::size_t>(ev.width) * ev.height;
+  set.slices.resize(n_slices);
+  for (auto& s : set.slices) {
+    s.width = ev.width;
+    s.height = ev.height;
+    s.pos.assign(hw, 0);
+    s.neg.assign(hw, 0);
+  }
+  // Events are sorted by time, so each slice is a contiguous range found by binary search.
+  for (std::size_t i = 0; i < n_slices; ++i) {
+    auto b = std::lower_bound(ev.t.begin(), ev.t.end(), boundaries[i]) - ev.t.begin();
+    auto e = std::lower_bound(ev.t.begin(), ev.t.end(), boundaries[i + 1]) - ev.t.begin();
+    SliceCounts& s = set.slices[i];
+    for (auto k = b; k < e; ++k) {
+      const std::size_t pix = static_cast<std::size_t>(ev.y[k]) * ev.width + ev.x[k];
+      auto& c = ev.polarity[k] > 0 ? s.pos[pix] : s.neg[pix];
+      if (c == INT16_MAX) throw Error("slice_events: more than 32767 events at one pixel in one slice");
+      ++c;
+    }
+    s.total = static_cast<std::size_t>(e - b);
+    for (std::size_t p = 0; p < hw; ++p)
+      if (s.pos[p] || s.neg[p]) s.active.push_back(static_cast<std::uint32_t>(p));
+  }
+  return set;
+}
+
+/// Adds round(ratio × slice.total) random events: pixels uniform over the sensor, polarity ±1 with
+/// probability ½ each (Ev-NeRF's noise injection; ratio 0.05 in training). Returns the noisy copy.
+inline SliceCounts inject_noise(const SliceCounts& s, double ratio, Rng& rng) {
+  require(ratio >= 0 && std::isfinite(ratio), "inject_noise: ratio must be finite and non-negative");
+  SliceCounts out = s;
+  const auto n = static_cast<std::size_t>(std::llround(ratio * static_cast<double>(s.total)));
+  const std::size_t hw = s.pixels();
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto pix = static_cast<std::size_t>(rng.below(hw));
+    auto& c = (rng.next_u64() & 1) ? out.pos[pix] : out.neg[pix];
+    if (c < INT16_MAX) ++c;
+  }
+  out.total += n;
+  out.active.clear();
+  for (std::size_t p = 0; p < hw; ++p)
+    if (out.pos[p] || out.neg[p]) out.active.push_back(static_cast<std::uint32_t>(p));
+  return out;
+}
+
+}  // namespace evnerf::events

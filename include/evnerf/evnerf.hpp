@@ -1,0 +1,21 @@
+// evnerf.hpp — umbrella header: everything public in evnerf.
+// Include the family headers directly to keep compile times down.
+#pragma once
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+#include "core/parallel.hpp"
+#include "core/progress.hpp"
+#include "core/rng.hpp"
+#include "core/types.hpp"
+#include "events/event_stream.hpp"
+#include "events/slicing.hpp"
+#include "geometry/bayer.hpp"
+#include "geometry/camera.hpp"
+#include "geometry/pose.hpp"
+#include "geometry/trajectory.hpp"
+#include "io/colmap.hpp"
+#include "io/dataset.hpp"
+#include "io/ijrr.hpp"
+#include "io/image_io.hpp"
+#include "io/inspect.hpp"
+#include "io/npy.hpp"

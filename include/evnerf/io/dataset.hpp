@@ -1,0 +1,102 @@
+// io/dataset.hpp — one recording (camera, events, poses, optional frames and depth) loaded from an IJRR-
+// layout folder, as written by the real dataset and by evnerf's simulator. Depends on core/, geometry/,
+// events/ and io/ only.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <stb_image.h>
+
+#include "ijrr.hpp"
+#include "npy.hpp"
+
+namespace evnerf::io {
+
+struct LoadOptions {
+  int width = 0, height = 0;  ///< sensor size; 0 = from sensor.txt, else the first frame, else 240×180
+  bool use_cache = true;      ///< cache the parsed events.txt as .npy for the next load
+  std::filesystem::path cache_root = default_cache_root();
+};
+
+struct Dataset {
+  std::filesystem::path folder;
+  geometry::Camera camera;
+  events::EventStream events;
+  geometry::Trajectory trajectory;  ///< empty when the folder has no groundtruth.txt
+  Frames frames;                    ///< empty when the folder has no images.txt
+  std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
+  bool from_cache = false;
+};
+
+/// Sensor size: explicit, else `sensor.txt` ("width height"), else the first frame's size, else DAVIS240C.
+inline std::pair<int, int> sensor_size(const std::filesystem::path& folder, const Frames& frames, int w, int h) {
+  if (w > 0 && h > 0) return {w, h};
+  if (std::filesystem::exists(folder / "sensor.txt")) {
+    const auto path = folder / "sensor.txt";
+    const std::string text = read_file(path);
+    LineScanner s(text, path.string());
+    if (!s.next_line()) throw Error(path.string(), 0, "empty sensor.txt (expected 'width height')");
+    const long long sw = s.integer("width"), sh = s.integer("height");
+    s.expect_end();
+    if (sw <= 0 || sh <= 0 || sw > 65535 || sh > 65535) s.fail("sensor size out of range");
+    return {static_cast<int>(sw), static_cast<int>(sh)};
+  }
+  if (frames.size() > 0) {
+    int fw = 0, fh = 0, c = 0;
+    if (stbi_info(frames.paths[0].c_str(), &fw, &fh, &c)) return {fw, fh};
+  }
+  return {240, 180};
+}
+
+/// Loads an IJRR-layout folder. events.txt and calib.txt are required; groundtruth.txt, images.txt and
+/// depth/ are optional. Every parse error names file and line.
+inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
+  namespace fs = std::filesystem;
+  if (!fs::is_directory(folder)) throw Error(folder.string(), 0, "not a folder (missing recording?)");
+  Dataset d;
+  d.folder = folder;
+  if (fs::exists(folder / "images.txt")) d.frames = read_frames_txt(folder / "images.txt");
+  const auto [w, h] = sensor_size(folder, d.frames, opt.width, opt.height);
+  d.camera = read_calib_txt(folder / "calib.txt", w, h);
+  const fs::path ev_path = folder / "events.txt";
+  if (!fs::exists(ev_path)) throw Error(ev_path.string(), 0, "missing events file");
+  bool loaded = false;
+  fs::path cache_dir;
+  std::string stamp;
+  if (opt.use_cache) {
+    const auto abs = fs::absolute(ev_path).lexically_normal().string();
+    const auto size = fs::file_size(ev_path);
+    const auto mtime = fs::last_write_time(ev_path).time_since_epoch().count();
+    stamp = std::to_string(size) + "-" + std::to_string(mtime) + "-" + std::to_string(w) + "x" + std::to_string(h);
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a64(abs)));
+    cache_dir = opt.cache_root / hex;
+    try {
+      loaded = load_event_cache(cache_dir, stamp, d.events);
+    } catch (const Error&) {
+      loaded = false;  // a damaged cache is rebuilt from the source, never trusted
+    }
+  }
+  if (!loaded) {
+    d.events = read_events_txt(ev_path, w, h);
+    if (opt.use_cache) {
+      try {
+        save_event_cache(cache_dir, d.events, stamp);
+      } catch (const std::exception&) {
+        // An unwritable cache only costs speed next time.
+      }
+    }
+  }
+  d.from_cache = loaded;
+  if (fs::exists(folder / "groundtruth.txt")) d.trajectory = read_poses_txt(folder / "groundtruth.txt");
+  if (fs::is_directory(folder / "depth"))
+    for (std::size_t i = 0; i < d.frames.size(); ++i) {
+      char name[64];
+      std::snprintf(name, sizeof name, "depth/frame_%08zu.npy", i);
+      if (fs::exists(folder / name)) d.depth.push_back(folder / name);
+    }
+  return d;
+}
+
+}  // namespace evnerf::io

@@ -1,0 +1,97 @@
+// io/image_io.hpp — PNG read (stb_image) and atomic PNG write (stb_image_write), float images in [0, 1].
+// Depends on core/ and stb only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "../core/error.hpp"
+#include "../core/fileio.hpp"
+#include "../core/types.hpp"
+
+namespace evnerf::io {
+
+/// Loads a PNG (8 or 16 bit) as float in [0, 1] with `want_channels` channels (0 = as stored).
+inline Image read_png(const std::filesystem::path& path, int want_channels = 0) {
+  const std::string bytes = read_file(path);
+  int w = 0, h = 0, c = 0;
+  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
+  const int len = static_cast<int>(bytes.size());
+  Image img;
+  if (stbi_is_16_bit_from_memory(data, len)) {
+    stbi_us* px = stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels);
+    if (!px) throw Error(path.string(), 0, std::string("cannot decode image: ") + stbi_failure_reason());
+    const int ch = want_channels ? want_channels : c;
+    img = Image(w, h, ch);
+    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / 65535.f;
+    stbi_image_free(px);
+  } else {
+    stbi_uc* px = stbi_load_from_memory(data, len, &w, &h, &c, want_channels);
+    if (!px) throw Error(path.string(), 0, std::string("cannot decode image: ") + stbi_failure_reason());
+    const int ch = want_channels ? want_channels : c;
+    img = Image(w, h, ch);
+    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / 255.f;
+    stbi_image_free(px);
+  }
+  return img;
+}
+
+/// Writes a float image (values clamped to [0, 1]) as an 8-bit PNG, atomically.
+inline void write_png(const std::filesystem::path& path, const Image& img) {
+  require(img.width > 0 && img.height > 0 && (img.channels == 1 || img.channels == 3 || img.channels == 4),
+          "write_png: image must be 1, 3 or 4 channels and non-empty");
+  std::vector<unsigned char> px(img.data.size());
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    const float v = std::isfinite(img.data[i]) ? std::clamp(img.data[i], 0.f, 1.f) : 0.f;
+    px[i] = static_cast<unsigned char>(std::lround(v * 255.f));
+  }
+  std::string out;
+  auto sink = [](void* ctx, void* data, int size) {
+    static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
+  };
+  if (!stbi_write_png_to_func(sink, &out, img.width, img.height, img.channels, px.data(), img.width * img.channels))
+    throw Error(path.string(), 0, "PNG encoding failed");
+  write_file_atomic(path, out);
+}
+
+/// Maps values in [lo, hi] to colours for depth maps: a piecewise-linear ramp through dark blue, cyan,
+/// yellow and dark red (near = blue, far = red); non-finite values stay black.
+inline Image colorize(const Image& grey, float lo, float hi) {
+  static constexpr float stops[5][3] = {
+      {0.05f, 0.03f, 0.35f}, {0.10f, 0.55f, 0.95f}, {0.45f, 0.95f, 0.45f}, {0.98f, 0.80f, 0.15f}, {0.60f, 0.05f, 0.05f}};
+  Image out(grey.width, grey.height, 3);
+  const float span = hi > lo ? hi - lo : 1.f;
+  for (std::size_t i = 0; i < grey.pixels(); ++i) {
+    const float v = grey.data[i];
+    if (!std::isfinite(v)) continue;
+    const float x = std::clamp((v - lo) / span, 0.f, 1.f) * 4.f;
+    const int k = std::min(3, static_cast<int>(x));
+    const float f = x - static_cast<float>(k);
+    for (int c = 0; c < 3; ++c) out.data[3 * i + c] = (1 - f) * stops[k][c] + f * stops[k + 1][c];
+  }
+  return out;
+}
+
+/// Places images side by side (converted to `channels`), with a 2-pixel gap.
+inline Image montage(const std::vector<Image>& imgs, int channels = 1) {
+  int w = 0, h = 0;
+  for (auto& im : imgs) {
+    w += im.width + 2;
+    h = std::max(h, im.height);
+  }
+  Image out(std::max(0, w - 2), h, channels, 1.f);
+  int x0 = 0;
+  for (auto& im : imgs) {
+    for (int y = 0; y < im.height; ++y)
+      for (int x = 0; x < im.width; ++x)
+        for (int c = 0; c < channels; ++c) out.at(x0 + x, y, c) = im.at(x, y, std::min(c, im.channels - 1));
+    x0 += im.width + 2;
+  }
+  return out;
+}
+
+}  // namespace evnerf::io
