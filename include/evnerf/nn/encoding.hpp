@@ -1,0 +1,204 @@
+// nn/encoding.hpp — input encodings as types: Identity, Frequency<N> (NeRF positional encoding),
+// SphericalHarmonics<Degree> (directions), HashGrid<...> (multiresolution hash encoding, trainable).
+// Every encoding maps in_dims inputs to out_dims features per sample and has a backward to its input
+// (and to its parameters where it has any). Depends on core/ and ad/ only.
+#pragma once
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+
+#include "../ad/expr.hpp"
+#include "../core/rng.hpp"
+
+namespace evnerf::nn {
+
+/// Passes D inputs through.
+template <int D = 3>
+struct IdentityEncoding {
+  static constexpr int in_dims = D, out_dims = D;
+  static constexpr std::size_t n_params = 0;
+  template <class T> static void init(T*, Rng&) {}
+  template <class T> static void forward(const T*, const T* x, T* y) { std::copy(x, x + D, y); }
+  template <class T> static void backward(const T*, const T*, const T* dy, T*, T* dx) {
+    if (dx) for (int i = 0; i < D; ++i) dx[i] += dy[i];
+  }
+};
+
+/// NeRF positional encoding γ(x) = [x, sin(2^k x), cos(2^k x)], k = 0..N-1 (no π factor; nerf-pytorch's
+/// convention), feature order [x | sin block | cos block], each block frequency-major. out = D(1 + 2N).
+template <int N, int D = 3>
+struct Frequency {
+  static_assert(N >= 0 && N <= 24, "Frequency<N>: N must be between 0 and 24 frequencies.");
+  static constexpr int in_dims = D, out_dims = D * (1 + 2 * N);
+  static constexpr std::size_t n_params = 0;
+  template <class T> static void init(T*, Rng&) {}
+  template <class T>
+  static void forward(const T*, const T* x, T* y) {
+    for (int d = 0; d < D; ++d) y[d] = x[d];
+    for (int k = 0; k < N; ++k) {
+      const T s = static_cast<T>(1 << k);
+      for (int d = 0; d < D; ++d) {
+        y[D + k * D + d] = std::sin(s * x[d]);
+        y[D + N * D + k * D + d] = std::cos(s * x[d]);
+      }
+    }
+  }
+  template <class T>
+  static void backward(const T*, const T* x, const T* dy, T*, T* dx) {
+    if (!dx) return;
+    for (int d = 0; d < D; ++d) {
+      T g = dy[d];
+      for (int k = 0; k < N; ++k) {
+        const T s = static_cast<T>(1 << k);
+        g += s * (std::cos(s * x[d]) * dy[D + k * D + d] - std::sin(s * x[d]) * dy[D + N * D + k * D + d]);
+      }
+      dx[d] += g;
+    }
+  }
+};
+
+/// Real spherical harmonics of a unit direction up to `Degree` bands (Degree² outputs, Degree 1..4).
+/// The basis is written once on generic values, so the input gradient comes from ad/.
+template <int Degree>
+struct SphericalHarmonics {
+  static_assert(Degree >= 1 && Degree <= 4, "SphericalHarmonics<Degree>: Degree must be between 1 and 4.");
+  static constexpr int in_dims = 3, out_dims = Degree * Degree;
+  static constexpr std::size_t n_params = 0;
+  template <class T> static void init(T*, Rng&) {}
+
+  /// The basis on any value type (plain scalars or ad expressions); calls out(i, value) per coefficient.
+  template <class X, class Y, class Z, class Out>
+  static void basis(const X& x, const Y& y, const Z& z, Out&& out) {
+    // Normalisation constants of the real SH basis, bands 0..3.
+    out(0, ad::value_of(x) * 0 + 0.28209479177387814);
+    if constexpr (Degree > 1) {
+      out(1, -0.48860251190291987 * y);
+      out(2, 0.48860251190291987 * z);
+      out(3, -0.48860251190291987 * x);
+    }
+    if constexpr (Degree > 2) {
+      out(4, 1.0925484305920792 * (x * y));
+      out(5, -1.0925484305920792 * (y * z));
+      out(6, 0.31539156525252005 * (3.0 * (z * z) - 1.0));
+      out(7, -1.0925484305920792 * (x * z));
+      out(8, 0.54627421529603959 * (x * x - y * y));
+    }
+    if constexpr (Degree > 3) {
+      out(9, -0.59004358992664352 * (y * (3.0 * (x * x) - y * y)));
+      out(10, 2.8906114426405538 * (x * (y * z)));
+      out(11, -0.45704579946446572 * (y * (5.0 * (z * z) - 1.0)));
+      out(12, 0.3731763325901154 * (z * (5.0 * (z * z) - 3.0)));
+      out(13, -0.45704579946446572 * (x * (5.0 * (z * z) - 1.0)));
+      out(14, 1.4453057213202769 * (z * (x * x - y * y)));
+      out(15, -0.59004358992664352 * (x * (x * x - 3.0 * (y * y))));
+    }
+  }
+  template <class T>
+  static void forward(const T*, const T* d, T* y) {
+    basis(d[0], d[1], d[2], [&](int i, auto v) { y[i] = static_cast<T>(ad::value_of(v)); });
+  }
+  template <class T>
+  static void backward(const T*, const T* d, const T* dy, T*, T* dx) {
+    if (!dx) return;
+    const ad::Arg<T, 0> x{{}, d[0]};
+    const ad::Arg<T, 1> yy{{}, d[1]};
+    const ad::Arg<T, 2> z{{}, d[2]};
+    std::array<T, 3> g{};
+    basis(x, yy, z, [&](int i, const auto& e) {
+      if constexpr (ad::Expr<std::remove_cvref_t<decltype(e)>>) e.backprop(dy[i], g);
+    });
+    for (int k = 0; k < 3; ++k) dx[k] += g[k];
+  }
+};
+
+/// Multiresolution hash encoding (Müller et al. 2022) of a 3-D point in [0, 1]³. Level l has resolution
+/// floor(BaseRes · b^l) with b chosen so that the last level reaches MaxRes; a level whose grid fits in
+/// the table is indexed densely, otherwise by the spatial hash (x·1 ⊕ y·2654435761 ⊕ z·805459861) mod T.
+/// Trilinear interpolation of F features per level; tables are the parameters (init U(−1e-4, 1e-4)).
+template <int Levels, int F, int Log2T, int BaseRes, int MaxRes>
+struct HashGrid {
+  static_assert(Levels >= 1 && Levels <= 32, "HashGrid: Levels must be between 1 and 32.");
+  static_assert(F >= 1 && F <= 8, "HashGrid: FeaturesPerLevel must be between 1 and 8.");
+  static_assert(Log2T >= 4 && Log2T <= 24, "HashGrid: Log2TableSize must be between 4 and 24.");
+  static_assert(BaseRes >= 2 && MaxRes >= BaseRes, "HashGrid: need 2 <= BaseRes <= MaxRes.");
+  static constexpr int in_dims = 3, out_dims = Levels * F;
+  static constexpr std::uint32_t table_size = 1u << Log2T;
+  static constexpr std::size_t n_params = static_cast<std::size_t>(Levels) * table_size * F;
+
+  static double scale(int l) {
+    if (Levels == 1) return BaseRes;
+    const double b = std::exp((std::log(double(MaxRes)) - std::log(double(BaseRes))) / (Levels - 1));
+    return std::floor(BaseRes * std::pow(b, l));
+  }
+  template <class T>
+  static void init(T* p, Rng& rng) {
+    for (std::size_t i = 0; i < n_params; ++i) p[i] = static_cast<T>(rng.uniform(-1e-4, 1e-4));
+  }
+  static std::uint32_t index(int l, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    const std::uint64_t res = static_cast<std::uint64_t>(scale(l)) + 1;
+    if (res * res * res <= table_size) return static_cast<std::uint32_t>(x + res * (y + res * z));
+    return (x ^ (y * 2654435761u) ^ (z * 805459861u)) & (table_size - 1);
+  }
+
+  /// Visits the 8 corners of level l around point p: fn(table_index, weight, dweight/dp[3]).
+  template <class T, class Fn>
+  static void corners(int l, const T* p, Fn&& fn) {
+    const T s = static_cast<T>(scale(l));
+    std::uint32_t base[3];
+    T frac[3];
+    for (int d = 0; d < 3; ++d) {
+      const T c = std::clamp(p[d], T(0), T(1)) * s;
+      T fl = std::floor(c);
+      if (fl >= s) fl = s - 1;  // p = 1 falls in the last cell
+      base[d] = static_cast<std::uint32_t>(fl);
+      frac[d] = c - fl;
+    }
+    for (int c = 0; c < 8; ++c) {
+      T w = 1;
+      T dw[3];
+      for (int d = 0; d < 3; ++d) {
+        const bool hi = (c >> d) & 1;
+        const T wd = hi ? frac[d] : T(1) - frac[d];
+        T prod_others = 1;
+        for (int e = 0; e < 3; ++e)
+          if (e != d) prod_others *= ((c >> e) & 1) ? frac[e] : T(1) - frac[e];
+        dw[d] = (hi ? s : -s) * prod_others;
+        w *= wd;
+      }
+      fn(index(l, base[0] + (c & 1), base[1] + ((c >> 1) & 1), base[2] + ((c >> 2) & 1)), w, dw);
+    }
+  }
+  template <class T>
+  static void forward(const T* params, const T* p, T* y) {
+    for (int l = 0; l < Levels; ++l) {
+      const T* table = params + static_cast<std::size_t>(l) * table_size * F;
+      T acc[F] = {};
+      corners<T>(l, p, [&](std::uint32_t idx, T w, const T*) {
+        for (int f = 0; f < F; ++f) acc[f] += w * table[static_cast<std::size_t>(idx) * F + f];
+      });
+      for (int f = 0; f < F; ++f) y[l * F + f] = acc[f];
+    }
+  }
+  /// Scatters dy into the tables' gradients; dx (may be null) gets the gradient w.r.t. the point
+  /// (zero outside the unit cube, where the encoding is clamped).
+  template <class T>
+  static void backward(const T* params, const T* p, const T* dy, T* dparams, T* dx) {
+    for (int l = 0; l < Levels; ++l) {
+      const std::size_t off = static_cast<std::size_t>(l) * table_size * F;
+      corners<T>(l, p, [&](std::uint32_t idx, T w, const T* dw) {
+        const std::size_t at = off + static_cast<std::size_t>(idx) * F;
+        T dot = 0;
+        for (int f = 0; f < F; ++f) {
+          if (dparams) dparams[at + f] += w * dy[l * F + f];
+          dot += params[at + f] * dy[l * F + f];
+        }
+        if (dx)
+          for (int d = 0; d < 3; ++d)
+            if (p[d] > T(0) && p[d] < T(1)) dx[d] += dot * dw[d];
+      });
+    }
+  }
+};
+
+}  // namespace evnerf::nn

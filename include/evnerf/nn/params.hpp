@@ -1,0 +1,91 @@
+// nn/params.hpp — a model's parameters and gradients in one flat buffer (so optimisers, checkpoints and
+// gradient checks see one array), per-thread gradient accumulators reduced in a fixed order, and Adam.
+// Depends on core/ only.
+#pragma once
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+#include "../core/error.hpp"
+#include "../core/parallel.hpp"
+
+namespace evnerf::nn {
+
+/// Parameters, their gradients, and one gradient accumulator per thread.
+template <class T = float>
+struct ParameterBuffer {
+  std::vector<T> values, grads;
+  std::vector<std::vector<T>> per_thread;
+
+  explicit ParameterBuffer(std::size_t n = 0) : values(n, T(0)), grads(n, T(0)) {}
+  std::size_t size() const { return values.size(); }
+  void zero_grads() { std::fill(grads.begin(), grads.end(), T(0)); }
+
+  /// Zeroed accumulators for `threads` threads.
+  void begin_accumulate(int threads) {
+    per_thread.resize(static_cast<std::size_t>(threads));
+    for (auto& g : per_thread) g.assign(values.size(), T(0));
+  }
+  /// grads = Σ_thread accumulators, summed in thread order (deterministic for a given thread count).
+  /// `used` limits the sum to the accumulators that were handed out.
+  void end_accumulate(int used) {
+    zero_grads();
+    const std::size_t n = values.size();
+    parallel_blocks(n, 1 << 16, [&](std::size_t b, std::size_t e, int) {
+      for (int t = 0; t < used; ++t) {
+        const T* g = per_thread[static_cast<std::size_t>(t)].data();
+        for (std::size_t i = b; i < e; ++i) grads[i] += g[i];
+      }
+    });
+  }
+};
+
+/// Adam (Kingma & Ba) with an exponential learning-rate decay lr(s) = lr · decay^(s / decay_steps).
+/// Defaults are Ev-NeRF's: lr 5e-4, β (0.9, 0.999), ε 1e-7, decay 0.1 over 250 000 steps.
+struct AdamConfig {
+  double lr = 5e-4, beta1 = 0.9, beta2 = 0.999, eps = 1e-7;
+  double decay = 0.1, decay_steps = 250000;
+};
+
+template <class T = float>
+class Adam {
+ public:
+  Adam() = default;
+  Adam(std::size_t n, AdamConfig cfg = {}) : cfg_(cfg), m_(n, T(0)), v_(n, T(0)) {}
+  double learning_rate() const { return cfg_.lr * std::pow(cfg_.decay, static_cast<double>(step_) / cfg_.decay_steps); }
+  long step() const { return step_; }
+  const AdamConfig& config() const { return cfg_; }
+  void set_config(const AdamConfig& c) { cfg_ = c; }
+
+  /// One update of `values` from `grads` (bias-corrected moments).
+  void update(std::vector<T>& values, const std::vector<T>& grads) {
+    require(values.size() == m_.size() && grads.size() == m_.size(), "Adam: parameter count changed");
+    ++step_;
+    const double lr = cfg_.lr * std::pow(cfg_.decay, static_cast<double>(step_ - 1) / cfg_.decay_steps);
+    const double bc1 = 1 - std::pow(cfg_.beta1, static_cast<double>(step_));
+    const double bc2 = 1 - std::pow(cfg_.beta2, static_cast<double>(step_));
+    const T a = static_cast<T>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<T>(cfg_.beta1),
+            b2 = static_cast<T>(cfg_.beta2), eps = static_cast<T>(cfg_.eps * std::sqrt(bc2));
+    parallel_blocks(values.size(), 1 << 16, [&](std::size_t b, std::size_t e, int) {
+      for (std::size_t i = b; i < e; ++i) {
+        const T g = grads[i];
+        m_[i] = b1 * m_[i] + (T(1) - b1) * g;
+        v_[i] = b2 * v_[i] + (T(1) - b2) * g * g;
+        values[i] -= a * m_[i] / (std::sqrt(v_[i]) + eps);
+      }
+    });
+  }
+  // State access for checkpoints.
+  std::vector<T>& m() { return m_; }
+  std::vector<T>& v() { return v_; }
+  const std::vector<T>& m() const { return m_; }
+  const std::vector<T>& v() const { return v_; }
+  void set_step(long s) { step_ = s; }
+
+ private:
+  AdamConfig cfg_;
+  std::vector<T> m_, v_;
+  long step_ = 0;
+};
+
+}  // namespace evnerf::nn

@@ -1,0 +1,102 @@
+#include <evnerf/core/rng.hpp>
+#include <evnerf/geometry/camera.hpp>
+#include <evnerf/geometry/trajectory.hpp>
+#include <evnerf/io/colmap.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+using namespace evnerf::geometry;
+
+TEST_CASE("rng: counter-based streams are reproducible and roughly uniform") {
+  Rng a(42), b(42), c(43);
+  CHECK(a.next_u64() == b.next_u64());
+  CHECK(a.next_u64() != c.next_u64());
+  Rng r(1);
+  double sum = 0, sq = 0;
+  const int n = 100000;
+  for (int i = 0; i < n; ++i) {
+    const double u = r.uniform();
+    REQUIRE(u >= 0.0);
+    REQUIRE(u < 1.0);
+    sum += u;
+  }
+  CHECK(sum / n == doctest::Approx(0.5).epsilon(0.01));
+  for (int i = 0; i < n; ++i) sq += r.normal() * 0 + std::pow(r.normal(), 2);
+  CHECK(sq / n == doctest::Approx(1.0).epsilon(0.03));
+  CHECK(r.split(1).next_u64() != r.split(2).next_u64());
+}
+
+TEST_CASE("trajectory: interpolation is linear in translation and slerp in rotation; range policy") {
+  Pose a, b;
+  b.t = Vec3(2, 0, 0);
+  b.q = Quat(Eigen::AngleAxisd(1.0, Vec3::UnitZ()));
+  Trajectory tr({1.0, 2.0}, {a, b}, "test");
+  const Pose m = tr.pose_at(1.5);
+  CHECK(m.t.x() == doctest::Approx(1.0));
+  CHECK(Eigen::AngleAxisd(m.q).angle() == doctest::Approx(0.5));
+  CHECK(tr.pose_at(1.0).t.x() == doctest::Approx(0.0));
+  CHECK(tr.pose_at(2.0).t.x() == doctest::Approx(2.0));
+  CHECK_THROWS_WITH_AS(tr.pose_at(0.5), doctest::Contains("outside the poses' range"), Error);
+  CHECK(tr.pose_at(2.5, OutOfRange::Clamp).t.x() == doctest::Approx(2.0));
+  CHECK_THROWS_AS(Trajectory({1.0, 1.0}, {a, b}), Error);
+}
+
+TEST_CASE("camera: distort(undistort(p)) round-trips within 1e-3 px over the whole sensor") {
+  // Strong distortion of the IJRR rotation sequences' calibration.
+  Camera cam(240, 180, 199.092366542, 198.82882047, 132.192071378, 110.712660011,
+             {-0.368436311798, 0.150947243557, -0.000296130534385, -0.000759431726241, 0.0});
+  double worst = 0;
+  for (int v = 0; v <= 180; v += 3)
+    for (int u = 0; u <= 240; u += 3) {
+      const Vec2 n = cam.undistort_to_normalized(u, v);
+      const Vec2 back = cam.project_normalized(n);
+      worst = std::max(worst, (back - Vec2(u, v)).norm());
+    }
+  CHECK(worst < 1e-3);
+}
+
+TEST_CASE("camera: rays go through the pixel they were made from") {
+  Camera cam(64, 48, 50, 52, 31.5, 23.5, {0.05, -0.01, 0.001, 0.002, 0});
+  Pose p = Pose::look_at(Vec3(1, 2, 3), Vec3(0, 0, 0), Vec3(0, 0, 1));
+  const Ray r = cam.ray(p, 10.25, 40.5);
+  const Vec3 world = r.origin + 2.7 * r.dir;
+  const Vec3 cam_pt = p.inverse().apply(world);
+  const Vec2 px = cam.project(cam_pt);
+  CHECK(px.x() == doctest::Approx(10.25).epsilon(1e-6));
+  CHECK(px.y() == doctest::Approx(40.5).epsilon(1e-6));
+  CHECK(cam_pt.z() == doctest::Approx(2.7));  // dir has unit z in camera coordinates
+}
+
+TEST_CASE("poses: OpenGL conversion round-trips and look_at looks along +z") {
+  Pose p = Pose::look_at(Vec3(0, 0, -5), Vec3(0, 0, 0), Vec3(0, -1, 0));
+  CHECK((p.q * Vec3::UnitZ() - Vec3::UnitZ()).norm() < 1e-12);
+  const Pose back = from_opengl(to_opengl(p));
+  CHECK((back.matrix() - p.matrix()).norm() < 1e-12);
+  const Pose comp = p * p.inverse();
+  CHECK((comp.matrix() - Eigen::Matrix4d::Identity()).norm() < 1e-12);
+}
+
+TEST_CASE("COLMAP text model: world-to-camera converted to camera-to-world") {
+  const std::string cams = "# comment\n1 PINHOLE 640 480 500 501 320 240\n2 OPENCV 100 80 90 90 50 40 0.1 0.01 0 0\n";
+  const std::string imgs =
+      "# header\n1 0.7071067811865476 0 0.7071067811865476 0 1 2 3 1 a b.png\n10 20 -1\n"
+      "2 1 0 0 0 0 0 0 2 c.png\n\n";
+  auto cameras = io::parse_colmap_cameras(cams, "cameras.txt");
+  REQUIRE(cameras.size() == 2);
+  CHECK(cameras.at(1).fy() == 501);
+  CHECK(cameras.at(2).distortion()[0] == doctest::Approx(0.1));
+  auto images = io::parse_colmap_images(imgs, "images.txt");
+  REQUIRE(images.size() == 2);
+  CHECK(images[0].name == "a b.png");
+  // Camera centre C = −Rᵀ t.
+  const Mat3 R = Quat(0.7071067811865476, 0, 0.7071067811865476, 0).toRotationMatrix();
+  const Vec3 C = -R.transpose() * Vec3(1, 2, 3);
+  CHECK((images[0].c2w.t - C).norm() < 1e-9);
+  CHECK_THROWS_WITH(io::parse_colmap_cameras("1 FISHEYE 10 10 1 2 3\n", "cameras.txt"),
+                    doctest::Contains("cameras.txt:1: unsupported camera model 'FISHEYE'"));
+  CHECK_THROWS_WITH(io::parse_colmap_cameras("1 PINHOLE 10 10 1 2 3\n", "cameras.txt"),
+                    doctest::Contains("PINHOLE needs 4 parameters"));
+  CHECK_THROWS_WITH(io::parse_colmap_images("1 1 0 0 x 0 0 0 1 a.png\n", "images.txt"),
+                    doctest::Contains("images.txt:1:"));
+}

@@ -1,0 +1,89 @@
+#include <evnerf/events/slicing.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+using namespace evnerf::events;
+
+namespace {
+EventStream random_stream(std::size_t n, int w, int h, std::uint64_t seed) {
+  Rng rng(seed);
+  EventStream ev;
+  ev.width = w;
+  ev.height = h;
+  double t = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    t += rng.uniform() * 1e-3;
+    if (rng.below(10) == 0) t += 0;  // repeated timestamps are allowed
+    ev.push_back(t, static_cast<int>(rng.below(w)), static_cast<int>(rng.below(h)), rng.below(2) ? 1 : -1);
+  }
+  return ev;
+}
+}  // namespace
+
+TEST_CASE("slicing counts positive and negative events per pixel exactly like a brute-force count") {
+  auto ev = random_stream(20000, 17, 11, 3);
+  std::vector<double> b{ev.t[100], ev.t[5000] + 1e-9, ev.t[5000] + 2e-9, ev.t[12000], ev.t[19990]};
+  auto set = slice_events(ev, b);
+  REQUIRE(set.size() == 4);
+  for (std::size_t s = 0; s < set.size(); ++s) {
+    std::vector<int> pos(17 * 11, 0), neg(17 * 11, 0);
+    std::size_t total = 0;
+    for (std::size_t k = 0; k < ev.size(); ++k)
+      if (ev.t[k] >= b[s] && ev.t[k] < b[s + 1]) {
+        (ev.polarity[k] > 0 ? pos : neg)[ev.y[k] * 17 + ev.x[k]]++;
+        ++total;
+      }
+    CAPTURE(s);
+    CHECK(set.slices[s].total == total);
+    std::size_t active = 0;
+    for (int p = 0; p < 17 * 11; ++p) {
+      CHECK(set.slices[s].pos[p] == pos[p]);
+      CHECK(set.slices[s].neg[p] == neg[p]);
+      active += (pos[p] || neg[p]);
+    }
+    CHECK(set.slices[s].active.size() == active);
+  }
+  CHECK(set.slices[1].total == 0);  // an empty slice between two close boundaries
+}
+
+TEST_CASE("uniform boundaries and bad boundaries") {
+  auto b = uniform_boundaries(1.0, 2.0, 4);
+  CHECK(b.size() == 5);
+  CHECK(b[2] == doctest::Approx(1.5));
+  EventStream ev;
+  ev.width = ev.height = 2;
+  CHECK_THROWS_WITH(slice_events(ev, {1.0, 1.0}), doctest::Contains("boundaries must increase strictly"));
+}
+
+TEST_CASE("noise injection adds round(ratio × count) events with balanced polarity, redrawn per call") {
+  auto ev = random_stream(40000, 64, 48, 9);
+  auto set = slice_events(ev, {ev.t.front(), ev.t.back() + 1});
+  const auto& s = set.slices[0];
+  Rng rng(4);
+  auto noisy = inject_noise(s, 0.05, rng);
+  const std::size_t added = noisy.total - s.total;
+  CHECK(added == 2000);
+  long dpos = 0, dneg = 0;
+  for (std::size_t p = 0; p < s.pixels(); ++p) {
+    dpos += noisy.pos[p] - s.pos[p];
+    dneg += noisy.neg[p] - s.neg[p];
+  }
+  CHECK(dpos + dneg == 2000);
+  CHECK(std::abs(dpos - dneg) < 200);  // ~4.5 σ of a fair coin over 2000 draws
+  auto again = inject_noise(s, 0.05, rng);
+  CHECK(again.pos != noisy.pos);
+  Rng r1(4);
+  CHECK(inject_noise(s, 0.05, r1).pos == noisy.pos);  // same seed, same noise
+  CHECK(inject_noise(s, 0.0, rng).pos == s.pos);
+  CHECK_THROWS(inject_noise(s, -1.0, rng));
+}
+
+TEST_CASE("event stream validation names the offending event") {
+  EventStream ev;
+  ev.width = 4;
+  ev.height = 4;
+  ev.push_back(0.1, 1, 1, 1);
+  ev.push_back(0.05, 1, 1, 1);
+  CHECK_THROWS_WITH(ev.validate("s"), doctest::Contains("s: event 1 goes back in time"));
+}

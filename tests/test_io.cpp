@@ -1,0 +1,188 @@
+#include <evnerf/io/dataset.hpp>
+#include <evnerf/io/image_io.hpp>
+#include <evnerf/io/inspect.hpp>
+
+#include <fstream>
+
+#include "common.hpp"
+
+using namespace evnerf;
+namespace fs = std::filesystem;
+
+namespace {
+fs::path temp_dir(const std::string& name) {
+  fs::path d = fs::temp_directory_path() / ("evnerf_test_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+void write(const fs::path& p, const std::string& s) { std::ofstream(p) << s; }
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+}  // namespace
+
+TEST_CASE("events.txt: parses t x y p and maps polarity 1/0 to ±1") {
+  auto ev = io::parse_events("# comment\n0.5 3 4 1\n\n0.6 0 0 0\n0.6 239 179 1\r\n", "e.txt", 240, 180);
+  REQUIRE(ev.size() == 3);
+  CHECK(ev.t[0] == 0.5);
+  CHECK(ev.x[0] == 3);
+  CHECK(ev.y[0] == 4);
+  CHECK(ev.polarity[0] == 1);
+  CHECK(ev.polarity[1] == -1);
+  CHECK(ev.x[2] == 239);
+}
+
+TEST_CASE("events.txt: every kind of bad input names the file, the line and what is wrong") {
+  auto err = [](const std::string& text) {
+    return error_of([&] { io::parse_events(text, "events.txt", 240, 180); });
+  };
+  CHECK_CONTAINS(err("0.1 1 2 1\n0.2 1 2\n"), "events.txt:2: line is truncated: field 'polarity' is missing");
+  CHECK_CONTAINS(err("0.1 1 2 1\nabc 1 2 1\n"), "events.txt:2: field 't' is not a number: 'abc'");
+  CHECK_CONTAINS(err("0.1 1.5 2 1\n"), "events.txt:1: field 'x' is not an integer");
+  CHECK_CONTAINS(err("0.1 1 2 7\n"), "events.txt:1: unknown polarity code 7");
+  CHECK_CONTAINS(err("0.1 240 2 1\n"), "events.txt:1: pixel (240, 2) lies outside the 240x180 sensor");
+  CHECK_CONTAINS(err("0.1 1 -1 1\n"), "lies outside");
+  CHECK_CONTAINS(err("0.2 1 2 1\n0.1 1 2 1\n"), "events.txt:2: timestamp 0.100000 goes back in time");
+  CHECK_CONTAINS(err("nan 1 2 1\n"), "events.txt:1: field 't' is not finite");
+  CHECK_CONTAINS(err("inf 1 2 1\n"), "not finite");
+  CHECK_CONTAINS(err("0.1 1 2 1 5\n"), "events.txt:1: unexpected extra field '5'");
+  CHECK_CONTAINS(err("# only a comment\n"), "events.txt:0: no events in file");
+  CHECK_CONTAINS(err(""), "no events");
+  CHECK_CONTAINS(error_of([] { io::read_events_txt("/nonexistent/events.txt", 240, 180); }), "/nonexistent/events.txt:0: cannot open file");
+}
+
+TEST_CASE("calib.txt, groundtruth.txt and images.txt: parsing and bad input") {
+  auto cam = io::parse_calib("335.4 335.3 129.9 99.1 -0.13 0.09 -0.0003 0.0001 0.0\n", "calib.txt", 240, 180);
+  CHECK(cam.fx() == doctest::Approx(335.4));
+  CHECK(cam.distortion()[0] == doctest::Approx(-0.13));
+  CHECK(io::parse_calib("200 200 120 90\n", "calib.txt", 240, 180).distorted() == false);
+  CHECK_CONTAINS(error_of([] { io::parse_calib("200 200 120 90 0.1\n", "calib.txt", 240, 180); }), "calib.txt:1: calibration needs 4, 8 or 9 numbers (fx fy cx cy [k1 k2 p1 p2 [k3]]), found 5");
+  CHECK_CONTAINS(error_of([] { io::parse_calib("", "calib.txt", 240, 180); }), "calibration file is empty");
+  CHECK_CONTAINS(error_of([] { io::parse_calib("-1 200 120 90\n", "calib.txt", 240, 180); }), "focal lengths must be positive");
+
+  auto tr = io::parse_poses("0.1 1 2 3 0 0 0 1\n0.2 1 2 3 0 0 0.7071068 0.7071068\n", "gt.txt");
+  CHECK(tr.size() == 2);
+  CHECK(tr.poses()[1].q.z() == doctest::Approx(0.7071068));
+  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0\n", "gt.txt"); }), "gt.txt:1: line is truncated: field 'qw' is missing");
+  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 1\n0.1 1 2 3 0 0 0 1\n", "gt.txt"); }), "gt.txt:2: pose timestamps must increase strictly");
+  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 0\n", "gt.txt"); }), "gt.txt:1: quaternion is far from unit length");
+  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 nan 0 0 0 1\n", "gt.txt"); }), "'pz' is not finite");
+
+  auto fr = io::parse_frames("0.0 images/a.png\n0.1 images/b c.png\n", "images.txt", "/data");
+  REQUIRE(fr.size() == 2);
+  CHECK(fr.paths[1] == fs::path("/data/images/b c.png"));
+  CHECK_CONTAINS(error_of([] { io::parse_frames("0.0\n", "images.txt", "/d"); }), "images.txt:1: line is truncated: field 'image path' is missing");
+}
+
+TEST_CASE("npy: round trip, atomic write, and corrupt files are reported") {
+  const auto dir = temp_dir("npy");
+  std::vector<float> v{1.f, 2.5f, -3.f, 4.f, 5.f, 6.f};
+  io::save_npy(dir / "a.npy", v.data(), {2, 3});
+  auto back = io::load_npy<float>(dir / "a.npy");
+  CHECK(back.shape == std::vector<std::size_t>{2, 3});
+  CHECK(back.data == v);
+  CHECK_CONTAINS(error_of([&] { io::load_npy<double>(dir / "a.npy"); }), "a.npy:0: cannot read .npy");
+  // Truncate the file.
+  const std::string bytes = read_file(dir / "a.npy");
+  write(dir / "b.npy", bytes.substr(0, bytes.size() - 5));
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "b.npy"); }), "b.npy");
+  write(dir / "c.npy", "not an npy file at all");
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "c.npy"); }), "c.npy");
+  for (auto& e : fs::directory_iterator(dir)) CHECK(e.path().string().find(".tmp.") == std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("dataset: a folder loads, the event cache is used on the second load and survives corruption") {
+  const auto dir = temp_dir("ds");
+  write(dir / "events.txt", "0.10 1 2 1\n0.11 3 4 0\n0.12 5 6 1\n");
+  write(dir / "calib.txt", "100 100 16 12\n");
+  write(dir / "sensor.txt", "32 24\n");
+  write(dir / "groundtruth.txt", "0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n");
+  io::LoadOptions opt;
+  opt.cache_root = dir / "cache";
+  auto a = io::load_ijrr(dir, opt);
+  CHECK_FALSE(a.from_cache);
+  CHECK(a.camera.width() == 32);
+  auto b = io::load_ijrr(dir, opt);
+  CHECK(b.from_cache);
+  CHECK(b.events.t == a.events.t);
+  CHECK(b.events.polarity == a.events.polarity);
+  // Corrupt the cache: the loader must fall back to the text file, not return garbage.
+  for (auto& e : fs::recursive_directory_iterator(dir / "cache"))
+    if (e.path().filename() == "t.npy") write(e.path(), "garbage");
+  auto c = io::load_ijrr(dir, opt);
+  CHECK_FALSE(c.from_cache);
+  CHECK(c.events.t == a.events.t);
+  CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir / "missing", opt); }), "not a folder");
+  fs::remove(dir / "calib.txt");
+  CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir, opt); }), "calib.txt:0: cannot open file");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("PNG: write then read back; montage and depth colouring have the right shape") {
+  const auto dir = temp_dir("png");
+  Image img(5, 4, 1);
+  for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = static_cast<float>(i) / 19.f;
+  io::write_png(dir / "a.png", img);
+  auto back = io::read_png(dir / "a.png");
+  REQUIRE(back.width == 5);
+  for (std::size_t i = 0; i < img.data.size(); ++i) CHECK(back.data[i] == doctest::Approx(img.data[i]).epsilon(0.003));
+  auto m = io::montage({img, img}, 3);
+  CHECK(m.width == 12);
+  CHECK(m.channels == 3);
+  CHECK(io::colorize(img, 0, 1).channels == 3);
+  CHECK_CONTAINS(error_of([&] { io::read_png(dir / "missing.png"); }), "missing.png:0: cannot open");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("real data: IJRR slider_depth chunk loads with the documented counts and warnings") {
+  const auto folder = evtest::shared_data("ijrr_slider_depth_chunk");
+  if (folder.empty()) {
+    MESSAGE("../shared/data absent: skipped");
+    return;
+  }
+  io::LoadOptions opt;
+  opt.use_cache = false;
+  auto d = io::load_ijrr(folder, opt);
+  auto s = io::summarize(d);
+  CHECK(s.events == 50000);
+  CHECK(s.on == 21147);
+  CHECK(s.off == 28853);
+  CHECK(s.width == 240);
+  CHECK(s.height == 180);
+  CHECK(s.frames == 87);
+  CHECK(s.poses == 339);
+  bool warned = false;
+  for (auto& w : s.warnings) warned |= w.find("frame 0 (t = 0.000000 s) precedes the first pose") != std::string::npos;
+  CHECK(warned);
+  CHECK(d.camera.fx() == doctest::Approx(335.419462958));
+  auto frame = io::read_png(d.frames.paths[0]);
+  CHECK(frame.width == 240);
+  CHECK(frame.height == 180);
+}
+
+TEST_CASE("real data: every IJRR event window parses, including float-noise timestamps") {
+  const auto root = evtest::shared_data("ijrr_event_windows");
+  if (root.empty()) {
+    MESSAGE("../shared/data absent: skipped");
+    return;
+  }
+  int n = 0;
+  for (auto& e : fs::directory_iterator(root)) {
+    if (!e.is_directory()) continue;
+    io::LoadOptions opt;
+    opt.use_cache = false;
+    auto d = io::load_ijrr(e.path(), opt);
+    CHECK(d.events.size() >= 20000);
+    CHECK(d.camera.distortion()[0] == doctest::Approx(-0.368436311798));
+    d.events.validate();
+    ++n;
+  }
+  CHECK(n == 12);
+}

@@ -1,0 +1,228 @@
+#include <evnerf/nn/activation.hpp>
+#include <evnerf/nn/encoding.hpp>
+#include <evnerf/nn/mlp.hpp>
+#include <evnerf/nn/params.hpp>
+#include <evnerf/nn/reference.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+using namespace evnerf::nn;
+
+TEST_CASE_TEMPLATE("activations: derivative from the output equals the ad/ and finite-difference derivative", A, ReLU,
+                   Softplus, Sigmoid, TruncExp, Identity) {
+  for (double x : {-2.3, -0.4, 0.35, 1.7, 4.0}) {
+    CAPTURE(x);
+    const double y = A::f(x);
+    auto vg = ad::value_and_grad([](auto v) { return A::apply(v); }, std::array<double, 1>{x});
+    CHECK(vg.value == doctest::Approx(y).epsilon(1e-12));
+    CHECK(A::df_from_y(y) == doctest::Approx(vg.grad[0]).epsilon(1e-9));
+    const double h = 1e-6, fd = (A::f(x + h) - A::f(x - h)) / (2 * h);
+    CHECK(A::df_from_y(y) == doctest::Approx(fd).epsilon(1e-6));
+  }
+}
+
+template <class Enc>
+void check_encoding_gradients(std::uint64_t seed, bool check_input) {
+  Rng rng(seed);
+  std::vector<double> params(Enc::n_params);
+  Enc::init(params.data(), rng);
+  for (auto& p : params) p += rng.uniform(-0.5, 0.5);  // larger values than init to exercise the gradient
+  std::vector<double> x(Enc::in_dims), w(Enc::out_dims);
+  for (auto& v : x) v = rng.uniform(0.1, 0.9);
+  for (auto& v : w) v = rng.uniform(-1, 1);
+  auto loss = [&](const std::vector<double>& xx, const std::vector<double>& pp) {
+    std::vector<double> y(Enc::out_dims);
+    Enc::forward(pp.data(), xx.data(), y.data());
+    double s = 0;
+    for (int i = 0; i < Enc::out_dims; ++i) s += w[i] * y[i];
+    return s;
+  };
+  std::vector<double> dx(Enc::in_dims, 0.0), dp(Enc::n_params, 0.0);
+  Enc::backward(params.data(), x.data(), w.data(), dp.data(), dx.data());
+  if (check_input)
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& xx) { return loss(xx, params); }, x, dx) < 1e-6);
+  if (Enc::n_params > 0) {
+    // Only the touched entries can be non-zero; check those and a sample of the rest.
+    std::vector<std::size_t> idx;
+    for (std::size_t i = 0; i < dp.size(); ++i)
+      if (dp[i] != 0 || rng.below(20000) == 0) idx.push_back(i);
+    CHECK(idx.size() > 0);
+    double worst = 0;
+    for (std::size_t i : idx) {
+      auto pp = params;
+      const double h = 1e-6;
+      pp[i] += h;
+      const double fp = loss(x, pp);
+      pp[i] -= 2 * h;
+      const double fm = loss(x, pp);
+      worst = std::max(worst, std::abs((fp - fm) / (2 * h) - dp[i]));
+    }
+    CHECK(worst < 1e-7);
+  }
+}
+
+TEST_CASE("encodings: finite-difference gradient checks in double") {
+  SUBCASE("Frequency<10>") { check_encoding_gradients<Frequency<10>>(1, true); }
+  SUBCASE("Frequency<4>") { check_encoding_gradients<Frequency<4>>(2, true); }
+  SUBCASE("SphericalHarmonics<4>") { check_encoding_gradients<SphericalHarmonics<4>>(3, true); }
+  SUBCASE("HashGrid (dense and hashed levels)") { check_encoding_gradients<HashGrid<6, 2, 10, 4, 64>>(4, true); }
+  SUBCASE("Identity") { check_encoding_gradients<IdentityEncoding<3>>(5, true); }
+}
+
+TEST_CASE("spherical harmonics are orthonormal over the sphere") {
+  using SH = SphericalHarmonics<4>;
+  constexpr int K = SH::out_dims;
+  std::vector<double> gram(K * K, 0.0);
+  Rng rng(7);
+  const int n = 200000;
+  for (int s = 0; s < n; ++s) {
+    const double z = rng.uniform(-1, 1), phi = rng.uniform(0, 6.283185307179586), r = std::sqrt(1 - z * z);
+    const double d[3] = {r * std::cos(phi), r * std::sin(phi), z};
+    double y[K];
+    SH::forward<double>(nullptr, d, y);
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) gram[i * K + j] += y[i] * y[j] * 4 * 3.141592653589793 / n;
+  }
+  for (int i = 0; i < K; ++i)
+    for (int j = 0; j < K; ++j) CHECK(gram[i * K + j] == doctest::Approx(i == j ? 1.0 : 0.0).epsilon(0.03).scale(1));
+}
+
+TEST_CASE("hash grid: a grid point reproduces its table entry; dense levels do not collide") {
+  using G = HashGrid<2, 1, 12, 4, 8>;  // both levels small enough to be dense
+  std::vector<double> p(G::n_params);
+  for (std::size_t i = 0; i < p.size(); ++i) p[i] = static_cast<double>(i);
+  const double x[3] = {0.25, 0.5, 0.75};  // exactly on grid points of the 4³ level
+  double y[2];
+  G::forward(p.data(), x, y);
+  CHECK(y[0] == doctest::Approx(static_cast<double>(G::index(0, 1, 2, 3))));
+}
+
+template <class M>
+void check_mlp_gradients(std::uint64_t seed) {
+  Rng rng(seed);
+  const int n = 5;
+  std::vector<double> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), w(static_cast<std::size_t>(M::out_dims) * n);
+  M::init(params.data(), rng);
+  for (auto& p : params) p += rng.uniform(-0.05, 0.05);  // non-zero biases
+  for (auto& v : x) v = rng.uniform(-1, 1);
+  for (auto& v : w) v = rng.uniform(-1, 1);
+  typename M::template Workspace<double> ws;
+  auto loss = [&](const std::vector<double>& pp, const std::vector<double>& xx) {
+    const double* y = M::forward(pp.data(), xx.data(), n, ws);
+    double s = 0;
+    for (std::size_t i = 0; i < w.size(); ++i) s += w[i] * y[i];
+    return s;
+  };
+  loss(params, x);
+  std::vector<double> dp(M::n_params, 0.0), dx(x.size(), 0.0);
+  M::backward(params.data(), ws, w.data(), dp.data(), dx.data());
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& pp) { return loss(pp, x); }, params, dp) < 1e-6);
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& xx) { return loss(params, xx); }, x, dx) < 1e-6);
+}
+
+using MlpPlain = Mlp<3, 8, 2, 2, ReLU, Identity>;
+using MlpSoftSkip = Mlp<5, 16, 4, 3, Softplus, Sigmoid, 1>;
+using MlpSkip0 = Mlp<4, 12, 3, 1, ReLU, Identity, 0>;
+using MlpLinear = Mlp<6, 4, 0, 2, ReLU, Identity>;
+using MlpSigmoidExp = Mlp<7, 24, 5, 4, Sigmoid, TruncExp, 2>;
+TEST_CASE_TEMPLATE("MLP: finite-difference gradient checks in double, with and without skips", M, MlpPlain,
+                   MlpSoftSkip, MlpSkip0, MlpLinear, MlpSigmoidExp) {
+  check_mlp_gradients<M>(11);
+}
+
+TEST_CASE("encoding → MLP composed: finite-difference check through both (hash-grid tables included)") {
+  using E = HashGrid<4, 2, 9, 4, 32>;
+  using M = Mlp<E::out_dims, 16, 2, 1, ReLU, Identity>;
+  Rng rng(21);
+  const int n = 3;
+  std::vector<double> params(E::n_params + M::n_params);
+  E::init(params.data(), rng);
+  for (std::size_t i = 0; i < E::n_params; ++i) params[i] += rng.uniform(-0.3, 0.3);
+  M::init(params.data() + E::n_params, rng);
+  std::vector<double> pts(3 * n);
+  for (auto& v : pts) v = rng.uniform(0.05, 0.95);
+  M::Workspace<double> ws;
+  std::vector<double> enc(static_cast<std::size_t>(E::out_dims) * n);
+  auto loss = [&](const std::vector<double>& pp, const std::vector<double>& xx) {
+    for (int j = 0; j < n; ++j) E::forward(pp.data(), &xx[3 * j], &enc[static_cast<std::size_t>(j) * E::out_dims]);
+    const double* y = M::forward(pp.data() + E::n_params, enc.data(), n, ws);
+    double s = 0;
+    for (int j = 0; j < n; ++j) s += std::sin(y[j]);
+    return s;
+  };
+  loss(params, pts);
+  std::vector<double> dy(n), denc(enc.size(), 0.0), dp(params.size(), 0.0), dx(pts.size(), 0.0);
+  for (int j = 0; j < n; ++j) dy[j] = std::cos(ws.output[j]);
+  M::backward(params.data() + E::n_params, ws, dy.data(), dp.data() + E::n_params, denc.data());
+  for (int j = 0; j < n; ++j)
+    E::backward(params.data(), &pts[3 * j], &denc[static_cast<std::size_t>(j) * E::out_dims], dp.data(), &dx[3 * j]);
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& xx) { return loss(params, xx); }, pts, dx) < 1e-5);
+  // Parameters: every touched table entry plus all MLP weights.
+  std::vector<double> sub_grad;
+  std::vector<std::size_t> sub;
+  for (std::size_t i = 0; i < params.size(); ++i)
+    if (i >= E::n_params || dp[i] != 0) sub.push_back(i);
+  double worst = 0;
+  for (std::size_t i : sub) {
+    auto pp = params;
+    pp[i] += 1e-6;
+    const double fp = loss(pp, pts);
+    pp[i] -= 2e-6;
+    const double fm = loss(pp, pts);
+    worst = std::max(worst, std::abs((fp - fm) / 2e-6 - dp[i]));
+  }
+  CHECK(worst < 1e-6);
+}
+
+template <class M>
+void check_fused_against_reference(int n) {
+  Rng rng(5);
+  std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
+  M::init(params.data(), rng);
+  for (auto& p : params) p += static_cast<float>(rng.uniform(-0.01, 0.01));
+  for (auto& v : x) v = static_cast<float>(rng.uniform(-1, 1));
+  for (auto& v : dy) v = static_cast<float>(rng.uniform(-1, 1));
+  typename M::template Workspace<float> ws;
+  const float* y = M::forward(params.data(), x.data(), n, ws);
+  std::vector<float> dp(M::n_params, 0.f), dx(x.size(), 0.f);
+  M::backward(params.data(), ws, dy.data(), dp.data(), dx.data());
+  auto ref = reference_mlp_forward_backward<M>(params, x, n, dy);
+  double ymax = 0, yerr = 0, gmax = 0, gerr = 0, xmax = 0, xerr = 0;
+  for (std::size_t i = 0; i < ref.y.size(); ++i) {
+    ymax = std::max(ymax, std::abs(double(ref.y[i])));
+    yerr = std::max(yerr, std::abs(double(ref.y[i]) - y[i]));
+  }
+  for (std::size_t i = 0; i < dp.size(); ++i) {
+    gmax = std::max(gmax, std::abs(double(ref.dparams[i])));
+    gerr = std::max(gerr, std::abs(double(ref.dparams[i]) - dp[i]));
+  }
+  for (std::size_t i = 0; i < dx.size(); ++i) {
+    xmax = std::max(xmax, std::abs(double(ref.dx[i])));
+    xerr = std::max(xerr, std::abs(double(ref.dx[i]) - dx[i]));
+  }
+  CHECK(yerr <= 1e-4 * std::max(1.0, ymax));
+  CHECK(gerr <= 1e-4 * std::max(1.0, gmax));
+  CHECK(xerr <= 1e-4 * std::max(1.0, xmax));
+}
+
+TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and backward") {
+  SUBCASE("paper trunk shape (63 → 8×256, skip 4 → 257)") {
+    check_fused_against_reference<Mlp<63, 256, 8, 257, ReLU, Identity, 4>>(96);
+  }
+  SUBCASE("small shape") { check_fused_against_reference<Mlp<16, 32, 2, 4, ReLU, Sigmoid>>(50); }
+}
+
+TEST_CASE("Adam follows its update rule and the decay schedule") {
+  AdamConfig cfg;
+  cfg.lr = 0.1;
+  cfg.decay = 0.5;
+  cfg.decay_steps = 1;
+  Adam<double> opt(1, cfg);
+  std::vector<double> v{1.0}, g{2.0};
+  opt.update(v, g);  // first step: m̂ = g, v̂ = g², update = lr · g/|g|
+  CHECK(v[0] == doctest::Approx(1.0 - 0.1).epsilon(1e-6));
+  opt.update(v, g);  // second step at lr · 0.5
+  CHECK(v[0] == doctest::Approx(0.9 - 0.05).epsilon(1e-5));
+  CHECK(opt.learning_rate() == doctest::Approx(0.1 * 0.25));
+}
