@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Builds evnerf and runs the whole test suite (doctest via ctest, failtests, the installed-package
+# consumer). Installs missing Debian packages first.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/deps.sh
+BUILD=${BUILD:-build}
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_TESTS=ON -DEVNERF_BUILD_EXAMPLES=ON \
+  -DCMAKE_INSTALL_PREFIX="$PWD/$BUILD/install" >/dev/null
+cmake --build "$BUILD" -j"$(nproc)"
+# Install, then build a separate project against the installed package with find_package(evnerf).
+cmake --install "$BUILD" >/dev/null
+cmake -S tests/consumer -B "$BUILD/consumer" -G Ninja -DCMAKE_PREFIX_PATH="$PWD/$BUILD/install" >/dev/null
+cmake --build "$BUILD/consumer" >/dev/null
+"$BUILD/consumer/consumer"
+cd "$BUILD" && ctest --output-on-failure -j"$(nproc)" --timeout 900
