@@ -1,0 +1,149 @@
+// eval/metrics.hpp — image quality against ground truth (MSE, PSNR, SSIM as in Wang et al. 2004 with
+// scikit-image's Gaussian settings) and the alignments events require before any metric (brightness is
+// fixed only up to gain and offset). Depends on core/ only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "../core/error.hpp"
+#include "../core/types.hpp"
+
+namespace evnerf::eval {
+
+inline void require_same_shape(const Image& a, const Image& b) {
+  require(a.width == b.width && a.height == b.height && a.channels == b.channels,
+          "metrics: images differ in size or channels");
+}
+
+inline double mse(const Image& a, const Image& b) {
+  require_same_shape(a, b);
+  double s = 0;
+  for (std::size_t i = 0; i < a.data.size(); ++i) s += double(a.data[i] - b.data[i]) * (a.data[i] - b.data[i]);
+  return a.data.empty() ? 0 : s / a.data.size();
+}
+inline double psnr(const Image& a, const Image& b) {
+  const double m = mse(a, b);
+  return m <= 0 ? INFINITY : 10 * std::log10(1.0 / m);
+}
+
+/// SSIM with an 11-tap Gaussian window (σ 1.5), K1 0.01, K2 0.03, data range 1, population covariances,
+/// 'reflect' borders and the mean over the interior (5 px cropped), per channel then averaged — the
+/// settings of skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5,
+/// use_sample_covariance=False, data_range=1).
+inline double ssim(const Image& a, const Image& b) {
+  require_same_shape(a, b);
+  const int W = a.width, H = a.height, C = a.channels, R = 5;
+  require(W > 2 * R && H > 2 * R, "ssim: images must be larger than 11x11");
+  double k[2 * R + 1], ks = 0;
+  for (int i = -R; i <= R; ++i) ks += k[i + R] = std::exp(-0.5 * i * i / (1.5 * 1.5));
+  for (double& v : k) v /= ks;
+  auto reflect = [](int i, int n) {
+    while (i < 0 || i >= n) i = i < 0 ? -i - 1 : 2 * n - i - 1;
+    return i;
+  };
+  auto filter = [&](const std::vector<double>& in) {
+    std::vector<double> tmp(in.size()), out(in.size());
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        double s = 0;
+        for (int i = -R; i <= R; ++i) s += k[i + R] * in[static_cast<std::size_t>(y) * W + reflect(x + i, W)];
+        tmp[static_cast<std::size_t>(y) * W + x] = s;
+      }
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        double s = 0;
+        for (int i = -R; i <= R; ++i) s += k[i + R] * tmp[static_cast<std::size_t>(reflect(y + i, H)) * W + x];
+        out[static_cast<std::size_t>(y) * W + x] = s;
+      }
+    return out;
+  };
+  const double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+  double total = 0;
+  for (int c = 0; c < C; ++c) {
+    std::vector<double> x(a.pixels()), y(a.pixels()), xx(a.pixels()), yy(a.pixels()), xy(a.pixels());
+    for (std::size_t i = 0; i < a.pixels(); ++i) {
+      x[i] = a.data[i * C + c];
+      y[i] = b.data[i * C + c];
+      xx[i] = x[i] * x[i];
+      yy[i] = y[i] * y[i];
+      xy[i] = x[i] * y[i];
+    }
+    const auto ux = filter(x), uy = filter(y), uxx = filter(xx), uyy = filter(yy), uxy = filter(xy);
+    double s = 0;
+    std::size_t n = 0;
+    for (int yy_ = R; yy_ < H - R; ++yy_)
+      for (int xx_ = R; xx_ < W - R; ++xx_) {
+        const std::size_t i = static_cast<std::size_t>(yy_) * W + xx_;
+        const double vx = uxx[i] - ux[i] * ux[i], vy = uyy[i] - uy[i] * uy[i], vxy = uxy[i] - ux[i] * uy[i];
+        s += ((2 * ux[i] * uy[i] + c1) * (2 * vxy + c2)) / ((ux[i] * ux[i] + uy[i] * uy[i] + c1) * (vx + vy + c2));
+        ++n;
+      }
+    total += s / n;
+  }
+  return total / C;
+}
+
+enum class Alignment { LogAffine, MinMax, None };
+inline const char* to_string(Alignment a) {
+  return a == Alignment::LogAffine ? "log-affine" : a == Alignment::MinMax ? "min-max" : "none";
+}
+inline Alignment parse_alignment(const std::string& s) {
+  if (s == "log-affine") return Alignment::LogAffine;
+  if (s == "min-max") return Alignment::MinMax;
+  if (s == "none") return Alignment::None;
+  throw Error("unknown alignment '" + s + "' (expected log-affine, min-max or none)");
+}
+
+inline Image min_max(const Image& a) {
+  Image o = a;
+  const auto [lo, hi] = std::minmax_element(a.data.begin(), a.data.end());
+  const float span = *hi - *lo;
+  for (auto& v : o.data) v = span > 0 ? (v - *lo) / span : 0.f;
+  return o;
+}
+
+/// Brings `pred` to `gt`'s brightness. LogAffine: least squares a·log(p+ε)+b ≈ log(g+ε) over all
+/// pixels, then exp(·)−ε clamped to [0, 1] (ε = 1e-3 as in the loss). MinMax: both to [0, 1] (changes
+/// gt too). Returns the aligned prediction and the (possibly normalised) ground truth.
+inline std::pair<Image, Image> align(const Image& pred, const Image& gt, Alignment how) {
+  require_same_shape(pred, gt);
+  if (how == Alignment::None) return {pred, gt};
+  if (how == Alignment::MinMax) return {min_max(pred), min_max(gt)};
+  const double eps = 1e-3;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double n = static_cast<double>(pred.data.size());
+  for (std::size_t i = 0; i < pred.data.size(); ++i) {
+    const double x = std::log(std::max(0.0, double(pred.data[i])) + eps), y = std::log(std::max(0.0, double(gt.data[i])) + eps);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  const double var = sxx - sx * sx / n;
+  const double a = var > 1e-12 ? (sxy - sx * sy / n) / var : 0.0, b = (sy - a * sx) / n;
+  Image o = pred;
+  for (auto& v : o.data)
+    v = static_cast<float>(std::clamp(std::exp(a * std::log(std::max(0.0, double(v)) + eps) + b) - eps, 0.0, 1.0));
+  return {o, gt};
+}
+
+struct Scores {
+  double mse = 0, psnr = 0, ssim = 0;
+};
+inline Scores score(const Image& pred, const Image& gt, Alignment how) {
+  const auto [p, g] = align(pred, gt, how);
+  return {mse(p, g), psnr(p, g), ssim(p, g)};
+}
+
+/// Converts a colour image to grey luminance (Rec. 601 weights); grey images pass through.
+inline Image to_grey(const Image& a) {
+  if (a.channels == 1) return a;
+  Image o(a.width, a.height, 1);
+  for (std::size_t i = 0; i < a.pixels(); ++i)
+    o.data[i] = 0.299f * a.data[i * a.channels] + 0.587f * a.data[i * a.channels + 1] + 0.114f * a.data[i * a.channels + 2];
+  return o;
+}
+
+}  // namespace evnerf::eval

@@ -1,0 +1,111 @@
+// field/field.hpp — the radiance field: density plus `Channels` luminance values at a point seen from a
+// direction. Field<PosEnc, DirEnc, DensityNet, ColorNet> chains: encode(position) → DensityNet →
+// [raw density | F features]; [features | encode(direction)] → ColorNet → raw luminance (sigmoid is
+// applied by the compositor). Depends on nn/ only.
+#pragma once
+#include <algorithm>
+#include <vector>
+
+#include "../nn/encoding.hpp"
+#include "../nn/mlp.hpp"
+
+namespace evnerf::field {
+
+/// True for encodings that expect inputs in [0, 1]³ (hash grids); the field feeds them (p + 1) / 2.
+template <class Enc>
+constexpr bool wants_unit_cube() {
+  if constexpr (requires { Enc::table_size; })
+    return true;
+  else
+    return false;
+}
+
+template <class PosEnc, class DirEnc, class DensityNet, class ColorNet>
+struct Field {
+  static_assert(PosEnc::in_dims == 3, "Field: the position encoding must take 3-D points.");
+  static_assert(DirEnc::in_dims == 3, "Field: the direction encoding must take 3-D directions.");
+  static_assert(DensityNet::in_dims == PosEnc::out_dims,
+                "Field: DensityNet's input width must equal the position encoding's output width.");
+  static_assert(DensityNet::out_dims >= 2, "Field: DensityNet must output a density and at least one feature.");
+  static_assert(ColorNet::in_dims == DensityNet::out_dims - 1 + DirEnc::out_dims,
+                "Field: ColorNet's input width must equal DensityNet's features plus the direction encoding.");
+
+  using pos_encoding = PosEnc;
+  using dir_encoding = DirEnc;
+  using density_net = DensityNet;
+  using color_net = ColorNet;
+  static constexpr int channels = ColorNet::out_dims;
+  static constexpr int features = DensityNet::out_dims - 1;
+  static constexpr int pos_in = PosEnc::out_dims, col_in = ColorNet::in_dims;
+  static constexpr std::size_t pos_offset = 0, density_offset = PosEnc::n_params,
+                               color_offset = PosEnc::n_params + DensityNet::n_params;
+  static constexpr std::size_t n_params = color_offset + ColorNet::n_params;
+  /// Multiply-adds per sample through both networks (forward).
+  static constexpr std::size_t macs_per_sample() { return DensityNet::macs_per_sample() + ColorNet::macs_per_sample(); }
+
+  template <class T>
+  static void init(T* p, Rng& rng) {
+    PosEnc::init(p + pos_offset, rng);
+    DensityNet::init(p + density_offset, rng);
+    ColorNet::init(p + color_offset, rng);
+  }
+
+  template <class T>
+  struct Workspace {
+    std::vector<T> points, enc, col_in, dcol_in, denc, dout;
+    typename DensityNet::template Workspace<T> dens;
+    typename ColorNet::template Workspace<T> col;
+    int n = 0;
+  };
+
+  /// Evaluates n samples. `pts` are 3×n points in the normalised scene box [−1, 1]³, `dirs` 3×n unit
+  /// directions. Returns pointers to raw density (stride DensityNet::out_dims) and raw luminance (C×n).
+  template <class T>
+  static void forward(const T* params, const T* pts, const T* dirs, int n, Workspace<T>& ws, const T** sigma,
+                      const T** lum) {
+    ws.n = n;
+    ws.points.resize(3 * static_cast<std::size_t>(n));
+    ws.enc.resize(static_cast<std::size_t>(pos_in) * n);
+    ws.col_in.resize(static_cast<std::size_t>(col_in) * n);
+    for (int j = 0; j < n; ++j) {
+      T* q = &ws.points[3 * static_cast<std::size_t>(j)];
+      for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
+      PosEnc::forward(params + pos_offset, q, &ws.enc[static_cast<std::size_t>(j) * pos_in]);
+    }
+    const T* h = DensityNet::forward(params + density_offset, ws.enc.data(), n, ws.dens);
+    for (int j = 0; j < n; ++j) {
+      T* c = &ws.col_in[static_cast<std::size_t>(j) * col_in];
+      std::copy(h + static_cast<std::size_t>(j) * DensityNet::out_dims + 1,
+                h + static_cast<std::size_t>(j + 1) * DensityNet::out_dims, c);
+      DirEnc::forward(static_cast<const T*>(nullptr), dirs + 3 * j, c + features);
+    }
+    *sigma = h;
+    *lum = ColorNet::forward(params + color_offset, ws.col_in.data(), n, ws.col);
+  }
+
+  /// Backward for the samples of the last forward: dsigma (n, unit stride) and dlum (C×n) are gradients
+  /// w.r.t. the raw outputs. Adds parameter gradients to dparams.
+  template <class T>
+  static void backward(const T* params, Workspace<T>& ws, const T* dsigma, const T* dlum, T* dparams) {
+    const int n = ws.n;
+    ws.dcol_in.assign(static_cast<std::size_t>(col_in) * n, T(0));
+    ColorNet::backward(params + color_offset, ws.col, dlum, dparams + color_offset, ws.dcol_in.data());
+    ws.dout.resize(static_cast<std::size_t>(DensityNet::out_dims) * n);
+    for (int j = 0; j < n; ++j) {
+      T* o = &ws.dout[static_cast<std::size_t>(j) * DensityNet::out_dims];
+      o[0] = dsigma[j];
+      std::copy(&ws.dcol_in[static_cast<std::size_t>(j) * col_in], &ws.dcol_in[static_cast<std::size_t>(j) * col_in] + features, o + 1);
+    }
+    if constexpr (PosEnc::n_params > 0) {
+      ws.denc.assign(static_cast<std::size_t>(pos_in) * n, T(0));
+      DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, ws.denc.data());
+      for (int j = 0; j < n; ++j)
+        PosEnc::backward(params + pos_offset, &ws.points[3 * static_cast<std::size_t>(j)],
+                         &ws.denc[static_cast<std::size_t>(j) * pos_in], dparams + pos_offset, static_cast<T*>(nullptr));
+    } else {
+      DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, static_cast<T*>(nullptr));
+    }
+  }
+};
+
+}  // namespace evnerf::field

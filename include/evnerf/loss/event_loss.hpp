@@ -1,0 +1,62 @@
+// loss/event_loss.hpp — the Ev-NeRF event loss: the rendered log-luminance change between a slice's two
+// poses must lie within the interval implied by the pixel's event counts and the slice's thresholds;
+// the threshold floor loss; threshold and noise policies. Written once with ad/.
+// Depends on ad/ only.
+#pragma once
+#include <array>
+#include <cmath>
+
+#include "../ad/expr.hpp"
+
+namespace evnerf::loss {
+
+/// Bound of the log change for n⁺ positive and n⁻ negative events with thresholds B⁺ > 0 > B⁻:
+/// μ = n⁺B⁺ + n⁻B⁻, interval [μ + k·B⁻, μ + k·B⁺] (k = slack in thresholds; spec §2, default 1).
+/// Hinge L1 outside the interval, zero inside. eps keeps log(ℓ + eps) finite (spec: 1e-3).
+struct EventBounds {
+  double n_pos, n_neg, slack = 1.0, eps = 1e-3;
+  /// Arguments: luminance at T_i, luminance at T_i+1, B⁺, B⁻.
+  template <class L0, class L1, class BP, class BM>
+  auto operator()(const L0& l0, const L1& l1, const BP& bp, const BM& bm) const {
+    const auto change = ad::log(l1 + eps) - ad::log(l0 + eps);
+    const auto mu = n_pos * bp + n_neg * bm;
+    return ad::relu((mu + slack * bm) - change) + ad::relu(change - (mu + slack * bp));
+  }
+  /// Value and gradient w.r.t. (ℓ0, ℓ1, B⁺, B⁻).
+  std::array<double, 5> evaluate(double l0, double l1, double bp, double bm) const {
+    const auto vg = ad::value_and_grad(*this, std::array<double, 4>{l0, l1, bp, bm});
+    return {vg.value, vg.grad[0], vg.grad[1], vg.grad[2], vg.grad[3]};
+  }
+};
+
+/// The floor that stops thresholds collapsing: relu(B0 − B⁺) + relu(B⁻ + B0) (spec §2, B0 = 0.3).
+struct ThresholdFloor {
+  double b0 = 0.3;
+  template <class BP, class BM>
+  auto operator()(const BP& bp, const BM& bm) const {
+    return ad::relu(b0 - bp) + ad::relu(bm + b0);
+  }
+};
+
+/// Per-slice thresholds B_i^± learned jointly with the field, with the floor loss at weight λ = 1000.
+struct JointThresholds {
+  static constexpr bool learnable = true;
+  static constexpr double lambda = 1000.0, init = 0.3;
+  static constexpr const char* name = "joint";
+};
+/// Fixed thresholds ±0.3 and λ = 0 (the paper's "without joint training" ablation).
+struct FixedThresholds {
+  static constexpr bool learnable = false;
+  static constexpr double lambda = 0.0, init = 0.3;
+  static constexpr const char* name = "fixed";
+};
+
+/// Random events worth `Ratio`/1000 of the slice's count, redrawn at every use (paper: 5 %).
+template <int PerMille>
+struct NoiseInjection {
+  static constexpr double ratio = PerMille / 1000.0;
+};
+using DefaultNoise = NoiseInjection<50>;
+using NoNoise = NoiseInjection<0>;
+
+}  // namespace evnerf::loss

@@ -1,0 +1,434 @@
+// model.hpp — EvNerf<Field, Sampler, Thresholds, Noise>: the Ev-NeRF model as a type, its fused
+// training step (per tile of pixels: encode → MLP forward → compositing → event loss → backward → MLP
+// backward, with per-thread gradients reduced in a fixed order), rendering, checkpoints, and the named
+// presets. Depends on everything below it; nothing includes it but train/ and the tools.
+#pragma once
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+#include "core/parallel.hpp"
+#include "core/rng.hpp"
+#include "core/types.hpp"
+#include "events/slicing.hpp"
+#include "field/field.hpp"
+#include "geometry/bayer.hpp"
+#include "geometry/camera.hpp"
+#include "geometry/pose.hpp"
+#include "loss/event_loss.hpp"
+#include "nn/activation.hpp"
+#include "nn/encoding.hpp"
+#include "nn/mlp.hpp"
+#include "nn/params.hpp"
+#include "render/compositing.hpp"
+#include "render/sampler.hpp"
+#include "render/scene.hpp"
+
+namespace evnerf {
+
+/// Everything a training step reads: slices with their boundary poses and the camera.
+struct TrainingData {
+  geometry::Camera camera;
+  events::SliceSet slices;
+  std::vector<geometry::Pose> boundary_poses;  ///< pose at each slice boundary
+  std::vector<Vec3f> pixel_dirs;               ///< render::pixel_directions(camera)
+  std::vector<bool> slice_enabled;             ///< held-out slices are false (novel-view evaluation)
+};
+
+/// One rendered image: luminance (C channels), depth along the optical axis, opacity.
+struct Rendering {
+  Image luminance, depth, opacity;
+};
+
+struct StepStats {
+  double loss = 0, event_loss = 0, threshold_loss = 0;
+  std::size_t rays = 0;
+};
+
+template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise>
+class EvNerf {
+ public:
+  using field_type = FieldT;
+  using sampler_type = SamplerT;
+  using threshold_policy = ThresholdP;
+  using noise_policy = NoiseP;
+  static constexpr int channels = FieldT::channels;
+  static constexpr int n_fields = SamplerT::two_networks ? 2 : 1;
+  static constexpr std::size_t field_params = FieldT::n_params;
+  static constexpr int Nc = SamplerT::n_coarse, Nf = SamplerT::n_fine;
+  static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
+
+  EvNerf() = default;
+  /// A fresh model for `n_slices` slices, seeded initialisation.
+  EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
+      : box_(box), n_slices_(n_slices), params_(n_fields * field_params + 2 * n_slices),
+        adam_(n_fields * field_params + 2 * n_slices, adam) {
+    Rng rng(seed);
+    for (int f = 0; f < n_fields; ++f) {
+      Rng r = rng.split(static_cast<std::uint64_t>(f));
+      FieldT::init(params_.values.data() + f * field_params, r);
+    }
+    for (std::size_t i = 0; i < n_slices; ++i) {
+      params_.values[threshold_offset() + 2 * i] = static_cast<float>(ThresholdP::init);
+      params_.values[threshold_offset() + 2 * i + 1] = static_cast<float>(-ThresholdP::init);
+    }
+  }
+
+  std::size_t threshold_offset() const { return n_fields * field_params; }
+  std::size_t n_slices() const { return n_slices_; }
+  float threshold_pos(std::size_t i) const { return params_.values[threshold_offset() + 2 * i]; }
+  float threshold_neg(std::size_t i) const { return params_.values[threshold_offset() + 2 * i + 1]; }
+  const render::SceneBox& box() const { return box_; }
+  nn::ParameterBuffer<float>& params() { return params_; }
+  const nn::ParameterBuffer<float>& params() const { return params_; }
+  nn::Adam<float>& optimizer() { return adam_; }
+  long step() const { return adam_.step(); }
+
+  /// One training step (Ev-NeRF §4): slice and pixels drawn from (seed, step), noise injected, both
+  /// poses rendered, loss and gradients computed, Adam applied. Deterministic for a seed and thread count.
+  StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
+    const long s = adam_.step();
+    Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
+    // Slice, uniformly among the enabled ones.
+    std::vector<std::size_t> enabled;
+    for (std::size_t i = 0; i < data.slices.size(); ++i)
+      if (data.slice_enabled.empty() || data.slice_enabled[i]) enabled.push_back(i);
+    require(!enabled.empty(), "train_step: no slice to train on");
+    const std::size_t slice = enabled[rng.below(enabled.size())];
+    const events::SliceCounts counts = NoiseP::ratio > 0 ? events::inject_noise(data.slices.slices[slice], NoiseP::ratio, rng)
+                                                         : data.slices.slices[slice];
+    // Pixels uniformly over the image, without replacement.
+    const std::size_t hw = counts.pixels();
+    const int P = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pixels_per_step), hw));
+    std::vector<std::uint32_t> pixels;
+    pixels.reserve(P);
+    std::vector<bool> taken(hw, false);
+    while (static_cast<int>(pixels.size()) < P) {
+      const auto p = static_cast<std::uint32_t>(rng.below(hw));
+      if (!taken[p]) {
+        taken[p] = true;
+        pixels.push_back(p);
+      }
+    }
+    const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
+    const int n_tiles = (P + tile - 1) / tile;
+    const int threads = std::max(1, std::min(thread_count(), n_tiles));
+    params_.begin_accumulate(threads);
+    std::vector<double> loss_ev(threads, 0.0);
+    const geometry::Pose& pose0 = data.boundary_poses[slice];
+    const geometry::Pose& pose1 = data.boundary_poses[slice + 1];
+    const std::uint64_t ray_key = rng.next_u64();
+    parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
+      TileWork w;
+      for (std::size_t t = b; t < e; ++t) {
+        const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
+        loss_ev[th] += train_tile(data, counts, slice, pose0, pose1, pixels.data() + p0, p1 - p0, P, ray_key,
+                                  params_.per_thread[th].data(), w);
+      }
+    });
+    params_.end_accumulate(threads);
+    StepStats st;
+    for (double l : loss_ev) st.event_loss += l;
+    // Threshold floor (λ = 1000 for joint training; fixed thresholds get no gradient at all).
+    const std::size_t to = threshold_offset() + 2 * slice;
+    if constexpr (ThresholdP::learnable) {
+      const auto fl = ad::value_and_grad(loss::ThresholdFloor{}, std::array<double, 2>{params_.values[to], params_.values[to + 1]});
+      st.threshold_loss = ThresholdP::lambda * fl.value;
+      params_.grads[to] += static_cast<float>(ThresholdP::lambda * fl.grad[0]);
+      params_.grads[to + 1] += static_cast<float>(ThresholdP::lambda * fl.grad[1]);
+    } else {
+      params_.grads[to] = params_.grads[to + 1] = 0.f;
+    }
+    st.loss = st.event_loss + st.threshold_loss;
+    st.rays = static_cast<std::size_t>(2 * P);
+    if (!std::isfinite(st.loss)) return st;  // the caller stops; parameters stay as they were
+    adam_.update(params_.values, params_.grads);
+    return st;
+  }
+
+  /// Renders the full image at `pose` (the fine network where there is one). Parallel over rows.
+  Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose) const {
+    Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
+                  Image(cam.width(), cam.height(), 1)};
+    const int H = cam.height(), W = cam.width();
+    parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
+      TileWork w;
+      std::vector<std::uint32_t> pix(W);
+      for (std::size_t y = b; y < e; ++y) {
+        for (int x = 0; x < W; ++x) pix[x] = static_cast<std::uint32_t>(y * W + x);
+        eval_rays(pixel_dirs, pose, pix.data(), W, w);
+        for (int x = 0; x < W; ++x) {
+          const auto& r = n_fields == 2 ? w.fine[x] : w.coarse[x];
+          for (int c = 0; c < channels; ++c) out.luminance.at(x, int(y), c) = r.color[c];
+          out.depth.at(x, int(y)) = r.depth;
+          out.opacity.at(x, int(y)) = r.opacity;
+        }
+      }
+    });
+    return out;
+  }
+
+  // ---- checkpoints -----------------------------------------------------------------------------------
+  /// Serialises the model and optimiser state; `extra` carries the caller's metadata (camera, poses…).
+  std::string serialize(const std::string& name, const std::string& extra) const {
+    std::string b;
+    auto put = [&](const void* p, std::size_t n) { b.append(static_cast<const char*>(p), n); };
+    auto put_u64 = [&](std::uint64_t v) { put(&v, 8); };
+    auto put_str = [&](const std::string& s) {
+      put_u64(s.size());
+      put(s.data(), s.size());
+    };
+    put("EVNERFCK", 8);
+    put_u64(checkpoint_version);
+    put_str(name);
+    put_u64(params_.size());
+    put_u64(n_slices_);
+    const std::int64_t step = adam_.step();
+    put(&step, 8);
+    const double boxv[6] = {box_.center.x(), box_.center.y(), box_.center.z(), box_.scale, box_.near, box_.far};
+    put(boxv, sizeof boxv);
+    put(params_.values.data(), params_.size() * 4);
+    put(adam_.m().data(), params_.size() * 4);
+    put(adam_.v().data(), params_.size() * 4);
+    put_str(extra);
+    put_u64(fnv1a64(b));
+    return b;
+  }
+  /// Restores from serialize()'s bytes; errors name the file and what does not match.
+  std::string deserialize(const std::string& b, const std::string& name, const std::string& file) {
+    std::size_t pos = 0;
+    auto fail = [&](const std::string& why) -> void { throw Error(file, 0, "corrupt or mismatched checkpoint: " + why); };
+    if (b.size() < 16 || std::memcmp(b.data(), "EVNERFCK", 8) != 0) fail("not an evnerf checkpoint");
+    std::uint64_t sum = 0;
+    std::memcpy(&sum, b.data() + b.size() - 8, 8);
+    if (sum != fnv1a64(std::string_view(b).substr(0, b.size() - 8))) fail("checksum mismatch (truncated or damaged)");
+    pos = 8;
+    auto get = [&](void* p, std::size_t n) {
+      if (pos + n > b.size() - 8) fail("truncated");
+      std::memcpy(p, b.data() + pos, n);
+      pos += n;
+    };
+    auto get_u64 = [&] {
+      std::uint64_t v = 0;
+      get(&v, 8);
+      return v;
+    };
+    auto get_str = [&] {
+      const auto n = get_u64();
+      if (n > b.size()) fail("bad string length");
+      std::string s(n, '\0');
+      get(s.data(), n);
+      return s;
+    };
+    if (get_u64() != checkpoint_version) fail("unsupported version");
+    const std::string got = get_str();
+    if (got != name) fail("written by preset '" + got + "', loading as '" + name + "'");
+    const auto n = get_u64();
+    n_slices_ = get_u64();
+    if (n != n_fields * field_params + 2 * n_slices_) fail("parameter count does not match this model");
+    std::int64_t step = 0;
+    get(&step, 8);
+    double boxv[6];
+    get(boxv, sizeof boxv);
+    box_.center = Vec3(boxv[0], boxv[1], boxv[2]);
+    box_.scale = boxv[3];
+    box_.near = boxv[4];
+    box_.far = boxv[5];
+    params_ = nn::ParameterBuffer<float>(n);
+    adam_ = nn::Adam<float>(n, adam_.config());
+    get(params_.values.data(), n * 4);
+    get(adam_.m().data(), n * 4);
+    get(adam_.v().data(), n * 4);
+    adam_.set_step(step);
+    return get_str();
+  }
+  static constexpr std::uint64_t checkpoint_version = 1;
+
+ private:
+  static constexpr int default_tile_pixels() {
+    // About 1–4 k samples per tile: the activations of the widest layer stay within L2.
+    constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
+    return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
+  }
+
+  struct TileWork {
+    typename FieldT::template Workspace<float> ws;
+    std::vector<float> pts, dirs, t, noise, dsigma, draw;
+    std::vector<render::RayComposite<float>> coarse, fine;
+    std::vector<std::vector<float>> fine_t;
+    std::vector<float> dcolor;
+  };
+
+  /// Builds points and directions for R rays with S depths each (depths in w.t, R×S) into w.pts/w.dirs.
+  void make_samples(const Vec3* origin, const Vec3* dir, int R, int S, const std::vector<float>& t, TileWork& w) const {
+    w.pts.resize(3 * static_cast<std::size_t>(R) * S);
+    w.dirs.resize(3 * static_cast<std::size_t>(R) * S);
+    const double inv = 1.0 / box_.scale;
+    for (int r = 0; r < R; ++r) {
+      const Vec3 u = dir[r].normalized();
+      for (int k = 0; k < S; ++k) {
+        const std::size_t i = static_cast<std::size_t>(r) * S + k;
+        const Vec3 p = (origin[r] + static_cast<double>(t[i]) * dir[r] - box_.center) * inv;
+        for (int d = 0; d < 3; ++d) {
+          w.pts[3 * i + d] = static_cast<float>(p[d]);
+          w.dirs[3 * i + d] = static_cast<float>(u[d]);
+        }
+      }
+    }
+  }
+
+  /// Forward of one network over R rays × S samples, compositing each ray into comp[r].
+  void forward_rays(int net, const Vec3* dir, int R, int S, const std::vector<float>& t, const float* noise,
+                    TileWork& w, std::vector<render::RayComposite<float>>& comp) const {
+    const float* params = params_.values.data() + net * field_params;
+    const float *sigma = nullptr, *raw = nullptr;
+    FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
+    comp.resize(R);
+    constexpr int stride = FieldT::density_net::out_dims;
+    for (int r = 0; r < R; ++r) {
+      const std::size_t o = static_cast<std::size_t>(r) * S;
+      render::composite_forward<float>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
+                                       static_cast<float>(dir[r].norm()), noise ? noise + o : nullptr, comp[r]);
+    }
+  }
+
+  /// Loss over the tile's pixel pairs for one network's composites; fills w.dcolor (2P×C) and adds the
+  /// threshold gradients. Returns the loss contribution (already divided by the batch size).
+  double pair_loss(const events::SliceCounts& counts, std::size_t slice, const std::uint32_t* pix, int P, int batch,
+                   const std::vector<render::RayComposite<float>>& comp, float* grads, TileWork& w) const {
+    const std::size_t to = threshold_offset() + 2 * slice;
+    const double bp = params_.values[to], bm = params_.values[to + 1];
+    w.dcolor.assign(static_cast<std::size_t>(2 * P) * channels, 0.f);
+    double total = 0;
+    const int width = counts.width;
+    for (int i = 0; i < P; ++i) {
+      const int c = channels == 1 ? 0 : geometry::rggb_channel(static_cast<int>(pix[i] % width), static_cast<int>(pix[i] / width));
+      const loss::EventBounds lb{double(counts.pos[pix[i]]), double(counts.neg[pix[i]])};
+      const auto r = lb.evaluate(comp[2 * i].color[c], comp[2 * i + 1].color[c], bp, bm);
+      total += r[0] / batch;
+      w.dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<float>(r[1] / batch);
+      w.dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<float>(r[2] / batch);
+      if constexpr (ThresholdP::learnable) {
+        grads[to] += static_cast<float>(r[3] / batch);
+        grads[to + 1] += static_cast<float>(r[4] / batch);
+      }
+    }
+    return total;
+  }
+
+  void backward_rays(int net, int R, int S, const std::vector<render::RayComposite<float>>& comp, float* grads,
+                     TileWork& w) const {
+    w.dsigma.resize(static_cast<std::size_t>(R) * S);
+    w.draw.resize(static_cast<std::size_t>(R) * S * channels);
+    for (int r = 0; r < R; ++r) {
+      const std::size_t o = static_cast<std::size_t>(r) * S;
+      render::composite_backward<float>(S, channels, comp[r], w.dcolor.data() + static_cast<std::size_t>(r) * channels,
+                                        w.dsigma.data() + o, 1, w.draw.data() + o * channels);
+    }
+    const float* params = params_.values.data() + net * field_params;
+    FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
+  }
+
+  double train_tile(const TrainingData& data, const events::SliceCounts& counts, std::size_t slice,
+                    const geometry::Pose& pose0, const geometry::Pose& pose1, const std::uint32_t* pix, int P, int batch,
+                    std::uint64_t ray_key, float* grads, TileWork& w) const {
+    const int R = 2 * P;
+    std::vector<Vec3> origin(R), dir(R);
+    for (int i = 0; i < P; ++i) {
+      const Vec3 d = data.pixel_dirs[pix[i]].cast<double>();
+      origin[2 * i] = pose0.t;
+      dir[2 * i] = pose0.q * d;
+      origin[2 * i + 1] = pose1.t;
+      dir[2 * i + 1] = pose1.q * d;
+    }
+    // Per-ray random streams keyed by the pixel: independent of tiling and thread count.
+    w.t.resize(static_cast<std::size_t>(R) * Nc);
+    w.noise.resize(static_cast<std::size_t>(R) * Nc);
+    std::vector<Rng> ray_rng;
+    ray_rng.reserve(R);
+    for (int r = 0; r < R; ++r) {
+      ray_rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
+      render::stratified_depths<float>(Nc, float(box_.near), float(box_.far), &ray_rng[r], &w.t[static_cast<std::size_t>(r) * Nc]);
+      for (int k = 0; k < Nc; ++k) w.noise[static_cast<std::size_t>(r) * Nc + k] = static_cast<float>(ray_rng[r].normal());
+    }
+    make_samples(origin.data(), dir.data(), R, Nc, w.t, w);
+    forward_rays(0, dir.data(), R, Nc, w.t, w.noise.data(), w, w.coarse);
+    double loss = pair_loss(counts, slice, pix, P, batch, w.coarse, grads, w);
+    backward_rays(0, R, Nc, w.coarse, grads, w);
+    if constexpr (n_fields == 2) {
+      constexpr int S = Nc + Nf;
+      std::vector<float> tf(static_cast<std::size_t>(R) * S), nf(static_cast<std::size_t>(R) * S);
+      std::vector<float> one;
+      for (int r = 0; r < R; ++r) {
+        render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf, &ray_rng[r], one);
+        std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
+        for (int k = 0; k < S; ++k) nf[static_cast<std::size_t>(r) * S + k] = static_cast<float>(ray_rng[r].normal());
+      }
+      make_samples(origin.data(), dir.data(), R, S, tf, w);
+      forward_rays(1, dir.data(), R, S, tf, nf.data(), w, w.fine);
+      loss += pair_loss(counts, slice, pix, P, batch, w.fine, grads, w);
+      backward_rays(1, R, S, w.fine, grads, w);
+    }
+    return loss;
+  }
+
+  /// Evaluation rays (no jitter, no density noise) for pixels of one pose; results in w.coarse / w.fine.
+  void eval_rays(const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose, const std::uint32_t* pix, int R,
+                 TileWork& w) const {
+    std::vector<Vec3> origin(R, pose.t), dir(R);
+    for (int r = 0; r < R; ++r) dir[r] = pose.q * pixel_dirs[pix[r]].cast<double>();
+    w.t.resize(static_cast<std::size_t>(R) * Nc);
+    for (int r = 0; r < R; ++r)
+      render::stratified_depths<float>(Nc, float(box_.near), float(box_.far), nullptr, &w.t[static_cast<std::size_t>(r) * Nc]);
+    make_samples(origin.data(), dir.data(), R, Nc, w.t, w);
+    forward_rays(0, dir.data(), R, Nc, w.t, nullptr, w, w.coarse);
+    if constexpr (n_fields == 2) {
+      constexpr int S = Nc + Nf;
+      std::vector<float> tf(static_cast<std::size_t>(R) * S), one;
+      for (int r = 0; r < R; ++r) {
+        render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf, nullptr, one);
+        std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
+      }
+      make_samples(origin.data(), dir.data(), R, S, tf, w);
+      forward_rays(1, dir.data(), R, S, tf, nullptr, w, w.fine);
+    }
+  }
+
+  render::SceneBox box_;
+  std::size_t n_slices_ = 0;
+  nn::ParameterBuffer<float> params_;
+  nn::Adam<float> adam_;
+};
+
+// ---- named presets -------------------------------------------------------------------------------------
+namespace presets {
+using namespace nn;
+
+/// The paper's field: Frequency 10/4, 8×256 ReLU trunk with the skip before layer 5, a linear head giving
+/// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs.
+template <int C = 1, int W = 256>
+using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4>,
+                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity>>;
+/// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
+/// spherical harmonics into two 64-wide networks.
+template <int C = 1>
+using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity>,
+                               Mlp<15 + 16, 64, 2, C, ReLU, Identity>>;
+
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
+using PaperModel = EvNerf<PaperField<C>, render::Hierarchical<64, 128>, Th, No>;
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
+using FastModel = EvNerf<FastField<C>, render::Stratified<64>, Th, No>;
+
+using Paper = PaperModel<>;
+using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
+using PaperNoNoiseInjection = PaperModel<loss::JointThresholds, loss::NoNoise>;
+using Fast = FastModel<>;
+using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
+using FastNoNoiseInjection = FastModel<loss::JointThresholds, loss::NoNoise>;
+using FastColour = FastModel<loss::JointThresholds, loss::DefaultNoise, 3>;
+}  // namespace presets
+
+}  // namespace evnerf

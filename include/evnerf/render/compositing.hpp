@@ -1,0 +1,92 @@
+// render/compositing.hpp — volume rendering along one ray: alpha from density, transmittance, expected
+// luminance, depth and opacity, forward and backward. The per-sample pieces (alpha from raw density,
+// luminance from raw output) are written once with ad/; the transmittance scan's backward is a reverse
+// suffix sum. Depends on ad/ only.
+#pragma once
+#include <cmath>
+#include <vector>
+
+#include "../ad/expr.hpp"
+
+namespace evnerf::render {
+
+/// α = 1 − exp(−relu(σ + noise)·δ), written once: value and dα/dσ both come from this text.
+struct AlphaOfDensity {
+  double delta, noise;
+  template <class S>
+  auto operator()(const S& sigma) const {
+    return 1.0 - ad::exp(-(ad::relu(sigma + noise) * delta));
+  }
+};
+/// Luminance from the network's raw output.
+struct LuminanceOfRaw {
+  template <class S>
+  auto operator()(const S& raw) const {
+    return ad::sigmoid(raw);
+  }
+};
+
+/// Per-ray result and what its backward needs.
+template <class T>
+struct RayComposite {
+  std::vector<T> alpha, dalpha_dsigma, trans, weight, lum, dlum_draw;  // per sample (lum: C per sample)
+  std::vector<T> color;                                               // C
+  T depth = 0, opacity = 0;
+};
+
+/// Composites S samples of one ray with C channels. sigma[k·sigma_stride] raw density, raw[k·C + c] raw
+/// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d|,
+/// noise[k] density noise (or null). The last interval is open (δ = 1e10), as in NeRF.
+template <class T>
+void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
+                       const T* noise, RayComposite<T>& r) {
+  r.alpha.resize(S);
+  r.dalpha_dsigma.resize(S);
+  r.trans.resize(S);
+  r.weight.resize(S);
+  r.lum.resize(static_cast<std::size_t>(S) * C);
+  r.dlum_draw.resize(static_cast<std::size_t>(S) * C);
+  r.color.assign(C, T(0));
+  r.depth = r.opacity = 0;
+  T trans = 1;
+  for (int k = 0; k < S; ++k) {
+    const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : 1e10;
+    const auto a = ad::value_and_grad(AlphaOfDensity{delta, noise ? double(noise[k]) : 0.0},
+                                      std::array<double, 1>{double(sigma[static_cast<std::size_t>(k) * sigma_stride])});
+    r.alpha[k] = static_cast<T>(a.value);
+    r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
+    r.trans[k] = trans;
+    const T w = trans * r.alpha[k];
+    r.weight[k] = w;
+    for (int c = 0; c < C; ++c) {
+      const std::size_t i = static_cast<std::size_t>(k) * C + c;
+      const auto l = ad::value_and_grad(LuminanceOfRaw{}, std::array<double, 1>{double(raw[i])});
+      r.lum[i] = static_cast<T>(l.value);
+      r.dlum_draw[i] = static_cast<T>(l.grad[0]);
+      r.color[c] += w * r.lum[i];
+    }
+    r.depth += w * t[k];
+    r.opacity += w;
+    trans *= T(1) - r.alpha[k] + T(1e-10);
+  }
+}
+
+/// Backward of composite_forward for dL/dcolor (C values): writes dL/dsigma (stride sigma_stride) and
+/// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j) / (1 − α_k + 1e-10).
+template <class T>
+void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor, T* dsigma, int sigma_stride, T* draw) {
+  T suffix = 0;  // Σ_{j>k} w_j c_j with c_j = Σ_c dcolor_c · lum_jc
+  for (int k = S - 1; k >= 0; --k) {
+    T ck = 0;
+    for (int c = 0; c < C; ++c) {
+      const std::size_t i = static_cast<std::size_t>(k) * C + c;
+      ck += dcolor[c] * r.lum[i];
+      draw[i] = dcolor[c] * r.weight[k] * r.dlum_draw[i];
+    }
+    const T dalpha = r.trans[k] * ck - suffix / (T(1) - r.alpha[k] + T(1e-10));
+    dsigma[static_cast<std::size_t>(k) * sigma_stride] = dalpha * r.dalpha_dsigma[k];
+    suffix += r.weight[k] * ck;
+  }
+}
+
+}  // namespace evnerf::render

@@ -1,0 +1,45 @@
+// render/scene.hpp — what the renderer needs from a recording: the camera's per-pixel ray directions,
+// the scene box that normalises world points to [−1, 1]³, and near/far. Depends on geometry/ only.
+#pragma once
+#include <algorithm>
+#include <vector>
+
+#include "../core/types.hpp"
+#include "../geometry/camera.hpp"
+
+namespace evnerf::render {
+
+/// Maps world points to the network's [−1, 1]³: p_n = (p − center) / scale.
+struct SceneBox {
+  Vec3 center = Vec3::Zero();
+  double scale = 1.0, near = 0.1, far = 5.0;
+
+  /// The box that holds every point at depth ≤ far seen from any of the camera centres.
+  static SceneBox from_cameras(const std::vector<Vec3>& centres, double near, double far) {
+    SceneBox b;
+    b.near = near;
+    b.far = far;
+    Vec3 lo = centres.front(), hi = centres.front();
+    for (auto& c : centres) {
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+    }
+    b.center = 0.5 * (lo + hi);
+    // A ray with unit camera-z has length ≤ far·|d|; |d| ≤ ~1.5 for common fields of view.
+    b.scale = 0.5 * (hi - lo).maxCoeff() + far * 1.5;
+    return b;
+  }
+};
+
+/// Undistorted camera-frame directions (x, y, 1) of every pixel centre, row-major.
+inline std::vector<Vec3f> pixel_directions(const geometry::Camera& cam) {
+  std::vector<Vec3f> d(static_cast<std::size_t>(cam.width()) * cam.height());
+  for (int y = 0; y < cam.height(); ++y)
+    for (int x = 0; x < cam.width(); ++x) {
+      const Vec2 n = cam.undistort_to_normalized(x + 0.5, y + 0.5);
+      d[static_cast<std::size_t>(y) * cam.width() + x] = Vec3f(float(n.x()), float(n.y()), 1.f);
+    }
+  return d;
+}
+
+}  // namespace evnerf::render

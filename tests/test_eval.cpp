@@ -1,0 +1,64 @@
+#include <evnerf/eval/baselines.hpp>
+#include <evnerf/eval/metrics.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+
+namespace {
+Image det(int w, int h, double a, double b) {
+  Image im(w, h, 1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) im.at(x, y) = static_cast<float>(0.5 + 0.4 * std::sin(a * x + 0.3 * y) * std::cos(b * y - 0.2 * x));
+  return im;
+}
+}  // namespace
+
+TEST_CASE("SSIM matches scikit-image's values on fixed images") {
+  // Reference values computed once with Debian's python3-skimage 0.19:
+  // structural_similarity(P, Q, gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1).
+  const Image A = det(24, 20, 0.37, 0.21), C = det(24, 20, 0.11, 0.52);
+  Image B = A;
+  for (int y = 0; y < 20; ++y)
+    for (int x = 0; x < 24; ++x) B.at(x, y) = std::clamp(A.at(x, y) + 0.1f * float(std::sin(1.3 * x * y * 0.1)), 0.f, 1.f);
+  CHECK(eval::ssim(A, B) == doctest::Approx(0.8759339457900506).epsilon(2e-5));
+  CHECK(eval::ssim(A, C) == doctest::Approx(0.22534423274536586).epsilon(2e-5));
+  CHECK(eval::ssim(A, A) == doctest::Approx(1.0));
+}
+
+TEST_CASE("MSE and PSNR") {
+  Image a(4, 4, 1, 0.5f), b(4, 4, 1, 0.6f);
+  CHECK(eval::mse(a, b) == doctest::Approx(0.01).epsilon(1e-5));
+  CHECK(eval::psnr(a, b) == doctest::Approx(20.0).epsilon(1e-4));
+  CHECK_THROWS_AS(eval::mse(a, Image(3, 4, 1)), Error);
+}
+
+TEST_CASE("alignment: log-affine undoes a gain and gamma in log space; min-max normalises") {
+  Image gt = det(30, 20, 0.2, 0.3), pred(30, 20, 1);
+  for (std::size_t i = 0; i < gt.data.size(); ++i)
+    pred.data[i] = static_cast<float>(std::exp(0.5 * std::log(gt.data[i] + 1e-3) - 0.7) - 1e-3);
+  auto s = eval::score(pred, gt, eval::Alignment::LogAffine);
+  CHECK(s.mse < 1e-8);
+  CHECK(eval::score(pred, gt, eval::Alignment::None).mse > 1e-3);
+  auto [p, g] = eval::align(pred, gt, eval::Alignment::MinMax);
+  CHECK(*std::max_element(p.data.begin(), p.data.end()) == doctest::Approx(1.0));
+  CHECK(*std::min_element(g.data.begin(), g.data.end()) == doctest::Approx(0.0));
+  CHECK(eval::parse_alignment("min-max") == eval::Alignment::MinMax);
+  CHECK_THROWS(eval::parse_alignment("bogus"));
+}
+
+TEST_CASE("baselines: direct integration sums polarity × contrast; the high-pass filter forgets") {
+  events::EventStream ev;
+  ev.width = 2;
+  ev.height = 1;
+  ev.push_back(0.1, 0, 0, 1);
+  ev.push_back(0.2, 0, 0, 1);
+  ev.push_back(0.3, 1, 0, -1);
+  auto di = eval::direct_integration(ev, {0.15, 0.35}, 0.25);
+  CHECK(std::log(di[0].at(0, 0)) == doctest::Approx(0.25));
+  CHECK(std::log(di[1].at(0, 0)) == doctest::Approx(0.5));
+  CHECK(std::log(di[1].at(1, 0)) == doctest::Approx(-0.25));
+  auto hp = eval::high_pass_filter(ev, {0.2 + 1e-9, 10.0}, 0.25, 5.0);
+  CHECK(std::log(hp[0].at(0, 0)) == doctest::Approx(0.25 * std::exp(-5 * 0.1) + 0.25).epsilon(1e-6));
+  CHECK(std::log(hp[1].at(0, 0)) < 1e-6);  // decayed after ~10 s
+}
