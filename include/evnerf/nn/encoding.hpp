@@ -126,18 +126,32 @@ struct HashGrid {
   static constexpr std::uint32_t table_size = 1u << Log2T;
   static constexpr std::size_t n_params = static_cast<std::size_t>(Levels) * table_size * F;
 
-  static double scale(int l) {
-    if (Levels == 1) return BaseRes;
-    const double b = std::exp((std::log(double(MaxRes)) - std::log(double(BaseRes))) / (Levels - 1));
-    return std::floor(BaseRes * std::pow(b, l));
+  struct LevelInfo {
+    double scale;
+    std::uint64_t res;
+    bool dense;
+  };
+  static const std::array<LevelInfo, Levels>& levels() {
+    static const std::array<LevelInfo, Levels> info = [] {
+      std::array<LevelInfo, Levels> a{};
+      const double b = Levels == 1 ? 1.0 : std::exp((std::log(double(MaxRes)) - std::log(double(BaseRes))) / (Levels - 1));
+      for (int l = 0; l < Levels; ++l) {
+        a[l].scale = std::floor(BaseRes * std::pow(b, l));
+        a[l].res = static_cast<std::uint64_t>(a[l].scale) + 1;
+        a[l].dense = a[l].res * a[l].res * a[l].res <= table_size;
+      }
+      return a;
+    }();
+    return info;
   }
+  static double scale(int l) { return levels()[l].scale; }
   template <class T>
   static void init(T* p, Rng& rng) {
     for (std::size_t i = 0; i < n_params; ++i) p[i] = static_cast<T>(rng.uniform(-1e-4, 1e-4));
   }
   static std::uint32_t index(int l, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    const std::uint64_t res = static_cast<std::uint64_t>(scale(l)) + 1;
-    if (res * res * res <= table_size) return static_cast<std::uint32_t>(x + res * (y + res * z));
+    const auto& lv = levels()[l];
+    if (lv.dense) return static_cast<std::uint32_t>(x + lv.res * (y + lv.res * z));
     return (x ^ (y * 2654435761u) ^ (z * 805459861u)) & (table_size - 1);
   }
 

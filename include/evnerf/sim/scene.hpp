@@ -1,0 +1,395 @@
+// sim/scene.hpp — procedural scenes for the event simulator: analytic primitives (planes, boxes, spheres)
+// with Lambertian shading under ambient + directional light, band-limited procedural textures (checker,
+// stripes, fractal noise) and PNG textures; camera paths (slider, arc, hand-held); a text description
+// format and the built-in scenes. Depends on core/, geometry/ and io/image_io.hpp only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "../core/error.hpp"
+#include "../core/fileio.hpp"
+#include "../core/rng.hpp"
+#include "../core/types.hpp"
+#include "../geometry/pose.hpp"
+#include "../io/image_io.hpp"
+#include "../io/text.hpp"
+
+namespace evnerf::sim {
+
+/// A texture returns linear RGB albedo at texture coordinates (u, v); `fw` is the pixel footprint in
+/// texture units, used to fade detail finer than a pixel (so point-sampled renders do not alias).
+struct Texture {
+  enum Kind { Checker, Stripes, Noise, Picture } kind = Checker;
+  double scale = 1;  ///< features per unit length
+  Vec3 a = Vec3(0.9, 0.9, 0.9), b = Vec3(0.1, 0.1, 0.1);
+  int octaves = 5;
+  std::uint64_t seed = 1;
+  std::shared_ptr<Image> picture;
+
+  static double smooth_square(double x, double fw) {
+    // Square wave in [0, 1] with period 1, box-filtered over width fw (analytic integral of the wave).
+    auto integral = [](double s) {
+      const double f = std::floor(s);
+      return f * 0.5 + std::max(0.0, s - f - 0.5);
+    };
+    fw = std::max(fw, 1e-6);
+    return (integral(x + 0.5 * fw) - integral(x - 0.5 * fw)) / fw;
+  }
+  static double hash01(std::int64_t x, std::int64_t y, std::uint64_t seed) {
+    return static_cast<double>(mix64(seed ^ mix64(static_cast<std::uint64_t>(x) * 0x9E3779B1ull + static_cast<std::uint64_t>(y))) >> 11) * 0x1.0p-53;
+  }
+  static double value_noise(double x, double y, std::uint64_t seed) {
+    const double fx = std::floor(x), fy = std::floor(y);
+    const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+    auto s = [](double t) { return t * t * (3 - 2 * t); };
+    const double tx = s(x - fx), ty = s(y - fy);
+    const double v00 = hash01(ix, iy, seed), v10 = hash01(ix + 1, iy, seed), v01 = hash01(ix, iy + 1, seed),
+                 v11 = hash01(ix + 1, iy + 1, seed);
+    return (v00 * (1 - tx) + v10 * tx) * (1 - ty) + (v01 * (1 - tx) + v11 * tx) * ty;
+  }
+  Vec3 albedo(double u, double v, double fw) const {
+    const double su = u * scale, sv = v * scale, sfw = fw * scale;
+    double m = 0;
+    switch (kind) {
+      case Checker: {
+        const double cu = smooth_square(su, sfw), cv = smooth_square(sv, sfw);
+        m = cu * cv + (1 - cu) * (1 - cv);
+        break;
+      }
+      case Stripes:
+        m = smooth_square(su, sfw);
+        break;
+      case Noise: {
+        double amp = 0.5, freq = 1, total = 0;
+        for (int o = 0; o < octaves; ++o) {
+          const double fade = std::clamp(1.5 - sfw * freq * 2, 0.0, 1.0);  // drop octaves finer than a pixel
+          m += amp * fade * value_noise(su * freq, sv * freq, seed + o) + amp * (1 - fade) * 0.5;
+          total += amp;
+          amp *= 0.5;
+          freq *= 2;
+        }
+        m /= total;
+        m = std::clamp((m - 0.5) * 2.2 + 0.5, 0.0, 1.0);
+        break;
+      }
+      case Picture: {
+        const Image& p = *picture;
+        double x = (su - std::floor(su)) * p.width - 0.5, y = (1 - (sv - std::floor(sv))) * p.height - 0.5;
+        const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+        const double fx = x - x0, fy = y - y0;
+        Vec3 c = Vec3::Zero();
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dx = 0; dx < 2; ++dx) {
+            const int xx = std::clamp(x0 + dx, 0, p.width - 1), yy = std::clamp(y0 + dy, 0, p.height - 1);
+            const double w = (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy);
+            for (int k = 0; k < 3; ++k) c[k] += w * p.at(xx, yy, std::min(k, p.channels - 1));
+          }
+        return c;
+      }
+    }
+    return b + m * (a - b);
+  }
+};
+
+/// Analytic primitives. Planes are rectangles (half sizes hu, hv along axes u, v; 0 = unbounded).
+struct Primitive {
+  enum Kind { Plane, Box, Sphere } kind = Plane;
+  Vec3 p = Vec3::Zero();           ///< plane point / box or sphere centre
+  Vec3 n = Vec3::UnitZ();          ///< plane normal
+  Vec3 u = Vec3::UnitX(), v = Vec3::UnitY();
+  Vec3 half = Vec3::Ones();        ///< plane: (hu, hv, -); box: half extents
+  double radius = 1;
+  Texture tex;
+};
+
+struct Hit {
+  double t = INFINITY;
+  Vec3 normal, albedo;
+};
+
+/// A scene: primitives, ambient + one directional light, a background albedo.
+struct Scene {
+  std::string name;
+  std::vector<Primitive> prims;
+  Vec3 light_dir = Vec3(-0.3, -0.8, -0.5).normalized();  ///< direction the light travels
+  double ambient = 0.35, diffuse = 0.65;
+  Vec3 background = Vec3(0.05, 0.05, 0.05);
+
+  /// Nearest hit of the ray o + t·d (t > 1e-6). `pix_angle` is the angular size of a pixel (footprint).
+  Hit intersect(const Vec3& o, const Vec3& d, double pix_angle) const {
+    Hit best;
+    const double dn = d.norm();
+    for (const auto& pr : prims) {
+      double t = INFINITY;
+      Vec3 nrm;
+      double tu = 0, tv = 0;
+      if (pr.kind == Primitive::Plane) {
+        const double den = pr.n.dot(d);
+        if (std::abs(den) < 1e-12) continue;
+        t = pr.n.dot(pr.p - o) / den;
+        if (!(t > 1e-6) || t >= best.t) continue;
+        const Vec3 q = o + t * d - pr.p;
+        tu = q.dot(pr.u);
+        tv = q.dot(pr.v);
+        if ((pr.half.x() > 0 && std::abs(tu) > pr.half.x()) || (pr.half.y() > 0 && std::abs(tv) > pr.half.y())) continue;
+        nrm = den < 0 ? pr.n : Vec3(-pr.n);
+      } else if (pr.kind == Primitive::Sphere) {
+        const Vec3 oc = o - pr.p;
+        const double a = d.squaredNorm(), b = oc.dot(d), c = oc.squaredNorm() - pr.radius * pr.radius;
+        const double disc = b * b - a * c;
+        if (disc < 0) continue;
+        const double s = std::sqrt(disc);
+        t = (-b - s) / a;
+        if (!(t > 1e-6)) t = (-b + s) / a;
+        if (!(t > 1e-6) || t >= best.t) continue;
+        nrm = (o + t * d - pr.p).normalized();
+        tu = std::atan2(nrm.y(), nrm.x()) * pr.radius;
+        tv = std::asin(std::clamp(nrm.z(), -1.0, 1.0)) * pr.radius;
+      } else {  // axis-aligned box, slab test
+        double t0 = -INFINITY, t1 = INFINITY;
+        int axis0 = 0, axis1 = 0;
+        for (int k = 0; k < 3; ++k) {
+          if (std::abs(d[k]) < 1e-15) {
+            if (std::abs(o[k] - pr.p[k]) > pr.half[k]) t0 = INFINITY;
+            continue;
+          }
+          double a = (pr.p[k] - pr.half[k] - o[k]) / d[k], b = (pr.p[k] + pr.half[k] - o[k]) / d[k];
+          if (a > b) std::swap(a, b);
+          if (a > t0) { t0 = a; axis0 = k; }
+          if (b < t1) { t1 = b; axis1 = k; }
+        }
+        if (t0 > t1) continue;
+        int axis = axis0;
+        t = t0;
+        if (!(t > 1e-6)) {  // inside the box (a room): the far wall
+          t = t1;
+          axis = axis1;
+        }
+        if (!(t > 1e-6) || t >= best.t) continue;
+        const Vec3 q = o + t * d - pr.p;
+        nrm = Vec3::Zero();
+        nrm[axis] = q[axis] > 0 ? 1 : -1;
+        if (nrm.dot(d) > 0) nrm = -nrm;
+        tu = q[(axis + 1) % 3];
+        tv = q[(axis + 2) % 3];
+      }
+      best.t = t;
+      best.normal = nrm;
+      const double footprint = pix_angle * t * dn / std::max(0.05, std::abs(nrm.dot(d)) / dn);
+      best.albedo = pr.tex.albedo(tu, tv, footprint);
+    }
+    return best;
+  }
+
+  /// Linear RGB radiance along a ray (Lambertian, ambient + directional light).
+  Vec3 shade(const Vec3& o, const Vec3& d, double pix_angle, double* depth_t = nullptr) const {
+    const Hit h = intersect(o, d, pix_angle);
+    if (depth_t) *depth_t = h.t;
+    if (!std::isfinite(h.t)) return background;
+    const double lam = std::max(0.0, -h.normal.dot(light_dir));
+    return h.albedo * (ambient + diffuse * lam);
+  }
+};
+
+/// A camera path: pose at any time in [0, duration].
+struct CameraPath {
+  double duration = 2.0;
+  std::function<geometry::Pose(double)> pose;
+};
+
+inline CameraPath slider_path(const Vec3& from, const Vec3& to, const Vec3& look, double duration) {
+  return {duration, [=](double t) {
+            const double s = std::clamp(t / duration, 0.0, 1.0);
+            const Vec3 eye = from + s * (to - from);
+            return geometry::Pose::look_at(eye, eye + look, Vec3(0, -1, 0));
+          }};
+}
+/// Orbit arc at `radius` around `center` (angles in radians around +y), looking at the centre.
+inline CameraPath arc_path(const Vec3& center, double radius, double height, double a0, double a1, double duration) {
+  return {duration, [=](double t) {
+            const double s = std::clamp(t / duration, 0.0, 1.0), a = a0 + s * (a1 - a0);
+            const Vec3 eye = center + Vec3(radius * std::sin(a), height, -radius * std::cos(a));
+            return geometry::Pose::look_at(eye, center, Vec3(0, -1, 0));
+          }};
+}
+/// Smooth hand-held zig-zag: sideways sweeps with vertical bob and small rotations.
+inline CameraPath handheld_path(const Vec3& start, const Vec3& look, double amplitude, double duration) {
+  return {duration, [=](double t) {
+            const double w = 2 * 3.141592653589793 / duration;
+            const Vec3 eye = start + Vec3(amplitude * std::sin(1.5 * w * t), 0.3 * amplitude * std::sin(3.1 * w * t),
+                                          0.4 * amplitude * std::sin(0.7 * w * t));
+            const Vec3 target = eye + look + Vec3(0.15 * std::sin(1.1 * w * t), 0.1 * std::cos(1.7 * w * t), 0);
+            return geometry::Pose::look_at(eye, target, Vec3(0, -1, 0));
+          }};
+}
+
+// ---- the text description format --------------------------------------------------------------------
+// One directive per line, '#' comments:
+//   light  dx dy dz ambient diffuse
+//   background r g b
+//   plane  px py pz  nx ny nz  ux uy uz  half_u half_v  <texture>
+//   box    cx cy cz  hx hy hz  <texture>
+//   sphere cx cy cz  r  <texture>
+//   path   slider x0 y0 z0 x1 y1 z1 lookx looky lookz duration
+//   path   arc cx cy cz radius height angle0 angle1 duration
+//   path   handheld x y z lookx looky lookz amplitude duration
+// <texture> = checker scale | stripes scale | noise scale octaves seed | image path scale
+//             each optionally followed by "colors ar ag ab br bg bb".
+struct SceneSpec {
+  Scene scene;
+  CameraPath path;
+};
+
+inline Texture parse_texture(io::LineScanner& s, const std::filesystem::path& folder) {
+  Texture t;
+  const std::string kind(s.word("texture kind"));
+  if (kind == "checker") {
+    t.kind = Texture::Checker;
+    t.scale = s.real("scale");
+  } else if (kind == "stripes") {
+    t.kind = Texture::Stripes;
+    t.scale = s.real("scale");
+  } else if (kind == "noise") {
+    t.kind = Texture::Noise;
+    t.scale = s.real("scale");
+    t.octaves = static_cast<int>(s.integer("octaves"));
+    t.seed = static_cast<std::uint64_t>(s.integer("seed"));
+  } else if (kind == "image") {
+    t.kind = Texture::Picture;
+    const std::string path(s.word("image path"));
+    try {
+      t.picture = std::make_shared<Image>(io::read_png(folder / path, 3));
+    } catch (const Error& e) {
+      s.fail("cannot load texture: " + std::string(e.what()));
+    }
+    t.scale = s.real("scale");
+  } else {
+    s.fail("unknown texture '" + kind + "' (checker, stripes, noise, image)");
+  }
+  if (!s.at_end_of_line()) {
+    if (s.word("colors") != "colors") s.fail("expected 'colors' after the texture");
+    for (int k = 0; k < 3; ++k) t.a[k] = s.real("colour a");
+    for (int k = 0; k < 3; ++k) t.b[k] = s.real("colour b");
+  }
+  if (t.scale <= 0) s.fail("texture scale must be positive");
+  return t;
+}
+
+inline SceneSpec parse_scene(std::string_view text, const std::string& file, const std::filesystem::path& folder = ".") {
+  SceneSpec spec;
+  spec.scene.name = std::filesystem::path(file).stem().string();
+  bool have_path = false;
+  io::LineScanner s(text, file);
+  auto vec = [&](const char* n) {
+    Vec3 v;
+    v.x() = s.real(n);
+    v.y() = s.real(n);
+    v.z() = s.real(n);
+    return v;
+  };
+  while (s.next_line()) {
+    const std::string cmd(s.word("directive"));
+    if (cmd == "light") {
+      spec.scene.light_dir = vec("light direction").normalized();
+      spec.scene.ambient = s.real("ambient");
+      spec.scene.diffuse = s.real("diffuse");
+    } else if (cmd == "background") {
+      spec.scene.background = vec("background");
+    } else if (cmd == "plane") {
+      Primitive p;
+      p.kind = Primitive::Plane;
+      p.p = vec("point");
+      p.n = vec("normal").normalized();
+      p.u = vec("u axis").normalized();
+      p.v = p.n.cross(p.u).normalized();
+      p.half = Vec3(s.real("half_u"), s.real("half_v"), 0);
+      p.tex = parse_texture(s, folder);
+      spec.scene.prims.push_back(p);
+    } else if (cmd == "box") {
+      Primitive p;
+      p.kind = Primitive::Box;
+      p.p = vec("centre");
+      p.half = vec("half extents");
+      p.tex = parse_texture(s, folder);
+      spec.scene.prims.push_back(p);
+    } else if (cmd == "sphere") {
+      Primitive p;
+      p.kind = Primitive::Sphere;
+      p.p = vec("centre");
+      p.radius = s.real("radius");
+      if (p.radius <= 0) s.fail("sphere radius must be positive");
+      p.tex = parse_texture(s, folder);
+      spec.scene.prims.push_back(p);
+    } else if (cmd == "path") {
+      const std::string kind(s.word("path kind"));
+      if (kind == "slider") {
+        const Vec3 a = vec("start"), b = vec("end"), look = vec("look");
+        spec.path = slider_path(a, b, look, s.real("duration"));
+      } else if (kind == "arc") {
+        const Vec3 c = vec("centre");
+        const double r = s.real("radius"), h = s.real("height"), a0 = s.real("angle0"), a1 = s.real("angle1");
+        spec.path = arc_path(c, r, h, a0, a1, s.real("duration"));
+      } else if (kind == "handheld") {
+        const Vec3 a = vec("start"), look = vec("look");
+        const double amp = s.real("amplitude");
+        spec.path = handheld_path(a, look, amp, s.real("duration"));
+      } else {
+        s.fail("unknown path '" + kind + "' (slider, arc, handheld)");
+      }
+      if (spec.path.duration <= 0) s.fail("path duration must be positive");
+      have_path = true;
+    } else {
+      s.fail("unknown directive '" + cmd + "'");
+    }
+    s.expect_end();
+  }
+  if (spec.scene.prims.empty()) throw Error(file, 0, "scene has no primitives");
+  if (!have_path) throw Error(file, 0, "scene has no camera path ('path ...' line)");
+  return spec;
+}
+
+/// Built-in scenes: "planes" (three textured planes at 1, 2 and 3.5 m before a wall, linear slider),
+/// "object" (box and sphere on a textured floor before a wall, orbit arc), "room" (inside a textured
+/// room with a box, hand-held zig-zag).
+inline const char* builtin_scene_text(const std::string& name) {
+  if (name == "planes")
+    return "light -0.2 0.3 1 0.4 0.6\n"
+           "plane -0.35 0.1 1.0  0 0 -1  1 0 0  0.35 0.3  checker 6\n"
+           "plane 0.45 -0.15 2.0  0 0 -1  1 0 0  0.6 0.45  noise 3 5 7\n"
+           "plane -0.2 0.3 3.5  0 0 -1  1 0 0  1.1 0.6  stripes 2.5 colors 0.85 0.8 0.7 0.2 0.25 0.3\n"
+           "plane 0 0 6  0 0 -1  1 0 0  0 0  noise 1.2 6 3\n"
+           "path slider -0.3 0 0 0.3 0 0 0 0 1 2.0\n";
+  if (name == "object")
+    return "light -0.4 0.8 0.6 0.35 0.65\n"
+           "box 0 0.1 0  0.35 0.35 0.35  checker 5 colors 0.9 0.6 0.3 0.2 0.15 0.1\n"
+           "sphere 0.75 0.2 0.3 0.25  stripes 6\n"
+           "plane 0 0.45 0  0 -1 0  1 0 0  0 0  checker 2 colors 0.7 0.7 0.7 0.3 0.3 0.3\n"
+           "plane 0 0 3  0 0 -1  1 0 0  0 0  noise 1.5 6 11\n"
+           "path arc 0 0 0 2.6 -0.8 -0.5 0.5 3.0\n";
+  if (name == "room")
+    return "light 0.3 0.9 0.4 0.45 0.55\n"
+           "box 0 0 0  2.5 1.5 2.5  noise 1.4 6 5\n"
+           "box 0.6 1.0 1.2  0.4 0.5 0.4  checker 4 colors 0.85 0.3 0.3 0.2 0.2 0.5\n"
+           "path handheld 0 0 -1.5  0 0 1  0.4 3.0\n";
+  return nullptr;
+}
+inline std::vector<std::string> builtin_scenes() { return {"planes", "object", "room"}; }
+
+/// A built-in scene by name, or a scene description file.
+inline SceneSpec load_scene(const std::string& name_or_path) {
+  if (const char* text = builtin_scene_text(name_or_path)) {
+    auto spec = parse_scene(text, name_or_path + " (built-in)");
+    spec.scene.name = name_or_path;
+    return spec;
+  }
+  if (!std::filesystem::exists(name_or_path))
+    throw Error(name_or_path, 0, "no such scene file, and not a built-in scene (planes, object, room)");
+  auto spec = parse_scene(read_file(name_or_path), name_or_path, std::filesystem::path(name_or_path).parent_path());
+  return spec;
+}
+
+}  // namespace evnerf::sim

@@ -1,0 +1,260 @@
+// sim/simulator.hpp — an ESIM-style event simulator: renders log intensity at adaptive time steps (fine
+// enough that no pixel moves by more than a fraction of the threshold between steps, down to a minimum
+// step), interpolates each pixel linearly between renders and emits an event at every threshold
+// crossing with its interpolated time; sensor effects as parameters; writes the IJRR folder layout plus
+// ground-truth depth. Depends on core/, geometry/, events/, io/ and sim/scene.hpp only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "../core/parallel.hpp"
+#include "../core/progress.hpp"
+#include "../events/event_stream.hpp"
+#include "../geometry/bayer.hpp"
+#include "../geometry/camera.hpp"
+#include "../geometry/trajectory.hpp"
+#include "../io/ijrr.hpp"
+#include "../io/image_io.hpp"
+#include "../io/npy.hpp"
+#include "scene.hpp"
+
+namespace evnerf::sim {
+
+struct SensorConfig {
+  int width = 240, height = 180;
+  double fx = 200, fy = 200, cx = 120, cy = 90;  ///< cx, cy < 0 → image centre
+  double threshold_pos = 0.25, threshold_neg = 0.25;  ///< contrast thresholds (log units, both > 0)
+  double threshold_sigma = 0.0;      ///< per-pixel mismatch: relative standard deviation
+  double refractory = 0.0;           ///< seconds
+  double noise_rate = 0.0;           ///< background activity, events per pixel per second
+  int hot_pixels = 0;                ///< pixels firing at `hot_rate`
+  double hot_rate = 200.0;
+  double jitter = 0.0;               ///< timestamp jitter standard deviation, seconds
+  double frame_rate = 24.0;          ///< APS frames per second
+  double exposure = 1.0;             ///< frame gain; > 1 with `hdr` saturates frames (events see all)
+  bool hdr = false;
+  bool bayer = false;                ///< RGGB colour filter: each pixel sees one channel
+  double max_step_fraction = 0.4;    ///< max log change per step, as a fraction of the threshold
+  double min_step = 5e-4, max_step = 5e-3;  ///< seconds
+  std::uint64_t seed = 1;
+
+  static SensorConfig realistic() {
+    SensorConfig c;
+    c.threshold_pos = 0.22;
+    c.threshold_neg = 0.28;
+    c.threshold_sigma = 0.03;
+    c.refractory = 1e-4;
+    c.noise_rate = 0.1;
+    c.hot_pixels = 3;
+    c.jitter = 2e-5;
+    return c;
+  }
+};
+
+struct Recording {
+  geometry::Camera camera;
+  events::EventStream events;
+  std::vector<double> frame_times;
+  std::vector<Image> frames;   ///< grey (or RGB with bayer), in [0, 1]
+  std::vector<Image> depth;    ///< z-depth per frame (inf where nothing is hit)
+  geometry::Trajectory trajectory;
+  std::size_t renders = 0;
+};
+
+class Simulator {
+ public:
+  Simulator(const SceneSpec& spec, SensorConfig cfg) : spec_(spec), cfg_(cfg) {
+    if (cfg_.cx < 0) cfg_.cx = cfg_.width * 0.5;
+    if (cfg_.cy < 0) cfg_.cy = cfg_.height * 0.5;
+    cam_ = geometry::Camera(cfg_.width, cfg_.height, cfg_.fx, cfg_.fy, cfg_.cx, cfg_.cy);
+    require(cfg_.threshold_pos > 0 && cfg_.threshold_neg > 0, "simulator: thresholds must be positive");
+  }
+  const geometry::Camera& camera() const { return cam_; }
+
+  /// Linear intensity (per pixel; RGB when colour is true) and z-depth at time t.
+  void render(double t, std::vector<Vec3>& rgb, std::vector<float>* depth = nullptr) const {
+    const geometry::Pose pose = spec_.path.pose(t);
+    const int W = cfg_.width, H = cfg_.height;
+    rgb.resize(static_cast<std::size_t>(W) * H);
+    if (depth) depth->resize(rgb.size());
+    const double pix_angle = 1.0 / cfg_.fx;
+    parallel_blocks(static_cast<std::size_t>(H), 8, [&](std::size_t b, std::size_t e, int) {
+      for (std::size_t y = b; y < e; ++y)
+        for (int x = 0; x < W; ++x) {
+          const Vec3 d = pose.q * Vec3((x + 0.5 - cfg_.cx) / cfg_.fx, (double(y) + 0.5 - cfg_.cy) / cfg_.fy, 1.0);
+          double tt = 0;
+          rgb[y * W + x] = spec_.scene.shade(pose.t, d, pix_angle, &tt);
+          if (depth) (*depth)[y * W + x] = static_cast<float>(tt);  // d has unit camera z: t is z-depth
+        }
+    });
+  }
+  /// Log intensity seen by each pixel (its Bayer channel, or luminance).
+  void log_intensity(const std::vector<Vec3>& rgb, std::vector<double>& L) const {
+    L.resize(rgb.size());
+    const int W = cfg_.width;
+    for (std::size_t i = 0; i < rgb.size(); ++i) {
+      const double v = cfg_.bayer ? rgb[i][geometry::rggb_channel(static_cast<int>(i % W), static_cast<int>(i / W))]
+                                  : 0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2];
+      L[i] = std::log(std::max(v, 1e-4));
+    }
+  }
+
+  Recording run(bool progress = false) const {
+    Recording rec;
+    rec.camera = cam_;
+    const int W = cfg_.width, H = cfg_.height;
+    const std::size_t n = static_cast<std::size_t>(W) * H;
+    const double T = spec_.path.duration;
+    Rng rng(cfg_.seed);
+    // Per-pixel thresholds (mismatch) and state.
+    std::vector<double> cpos(n, cfg_.threshold_pos), cneg(n, cfg_.threshold_neg);
+    if (cfg_.threshold_sigma > 0)
+      for (std::size_t i = 0; i < n; ++i) {
+        cpos[i] = std::max(0.01, cfg_.threshold_pos * (1 + cfg_.threshold_sigma * rng.normal()));
+        cneg[i] = std::max(0.01, cfg_.threshold_neg * (1 + cfg_.threshold_sigma * rng.normal()));
+      }
+    std::vector<Vec3> rgb;
+    std::vector<double> L0, L1, ref;
+    std::vector<double> last_event(n, -1e9);
+    render(0.0, rgb);
+    log_intensity(rgb, L0);
+    ref = L0;
+    struct Ev {
+      double t;
+      std::uint32_t pix;
+      std::int8_t p;
+    };
+    std::vector<Ev> evs;
+    double t = 0, dt = cfg_.max_step;
+    const double cmin = std::min(cfg_.threshold_pos, cfg_.threshold_neg);
+    Progress bar(static_cast<long>(T * 1000), "simulate", progress);
+    while (t < T - 1e-12) {
+      dt = std::min(dt, T - t);
+      render(t + dt, rgb);
+      log_intensity(rgb, L1);
+      ++rec.renders;
+      double worst = 0;
+      for (std::size_t i = 0; i < n; ++i) worst = std::max(worst, std::abs(L1[i] - L0[i]));
+      if (worst > cfg_.max_step_fraction * cmin && dt > cfg_.min_step * 1.0001) {
+        dt = std::max(cfg_.min_step, dt * 0.5);
+        continue;
+      }
+      // Emit events at the crossings of the linear interpolation in (t, t + dt].
+      for (std::size_t i = 0; i < n; ++i) {
+        const double a = L0[i], b = L1[i];
+        if (a == b) continue;
+        while (true) {
+          const bool up = b > ref[i];
+          const double level = up ? ref[i] + cpos[i] : ref[i] - cneg[i];
+          if ((up && b < level) || (!up && b > level)) break;
+          const double te = t + dt * std::clamp((level - a) / (b - a), 0.0, 1.0);
+          ref[i] = level;
+          if (te - last_event[i] < cfg_.refractory) continue;  // swallowed by the refractory period
+          last_event[i] = te;
+          evs.push_back({te, static_cast<std::uint32_t>(i), static_cast<std::int8_t>(up ? 1 : -1)});
+        }
+      }
+      L0.swap(L1);
+      t += dt;
+      if (worst < 0.25 * cfg_.max_step_fraction * cmin) dt = std::min(cfg_.max_step, dt * 2);
+      bar.update(static_cast<long>(t * 1000));
+    }
+    // Background activity and hot pixels: Poisson counts, uniform times, random polarity.
+    auto poisson = [&](double mean) {
+      if (mean > 50) return static_cast<std::size_t>(std::max(0.0, std::round(mean + std::sqrt(mean) * rng.normal())));
+      std::size_t k = 0;
+      double p = std::exp(-mean), s = p, u = rng.uniform();
+      while (u > s && k < 1000) {
+        ++k;
+        p *= mean / k;
+        s += p;
+      }
+      return k;
+    };
+    const std::size_t n_noise = poisson(cfg_.noise_rate * n * T);
+    for (std::size_t k = 0; k < n_noise; ++k)
+      evs.push_back({rng.uniform(0, T), static_cast<std::uint32_t>(rng.below(n)), static_cast<std::int8_t>(rng.below(2) ? 1 : -1)});
+    for (int h = 0; h < cfg_.hot_pixels; ++h) {
+      const auto pix = static_cast<std::uint32_t>(rng.below(n));
+      const std::size_t m = poisson(cfg_.hot_rate * T);
+      for (std::size_t k = 0; k < m; ++k) evs.push_back({rng.uniform(0, T), pix, static_cast<std::int8_t>(rng.below(2) ? 1 : -1)});
+    }
+    if (cfg_.jitter > 0)
+      for (auto& e : evs) e.t = std::clamp(e.t + cfg_.jitter * rng.normal(), 0.0, T);
+    std::stable_sort(evs.begin(), evs.end(), [](const Ev& a, const Ev& b) { return a.t < b.t; });
+    rec.events.width = W;
+    rec.events.height = H;
+    rec.events.reserve(evs.size());
+    for (const auto& e : evs) rec.events.push_back(e.t, static_cast<int>(e.pix % W), static_cast<int>(e.pix / W), e.p);
+    // Frames and depth at the frame rate, and poses at 200 Hz.
+    for (double ft = 0; ft <= T + 1e-9; ft += 1.0 / cfg_.frame_rate) {
+      std::vector<float> dep;
+      render(ft, rgb, &dep);
+      Image frame(W, H, cfg_.bayer ? 3 : 1), depth(W, H, 1);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double gain = cfg_.exposure;
+        if (cfg_.bayer)
+          for (int c = 0; c < 3; ++c) frame.data[3 * i + c] = static_cast<float>(std::clamp(rgb[i][c] * gain, 0.0, 1.0));
+        else
+          frame.data[i] = static_cast<float>(std::clamp((0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2]) * gain, 0.0, 1.0));
+        depth.data[i] = dep[i];
+      }
+      rec.frame_times.push_back(ft);
+      rec.frames.push_back(std::move(frame));
+      rec.depth.push_back(std::move(depth));
+    }
+    std::vector<double> pt;
+    std::vector<geometry::Pose> poses;
+    for (double pt_ = 0; pt_ <= T + 1e-9; pt_ += 0.005) {
+      pt.push_back(pt_);
+      poses.push_back(spec_.path.pose(pt_));
+    }
+    rec.trajectory = geometry::Trajectory(pt, poses, "simulated trajectory");
+    return rec;
+  }
+
+ private:
+  SceneSpec spec_;
+  SensorConfig cfg_;
+  geometry::Camera cam_;
+};
+
+/// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt)
+/// plus sensor.txt and depth/frame_XXXXXXXX.npy. Every file is written atomically.
+inline void write_recording(const std::filesystem::path& dir, const Recording& rec) {
+  namespace fs = std::filesystem;
+  fs::create_directories(dir / "images");
+  fs::create_directories(dir / "depth");
+  std::string ev;
+  ev.reserve(rec.events.size() * 24);
+  char buf[128];
+  for (std::size_t i = 0; i < rec.events.size(); ++i) {
+    const int k = std::snprintf(buf, sizeof buf, "%.9f %d %d %d\n", rec.events.t[i], rec.events.x[i], rec.events.y[i],
+                                rec.events.polarity[i] > 0 ? 1 : 0);
+    ev.append(buf, static_cast<std::size_t>(k));
+  }
+  write_file_atomic(dir / "events.txt", ev);
+  std::string images;
+  for (std::size_t f = 0; f < rec.frames.size(); ++f) {
+    char name[64];
+    std::snprintf(name, sizeof name, "images/frame_%08zu.png", f);
+    io::write_png(dir / name, rec.frames[f]);
+    std::snprintf(buf, sizeof buf, "%.9f %s\n", rec.frame_times[f], name);
+    images += buf;
+    std::snprintf(name, sizeof name, "depth/frame_%08zu.npy", f);
+    io::save_npy(dir / name, rec.depth[f].data.data(), {static_cast<std::size_t>(rec.depth[f].height), static_cast<std::size_t>(rec.depth[f].width)});
+  }
+  write_file_atomic(dir / "images.txt", images);
+  io::write_poses_txt(dir / "groundtruth.txt", rec.trajectory);
+  const auto& c = rec.camera;
+  std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f 0 0 0 0 0\n", c.fx(), c.fy(), c.cx(), c.cy());
+  write_file_atomic(dir / "calib.txt", buf);
+  write_file_atomic(dir / "sensor.txt", std::to_string(c.width()) + " " + std::to_string(c.height()) + "\n");
+}
+
+}  // namespace evnerf::sim

@@ -1,0 +1,192 @@
+// train/trainer.hpp — turning a recording into training data, the training loop (progress bar, JSON-lines
+// log, atomic checksummed checkpoints, exact resume, divergence stop) and evaluation against frames.
+// Depends on model.hpp, io/ and eval/.
+#pragma once
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "../core/fileio.hpp"
+#include "../core/progress.hpp"
+#include "../eval/baselines.hpp"
+#include "../eval/metrics.hpp"
+#include "../io/dataset.hpp"
+#include "../io/image_io.hpp"
+#include "../model.hpp"
+
+namespace evnerf::train {
+
+namespace fs = std::filesystem;
+
+/// Runtime knobs that do not change the computation's shape.
+struct Config {
+  long iterations = 3000;
+  int pixels_per_step = 1024;  ///< each rendered at both poses
+  double lr = 5e-4, lr_decay = 0.1, lr_decay_steps = 250000;
+  std::uint64_t seed = 1;
+  int threads = 0;             ///< 0 = all
+  long checkpoint_every = 500;
+  double near = 0.1, far = 6.0;
+  int holdout_every = 0;       ///< hold out every k-th slice boundary (0 = none)
+  bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
+  bool progress = true;
+};
+
+/// Slice boundaries (frame times inside the events' span whose poses exist, else uniform at ~24 Hz),
+/// slice counts, boundary poses and the camera's pixel directions.
+inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector<std::size_t>* frame_of_boundary = nullptr) {
+  require(!d.trajectory.empty(), d.folder.string() + ": no poses (groundtruth.txt) — poses are required for training");
+  const auto policy = cfg.clamp_poses ? geometry::OutOfRange::Clamp : geometry::OutOfRange::Error;
+  std::vector<double> b;
+  std::vector<std::size_t> frame_ids;
+  const double t0 = d.events.t_begin(), t1 = d.events.t_end();
+  for (std::size_t i = 0; i < d.frames.size(); ++i) {
+    const double t = d.frames.t[i];
+    if (t < t0 - 1e-9 && !cfg.clamp_poses) continue;
+    if (t > t1 + 1e-9) continue;
+    if (!cfg.clamp_poses && !d.trajectory.covers(t)) continue;
+    b.push_back(t);
+    frame_ids.push_back(i);
+  }
+  if (b.size() < 2) {
+    const double lo = std::max(t0, d.trajectory.front()), hi = std::min(t1, d.trajectory.back());
+    if (!(hi > lo))
+      throw Error(d.folder.string() + ": the poses (" + std::to_string(d.trajectory.front()) + " .. " +
+                  std::to_string(d.trajectory.back()) + " s) do not cover the events (" + std::to_string(t0) + " .. " +
+                  std::to_string(t1) + " s)");
+    b = events::uniform_boundaries(lo, hi, std::max<std::size_t>(2, static_cast<std::size_t>((hi - lo) * 24)));
+    frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
+  }
+  TrainingData td;
+  td.camera = d.camera;
+  td.slices = events::slice_events(d.events, b);
+  for (double t : b) td.boundary_poses.push_back(d.trajectory.pose_at(t, policy));
+  td.pixel_dirs = render::pixel_directions(d.camera);
+  td.slice_enabled.assign(td.slices.size(), true);
+  if (cfg.holdout_every > 0)
+    for (std::size_t k = cfg.holdout_every; k + 1 < b.size(); k += cfg.holdout_every) {
+      td.slice_enabled[k - 1] = false;  // both slices touching boundary k
+      td.slice_enabled[k] = false;
+    }
+  if (frame_of_boundary) *frame_of_boundary = frame_ids;
+  return td;
+}
+
+/// Scene box from the boundary poses and near/far.
+inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
+  std::vector<Vec3> c;
+  for (auto& p : td.boundary_poses) c.push_back(p.t);
+  return render::SceneBox::from_cameras(c, cfg.near, cfg.far);
+}
+
+/// What a checkpoint carries besides the model: the camera and the boundary poses, so `render` and
+/// `eval` need no recording.
+inline std::string describe(const TrainingData& td, const std::string& folder) {
+  std::ostringstream o;
+  o.precision(17);
+  const auto& c = td.camera;
+  o << folder << "\n" << c.width() << " " << c.height() << " " << c.fx() << " " << c.fy() << " " << c.cx() << " " << c.cy();
+  for (double k : c.distortion()) o << " " << k;
+  o << "\n" << td.boundary_poses.size() << "\n";
+  for (std::size_t i = 0; i < td.boundary_poses.size(); ++i) {
+    const auto& p = td.boundary_poses[i];
+    o << td.slices.boundaries[i] << " " << p.t.x() << " " << p.t.y() << " " << p.t.z() << " " << p.q.x() << " " << p.q.y()
+      << " " << p.q.z() << " " << p.q.w() << "\n";
+  }
+  return o.str();
+}
+struct Described {
+  std::string folder;
+  geometry::Camera camera;
+  std::vector<double> times;
+  std::vector<geometry::Pose> poses;
+};
+inline Described parse_description(const std::string& s, const std::string& file) {
+  std::istringstream in(s);
+  Described d;
+  int w, h;
+  double fx, fy, cx, cy;
+  std::array<double, 5> k{};
+  std::size_t n = 0;
+  if (!std::getline(in, d.folder) || !(in >> w >> h >> fx >> fy >> cx >> cy >> k[0] >> k[1] >> k[2] >> k[3] >> k[4] >> n))
+    throw Error(file, 0, "corrupt checkpoint metadata");
+  d.camera = geometry::Camera(w, h, fx, fy, cx, cy, k);
+  for (std::size_t i = 0; i < n; ++i) {
+    double t, px, py, pz, qx, qy, qz, qw;
+    if (!(in >> t >> px >> py >> pz >> qx >> qy >> qz >> qw)) throw Error(file, 0, "corrupt checkpoint metadata (poses)");
+    geometry::Pose p;
+    p.t = Vec3(px, py, pz);
+    p.q = Quat(qw, qx, qy, qz).normalized();
+    d.times.push_back(t);
+    d.poses.push_back(p);
+  }
+  return d;
+}
+
+template <class Model>
+void save_checkpoint(const fs::path& path, const Model& m, const std::string& name, const std::string& meta) {
+  write_file_atomic(path, m.serialize(name, meta));
+}
+template <class Model>
+std::string load_checkpoint(const fs::path& path, Model& m, const std::string& name) {
+  return m.deserialize(read_file(path), name, path.string());
+}
+
+struct RunResult {
+  long steps = 0;
+  double final_loss = 0, seconds = 0, rays_per_second = 0;
+  bool diverged = false;
+};
+
+/// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
+/// `out/log.jsonl` and `out/model.ckpt` every checkpoint_every steps and at the end. On a NaN/Inf loss it
+/// stops with a message and leaves the last good checkpoint in place.
+template <class Model>
+RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
+              const std::string& meta) {
+  fs::create_directories(out);
+  if (cfg.threads > 0) set_thread_count(cfg.threads);
+  std::ofstream log(out / "log.jsonl", std::ios::app);
+  Progress bar(cfg.iterations, "train", cfg.progress);
+  RunResult r;
+  const double t_start = bar.elapsed();
+  double window_loss = 0;
+  long window = 0;
+  std::size_t rays = 0;
+  while (model.step() < cfg.iterations) {
+    const auto st = model.train_step(td, cfg.pixels_per_step, cfg.seed);
+    if (!std::isfinite(st.loss)) {
+      std::fprintf(stderr, "\ntraining diverged at step %ld (loss %g); the last good checkpoint is %s\n", model.step(), st.loss,
+                   (out / "model.ckpt").c_str());
+      r.diverged = true;
+      break;
+    }
+    rays += st.rays;
+    window_loss += st.loss;
+    ++window;
+    r.final_loss = st.loss;
+    const long s = model.step();
+    const double el = bar.elapsed() - t_start;
+    char extra[160];
+    std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", window_loss / window, rays / std::max(el, 1e-9));
+    bar.update(s, extra);
+    if (s % 50 == 0 || s == cfg.iterations) {
+      log << "{\"step\":" << s << ",\"loss\":" << window_loss / window << ",\"event_loss\":" << st.event_loss
+          << ",\"threshold_loss\":" << st.threshold_loss << ",\"lr\":" << model.optimizer().learning_rate()
+          << ",\"rays_per_s\":" << rays / std::max(el, 1e-9) << ",\"seconds\":" << el << "}\n";
+      log.flush();
+      window_loss = 0;
+      window = 0;
+    }
+    if ((cfg.checkpoint_every > 0 && s % cfg.checkpoint_every == 0) || s == cfg.iterations)
+      save_checkpoint(out / "model.ckpt", model, name, meta);
+    ++r.steps;
+  }
+  r.seconds = bar.elapsed() - t_start;
+  r.rays_per_second = rays / std::max(r.seconds, 1e-9);
+  return r;
+}
+
+}  // namespace evnerf::train
