@@ -1,0 +1,98 @@
+#include <evnerf/loss/event_loss.hpp>
+#include <evnerf/render/compositing.hpp>
+#include <evnerf/render/sampler.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+
+TEST_CASE("compositing: finite-difference check of colour w.r.t. densities and raw luminance") {
+  const int S = 9, C = 2;
+  Rng rng(3);
+  std::vector<double> sigma(S), raw(S * C), t(S), noise(S), dcolor(C);
+  for (int k = 0; k < S; ++k) {
+    sigma[k] = rng.uniform(-0.5, 3.0);
+    t[k] = 0.5 + 0.3 * k + 0.1 * rng.uniform();
+    noise[k] = 0.3 * rng.normal();
+  }
+  for (auto& v : raw) v = rng.uniform(-2, 2);
+  for (auto& v : dcolor) v = rng.uniform(-1, 1);
+  auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
+    render::RayComposite<double> r;
+    render::composite_forward<double>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r);
+    double s = 0;
+    for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
+    return s;
+  };
+  render::RayComposite<double> r;
+  render::composite_forward<double>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r);
+  std::vector<double> ds(S), dr(S * C);
+  render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(sigma, v); }, raw, dr) < 1e-6);
+  // Weights sum to the opacity, and an opaque last interval makes it 1.
+  double wsum = 0;
+  for (double w : r.weight) wsum += w;
+  CHECK(wsum == doctest::Approx(r.opacity));
+  CHECK(r.opacity <= 1.0 + 1e-9);
+}
+
+TEST_CASE("compositing: an opaque sample at depth d gives depth d and its luminance") {
+  const int S = 4;
+  std::vector<double> sigma{-5, -5, 50, -5}, raw{0, 0, 2, 0}, t{1, 2, 3, 4};
+  render::RayComposite<double> r;
+  render::composite_forward<double>(S, 1, sigma.data(), 1, raw.data(), t.data(), 1.0, nullptr, r);
+  CHECK(r.depth == doctest::Approx(3.0).epsilon(1e-6));
+  CHECK(r.color[0] == doctest::Approx(1 / (1 + std::exp(-2.0))).epsilon(1e-6));
+}
+
+TEST_CASE("event loss: zero inside the bounds, growing outside; gradients match finite differences") {
+  loss::EventBounds none{0, 0};
+  // No events: |Δlog| < B → zero loss.
+  CHECK(none.evaluate(0.5, 0.5 * std::exp(0.1), 0.3, -0.3)[0] == doctest::Approx(0.0));
+  const double small = none.evaluate(0.5, 0.5 * std::exp(0.4), 0.3, -0.3)[0];
+  const double large = none.evaluate(0.5, 0.5 * std::exp(0.8), 0.3, -0.3)[0];
+  CHECK(small > 0);
+  CHECK(large > small);
+  // Three positive events: the change must lie in [2B⁺, 4B⁺] with k = 1.
+  loss::EventBounds three{3, 0};
+  CHECK(three.evaluate(0.2, 0.2 * std::exp(0.9), 0.3, -0.3)[0] == doctest::Approx(0.0).epsilon(1e-9));
+  CHECK(three.evaluate(0.2, 0.2 * std::exp(0.3), 0.3, -0.3)[0] > 0);
+  for (auto [np, nn] : {std::pair{2.0, 1.0}, std::pair{0.0, 3.0}, std::pair{0.0, 0.0}}) {
+    loss::EventBounds lb{np, nn};
+    const std::vector<double> x{0.3, 0.7, 0.27, -0.33};
+    const auto r = lb.evaluate(x[0], x[1], x[2], x[3]);
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return lb.evaluate(v[0], v[1], v[2], v[3])[0]; }, x,
+                               {r[1], r[2], r[3], r[4]}) < 1e-6);
+  }
+}
+
+TEST_CASE("threshold floor: zero above |B| >= 0.3, gradient pushes thresholds back up") {
+  auto f = loss::ThresholdFloor{};
+  CHECK(ad::value(f, 0.35, -0.4) == doctest::Approx(0.0));
+  const auto vg = ad::value_and_grad(f, std::array<double, 2>{0.2, -0.1});
+  CHECK(vg.value == doctest::Approx(0.1 + 0.2));
+  CHECK(vg.grad[0] == doctest::Approx(-1.0));  // descending increases B⁺
+  CHECK(vg.grad[1] == doctest::Approx(1.0));   // descending decreases B⁻
+  const std::vector<double> x{0.25, -0.21};
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return ad::value(f, v[0], v[1]); }, x, {vg.grad[0], vg.grad[1]}) < 1e-6);
+}
+
+TEST_CASE("samplers: stratified depths cover [near, far] in order; importance samples follow the weights") {
+  std::vector<double> t(16);
+  Rng rng(1);
+  render::stratified_depths<double>(16, 1.0, 5.0, &rng, t.data());
+  CHECK(std::is_sorted(t.begin(), t.end()));
+  CHECK(t.front() >= 1.0);
+  CHECK(t.back() <= 5.0);
+  std::vector<double> w(16, 0.0);
+  w[10] = 1.0;  // all mass around t[10]
+  std::vector<double> out;
+  render::importance_depths<double>(16, t.data(), w.data(), 64, &rng, out);
+  CHECK(out.size() == 80);
+  CHECK(std::is_sorted(out.begin(), out.end()));
+  int near_peak = 0;
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (out[i] > 0.5 * (t[9] + t[10]) - 1e-9 && out[i] < 0.5 * (t[10] + t[11]) + 1e-9) ++near_peak;
+  CHECK(near_peak >= 60);
+}

@@ -1,0 +1,130 @@
+#include <evnerf/sim/simulator.hpp>
+#include <evnerf/train/trainer.hpp>
+
+#include "common.hpp"
+
+using namespace evnerf;
+namespace fs = std::filesystem;
+
+namespace {
+// A small field and model so that training tests run in seconds.
+using TinyField = field::Field<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmonics<2>, nn::Mlp<12, 16, 1, 5, nn::ReLU, nn::Identity>,
+                               nn::Mlp<4 + 4, 16, 1, 1, nn::ReLU, nn::Identity>>;
+using Tiny = EvNerf<TinyField, render::Stratified<16>>;
+
+struct Fixture {
+  io::Dataset d;
+  TrainingData td;
+  train::Config cfg;
+  Fixture() {
+    auto spec = sim::parse_scene("plane 0 0 1.5 0 0 -1 1 0 0 0 0 checker 2\npath slider -0.1 0 0 0.1 0 0 0 0 1 0.5\n", "tiny.txt");
+    sim::SensorConfig sc;
+    sc.width = 32;
+    sc.height = 24;
+    sc.fx = sc.fy = 30;
+    sc.cx = sc.cy = -1;
+    sc.frame_rate = 12;
+    auto rec = sim::Simulator(spec, sc).run();
+    d.camera = rec.camera;
+    d.events = rec.events;
+    d.trajectory = rec.trajectory;
+    d.frames.t = rec.frame_times;
+    d.frames.paths.resize(rec.frame_times.size());
+    cfg.near = 0.5;
+    cfg.far = 3.0;
+    cfg.pixels_per_step = 256;
+    td = train::prepare(d, cfg);
+  }
+};
+}  // namespace
+
+TEST_CASE("training: a short run on a tiny simulated scene lowers the loss") {
+  Fixture f;
+  Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+  double first = 0, last = 0;
+  for (int s = 0; s < 150; ++s) {
+    const auto st = m.train_step(f.td, 256, 3);
+    REQUIRE(std::isfinite(st.loss));
+    if (s < 15) first += st.event_loss / 15;
+    if (s >= 135) last += st.event_loss / 15;
+  }
+  CAPTURE(first);
+  CAPTURE(last);
+  CHECK(last < 0.7 * first);
+  // Joint thresholds stay above the floor.
+  for (std::size_t i = 0; i < m.n_slices(); ++i) {
+    CHECK(m.threshold_pos(i) > 0.25f);
+    CHECK(m.threshold_neg(i) < -0.25f);
+  }
+}
+
+TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants differ") {
+  Fixture f;
+  EvNerf<TinyField, render::Stratified<16>, loss::FixedThresholds> m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  for (int s = 0; s < 5; ++s) m.train_step(f.td, 128, 3);
+  CHECK(m.threshold_pos(0) == doctest::Approx(0.3f));
+  CHECK(m.threshold_neg(0) == doctest::Approx(-0.3f));
+}
+
+TEST_CASE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip") {
+  Fixture f;
+  const auto box = train::scene_box(f.td, f.cfg);
+  Tiny a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
+  for (int s = 0; s < 6; ++s) {
+    a.train_step(f.td, 128, 3);
+    b.train_step(f.td, 128, 3);
+  }
+  CHECK(a.params().values == b.params().values);
+  // Save after 6 steps, continue both the original and a restored copy.
+  const std::string bytes = a.serialize("tiny", "meta");
+  Tiny c;
+  CHECK(c.deserialize(bytes, "tiny", "mem") == "meta");
+  for (int s = 0; s < 4; ++s) {
+    a.train_step(f.td, 128, 3);
+    c.train_step(f.td, 128, 3);
+  }
+  CHECK(a.params().values == c.params().values);
+  CHECK(a.step() == c.step());
+  // A restored model renders bit-identically.
+  Tiny e;
+  e.deserialize(a.serialize("tiny", ""), "tiny", "mem");
+  const auto dirs = render::pixel_directions(f.td.camera);
+  CHECK(a.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
+        e.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
+}
+
+TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with a clear error") {
+  Fixture f;
+  Tiny a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  std::string bytes = a.serialize("tiny", "");
+  Tiny b;
+  std::string bad = bytes;
+  bad[bad.size() / 2] ^= 0x55;
+  CHECK_THROWS_WITH(b.deserialize(bad, "tiny", "x.ckpt"), doctest::Contains("x.ckpt:0: corrupt or mismatched checkpoint: checksum mismatch"));
+  CHECK_THROWS_WITH(b.deserialize(bytes.substr(0, 100), "tiny", "x.ckpt"), doctest::Contains("checksum mismatch"));
+  CHECK_THROWS_WITH(b.deserialize(bytes, "paper", "x.ckpt"), doctest::Contains("written by preset 'tiny'"));
+  CHECK_THROWS_WITH(b.deserialize("hello", "tiny", "x.ckpt"), doctest::Contains("not an evnerf checkpoint"));
+  // The trainer's file path: atomic write and load.
+  const fs::path dir = fs::temp_directory_path() / ("evnerf_ck_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  train::save_checkpoint(dir / "m.ckpt", a, "tiny", "meta");
+  Tiny c;
+  CHECK(train::load_checkpoint(dir / "m.ckpt", c, "tiny") == "meta");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {
+  Fixture f;
+  io::Dataset d = f.d;
+  d.frames = {};
+  std::vector<double> t{10.0, 11.0};
+  d.trajectory = geometry::Trajectory(t, {geometry::Pose{}, geometry::Pose{}});
+  CHECK_THROWS_WITH(train::prepare(d, f.cfg), doctest::Contains("do not cover the events"));
+}
+
+TEST_CASE("noise injection inside training draws a fresh noise map per step") {
+  Fixture f;
+  Rng r1(1), r2(2);
+  const auto& s = f.td.slices.slices[1];
+  CHECK(events::inject_noise(s, 0.05, r1).pos != events::inject_noise(s, 0.05, r2).pos);
+}
