@@ -11,7 +11,7 @@ cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli
 EVNERF="$BUILD/examples/evnerf"
 if "$EVNERF" help 2>&1 | grep -q "^  train"; then
   "$EVNERF" simulate planes --out "$OUT/scene"
-  "$EVNERF" train "$OUT/scene" --preset fast --out "$OUT/run" "$@"
+  "$EVNERF" train "$OUT/scene" --preset fast --iters "${ITERS:-1500}" --out "$OUT/run" "$@"
   "$EVNERF" eval "$OUT/run/model.ckpt" "$OUT/scene" --out "$OUT/eval"
   echo "images and metrics: $OUT/eval"
 else

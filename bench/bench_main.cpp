@@ -1,0 +1,223 @@
+// Benchmarks, each beside its reference twin measured in the same run:
+//   MLP forward+backward (paper network W=256 and W=64): fused tiles vs the plain reference MLP;
+//   a pure-FMA loop (the machine's FP32 peak); events.txt parsing vs a naive ifstream reader; the .npy
+//   event cache; the Fast and Paper training steps; one Fast 240×180 render.
+// bench/run.sh runs this and the PyTorch peer and prints the ratios.
+#include <benchmark/benchmark.h>
+#include <evnerf/evnerf.hpp>
+#include <evnerf/model.hpp>
+#include <evnerf/nn/reference.hpp>
+#include <evnerf/sim/simulator.hpp>
+#include <evnerf/train/trainer.hpp>
+
+#include <fstream>
+#include <immintrin.h>
+
+using namespace evnerf;
+
+namespace {
+
+/// The paper's network without encodings (inputs pre-encoded, as the peer's --mode mlp): trunk
+/// 63 → 8×W (skip) → W+1 (density + feature), view branch W+27 → W/2 → 1.
+template <int W>
+struct PaperNet {
+  using Trunk = nn::Mlp<63, W, 8, W + 1, nn::ReLU, nn::Identity, 4>;
+  using View = nn::Mlp<W + 27, W / 2, 1, 1, nn::ReLU, nn::Identity>;
+  static constexpr std::size_t n_params = Trunk::n_params + View::n_params;
+  static constexpr double flops_fwdbwd() {
+    // 2 FLOP per MAC forward; backward = dW + dX, except dX of the first layer (as the peer counts).
+    const double fwd = 2.0 * (Trunk::macs_per_sample() + View::macs_per_sample());
+    return 3 * fwd - 2.0 * 63 * W;
+  }
+};
+
+template <int W>
+void run_fused(std::vector<float>& params, const std::vector<float>& xe, const std::vector<float>& de, int n,
+               nn::ParameterBuffer<float>& pb, int tile) {
+  using Net = PaperNet<W>;
+  const int n_tiles = (n + tile - 1) / tile;
+  pb.begin_accumulate(thread_count());
+  parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
+    typename Net::Trunk::template Workspace<float> wt;
+    typename Net::View::template Workspace<float> wv;
+    std::vector<float> vin, dy(static_cast<std::size_t>(tile)), dvin, dtr;
+    float* g = pb.per_thread[th].data();
+    for (std::size_t t = b; t < e; ++t) {
+      const int j0 = static_cast<int>(t) * tile, m = std::min(tile, n - j0);
+      const float* h = Net::Trunk::forward(params.data(), &xe[static_cast<std::size_t>(j0) * 63], m, wt);
+      vin.resize(static_cast<std::size_t>(W + 27) * m);
+      for (int j = 0; j < m; ++j) {
+        std::copy(h + static_cast<std::size_t>(j) * (W + 1) + 1, h + static_cast<std::size_t>(j + 1) * (W + 1), &vin[static_cast<std::size_t>(j) * (W + 27)]);
+        std::copy(&de[static_cast<std::size_t>(j0 + j) * 27], &de[static_cast<std::size_t>(j0 + j) * 27] + 27, &vin[static_cast<std::size_t>(j) * (W + 27) + W]);
+      }
+      Net::View::forward(params.data() + Net::Trunk::n_params, vin.data(), m, wv);
+      std::fill(dy.begin(), dy.end(), 1.f);
+      dvin.assign(static_cast<std::size_t>(W + 27) * m, 0.f);
+      Net::View::backward(params.data() + Net::Trunk::n_params, wv, dy.data(), g + Net::Trunk::n_params, dvin.data());
+      dtr.resize(static_cast<std::size_t>(W + 1) * m);
+      for (int j = 0; j < m; ++j) {
+        dtr[static_cast<std::size_t>(j) * (W + 1)] = 1.f;  // d(sum of density)
+        std::copy(&dvin[static_cast<std::size_t>(j) * (W + 27)], &dvin[static_cast<std::size_t>(j) * (W + 27)] + W, &dtr[static_cast<std::size_t>(j) * (W + 1) + 1]);
+      }
+      Net::Trunk::backward(params.data(), wt, dtr.data(), g, static_cast<float*>(nullptr));
+    }
+  });
+  pb.end_accumulate(thread_count());
+}
+
+template <int W>
+void BM_mlp_fused(benchmark::State& st) {
+  using Net = PaperNet<W>;
+  const int n = static_cast<int>(st.range(0));
+  Rng rng(1);
+  std::vector<float> params(Net::n_params), xe(static_cast<std::size_t>(n) * 63), de(static_cast<std::size_t>(n) * 27);
+  Net::Trunk::init(params.data(), rng);
+  Net::View::init(params.data() + Net::Trunk::n_params, rng);
+  for (auto& v : xe) v = rng.uniformf() * 2 - 1;
+  for (auto& v : de) v = rng.uniformf() * 2 - 1;
+  nn::ParameterBuffer<float> pb(Net::n_params);
+  for (auto _ : st) run_fused<W>(params, xe, de, n, pb, static_cast<int>(st.range(1)));
+  st.counters["samples_per_s"] = benchmark::Counter(double(n), benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["gflops"] = benchmark::Counter(n * Net::flops_fwdbwd() / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+/// The plain reference: whole batch per layer, unfused (float, Eigen), parallel over two halves.
+template <int W>
+void BM_mlp_reference(benchmark::State& st) {
+  using Net = PaperNet<W>;
+  const int n = static_cast<int>(st.range(0));
+  Rng rng(1);
+  std::vector<float> params(Net::Trunk::n_params), xe(static_cast<std::size_t>(n) * 63), dy(static_cast<std::size_t>(n) * (W + 1), 1.f);
+  Net::Trunk::init(params.data(), rng);
+  for (auto& v : xe) v = rng.uniformf() * 2 - 1;
+  for (auto _ : st) {
+    parallel_blocks(2, 1, [&](std::size_t b, std::size_t e, int) {
+      for (std::size_t h = b; h < e; ++h) {
+        const int m = n / 2;
+        std::vector<float> x(xe.begin() + static_cast<std::ptrdiff_t>(h * m * 63), xe.begin() + static_cast<std::ptrdiff_t>((h + 1) * m * 63));
+        std::vector<float> d(dy.begin(), dy.begin() + static_cast<std::ptrdiff_t>(m) * (W + 1));
+        benchmark::DoNotOptimize(nn::reference_mlp_forward_backward<typename Net::Trunk>(params, x, m, d));
+      }
+    });
+  }
+  // Trunk only (the view branch is < 15 % of the work): FLOPs counted for the trunk.
+  const double trunk_flops = 3 * 2.0 * Net::Trunk::macs_per_sample() - 2.0 * 63 * W;
+  st.counters["samples_per_s"] = benchmark::Counter(double(n), benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["gflops"] = benchmark::Counter(n * trunk_flops / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+/// FP32 FMA peak: independent AVX-512 FMA chains on every thread.
+void BM_fma_peak(benchmark::State& st) {
+  const long iters = 1 << 22;
+  for (auto _ : st) {
+    parallel_blocks(static_cast<std::size_t>(thread_count()), 1, [&](std::size_t, std::size_t, int) {
+#if defined(__AVX512F__)
+      __m512 a[12];
+      for (int i = 0; i < 12; ++i) a[i] = _mm512_set1_ps(1.0f + i * 1e-3f);
+      const __m512 m = _mm512_set1_ps(0.999999f), c = _mm512_set1_ps(1e-7f);
+      for (long k = 0; k < iters; ++k)
+        for (int i = 0; i < 12; ++i) a[i] = _mm512_fmadd_ps(a[i], m, c);
+      float s = 0;
+      for (int i = 0; i < 12; ++i) s += _mm512_reduce_add_ps(a[i]);
+      benchmark::DoNotOptimize(s);
+#endif
+    });
+  }
+  st.counters["gflops"] = benchmark::Counter(double(thread_count()) * iters * 12 * 16 * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+std::string synthetic_events_text(std::size_t n) {
+  Rng rng(3);
+  std::string s;
+  char buf[64];
+  double t = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    t += rng.uniform() * 1e-5;
+    const int k = std::snprintf(buf, sizeof buf, "%.9f %d %d %d\n", t, int(rng.below(240)), int(rng.below(180)), int(rng.below(2)));
+    s.append(buf, static_cast<std::size_t>(k));
+  }
+  return s;
+}
+const std::string& events_text() {
+  static const std::string s = synthetic_events_text(2000000);
+  return s;
+}
+
+void BM_parse_events_fast(benchmark::State& st) {
+  const auto& s = events_text();
+  for (auto _ : st) benchmark::DoNotOptimize(io::parse_events(s, "bench", 240, 180));
+  st.SetBytesProcessed(static_cast<std::int64_t>(st.iterations() * s.size()));
+}
+/// The naive reference: std::ifstream >> per token.
+void BM_parse_events_naive(benchmark::State& st) {
+  const auto& s = events_text();
+  const auto path = std::filesystem::temp_directory_path() / "evnerf_bench_events.txt";
+  { std::ofstream(path) << s; }
+  for (auto _ : st) {
+    std::ifstream in(path);
+    events::EventStream ev;
+    double t;
+    int x, y, p;
+    while (in >> t >> x >> y >> p) ev.push_back(t, x, y, p ? 1 : -1);
+    benchmark::DoNotOptimize(ev);
+  }
+  st.SetBytesProcessed(static_cast<std::int64_t>(st.iterations() * s.size()));
+}
+void BM_event_cache_load(benchmark::State& st) {
+  const auto ev = io::parse_events(events_text(), "bench", 240, 180);
+  const auto dir = std::filesystem::temp_directory_path() / "evnerf_bench_cache";
+  io::save_event_cache(dir, ev, "stamp");
+  const std::size_t bytes = ev.size() * (8 + 2 + 2 + 1);
+  for (auto _ : st) {
+    events::EventStream out;
+    benchmark::DoNotOptimize(io::load_event_cache(dir, "stamp", out));
+  }
+  st.SetBytesProcessed(static_cast<std::int64_t>(st.iterations() * bytes));
+}
+
+/// A recording for training-step benchmarks (planes scene, short).
+const TrainingData& bench_data() {
+  static const TrainingData td = [] {
+    auto spec = sim::load_scene("planes");
+    spec.path.duration = 0.3;
+    auto rec = sim::Simulator(spec, sim::SensorConfig{}).run();
+    io::Dataset d;
+    d.camera = rec.camera;
+    d.events = rec.events;
+    d.trajectory = rec.trajectory;
+    d.frames.t = rec.frame_times;
+    d.frames.paths.resize(rec.frame_times.size());
+    train::Config cfg;
+    return train::prepare(d, cfg);
+  }();
+  return td;
+}
+template <class Model>
+void BM_train_step(benchmark::State& st) {
+  const auto& td = bench_data();
+  train::Config cfg;
+  Model m(td.slices.size(), train::scene_box(td, cfg), 1);
+  for (auto _ : st) benchmark::DoNotOptimize(m.train_step(td, 1024, 1));
+  st.counters["rays_per_s"] = benchmark::Counter(2048, benchmark::Counter::kIsIterationInvariantRate);
+}
+void BM_render_fast(benchmark::State& st) {
+  const auto& td = bench_data();
+  train::Config cfg;
+  presets::Fast m(td.slices.size(), train::scene_box(td, cfg), 1);
+  for (auto _ : st) benchmark::DoNotOptimize(m.render(td.camera, td.pixel_dirs, td.boundary_poses[0]));
+}
+
+}  // namespace
+
+BENCHMARK(BM_fma_peak)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_fused<256>)->Args({16384, 128})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_reference<256>)->Args({16384})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_fused<64>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_reference<64>)->Args({65536})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_parse_events_fast)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_parse_events_naive)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_event_cache_load)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_train_step<presets::Fast>)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_train_step<presets::Paper>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_render_fast)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK_MAIN();

@@ -1,0 +1,34 @@
+"""Prints bench/run.sh's ratios from medians: ours vs the plain reference, vs the PyTorch peer, vs FMA peak."""
+import glob, json, statistics, sys
+
+out = sys.argv[1]
+runs = {}
+for f in sorted(glob.glob(f"{out}/ours_*.json")):
+    for b in json.load(open(f))["benchmarks"]:
+        runs.setdefault(b["name"], []).append(b)
+peer = [json.loads(l) for l in open(f"{out}/peer.jsonl") if l.strip()] if glob.glob(f"{out}/peer.jsonl") else []
+
+def med(name, key):
+    vals = [b[key] for n, bs in runs.items() if n.startswith(name) for b in bs if key in b]
+    return statistics.median(vals) if vals else float("nan")
+
+def peer_med(mode, width, key):
+    vals = [p[key] for p in peer if p["mode"] == mode and p["width"] == width]
+    return statistics.median(vals) if vals else float("nan")
+
+peak = med("BM_fma_peak", "gflops")
+print(f"FP32 FMA peak (2 threads): {peak:.0f} GFLOP/s")
+for w in (256, 64):
+    f, r = med(f"BM_mlp_fused<{w}>", "samples_per_s"), med(f"BM_mlp_reference<{w}>", "samples_per_s")
+    fg, ps = med(f"BM_mlp_fused<{w}>", "gflops"), peer_med("mlp", w, "samples_per_s")
+    print(f"MLP W={w}: fused {f:,.0f} samples/s ({fg:.0f} GFLOP/s, {100 * fg / peak:.0f} % of peak); "
+          f"reference {r:,.0f} ({f / r:.2f}x); PyTorch peer {ps:,.0f} ({f / ps:.2f}x)")
+fast = med("BM_train_step<evnerf::presets::EvNerf", "real_time")
+print("parse events.txt: %.0f MB/s vs naive %.0f MB/s (%.1fx); npy cache %.2f GB/s" % (
+    med("BM_parse_events_fast", "bytes_per_second") / 1e6, med("BM_parse_events_naive", "bytes_per_second") / 1e6,
+    med("BM_parse_events_fast", "bytes_per_second") / med("BM_parse_events_naive", "bytes_per_second"),
+    med("BM_event_cache_load", "bytes_per_second") / 1e9))
+for name, b in runs.items():
+    if name.startswith("BM_train_step") or name.startswith("BM_render"):
+        print(f"{name}: {statistics.median(x['real_time'] for x in b):.0f} ms")
+print(f"PyTorch peer W=64 32+32 step: {peer_med('step', 64, 'ms_per_step'):.0f} ms")

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Builds bench/, runs it and the PyTorch peer (best configuration, see ../shared/peers/README.md) in the
+# same session, alternating, and prints the ratios from medians. Usage: bench/run.sh [repetitions]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+REPS=${1:-3}
+scripts/deps.sh libbenchmark-dev
+cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
+  -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
+cmake --build build-bench -j"$(nproc)" >/dev/null
+OUT=build-bench/results; mkdir -p "$OUT"; : > "$OUT/peer.jsonl"
+PEER=../shared/peers/peer_torch.py
+BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
+for r in $(seq "$REPS"); do
+  OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench --benchmark_format=json --benchmark_out="$OUT/ours_$r.json" \
+    --benchmark_out_format=json >/dev/null
+  if [ -f "$PEER" ] && /usr/bin/python3 -c "import torch" 2>/dev/null; then
+    /usr/bin/python3 "$PEER" --mode mlp --width 256 --n-samples 16384 $BEST >> "$OUT/peer.jsonl"
+    /usr/bin/python3 "$PEER" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer.jsonl"
+    /usr/bin/python3 "$PEER" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer.jsonl"
+  fi
+done
+python3 bench/ratios.py "$OUT"
