@@ -9,11 +9,7 @@ OUT=${OUT:-out/demo}
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_TESTS=OFF -DEVNERF_BUILD_EXAMPLES=ON >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli
 EVNERF="$BUILD/examples/evnerf"
-if "$EVNERF" help 2>&1 | grep -q "^  train"; then
-  "$EVNERF" simulate planes --out "$OUT/scene"
-  "$EVNERF" train "$OUT/scene" --preset fast --iters "${ITERS:-1500}" --out "$OUT/run" "$@"
-  "$EVNERF" eval "$OUT/run/model.ckpt" "$OUT/scene" --out "$OUT/eval"
-  echo "images and metrics: $OUT/eval"
-else
-  "$EVNERF" inspect "${DATA:-../shared/data/ijrr_slider_depth_chunk}"
-fi
+"$EVNERF" simulate planes --out "$OUT/scene"
+"$EVNERF" train "$OUT/scene" --preset fast --iters "${ITERS:-1500}" --out "$OUT/run" "$@"
+"$EVNERF" eval "$OUT/run/model.ckpt" "$OUT/scene" --out "$OUT/eval"
+echo "images and metrics: $OUT/eval"
