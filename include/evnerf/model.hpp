@@ -331,6 +331,19 @@ class EvNerf {
     FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
   }
 
+  /// Fine depths of R rays (R × (Nc+Nf)): coarse depths merged with Nf drawn from the coarse weights;
+  /// `rngs` (one per ray) jitters the draws in training, null gives deterministic evaluation depths.
+  std::vector<float> fine_depths(int R, Rng* rngs, const TileWork& w) const {
+    constexpr int S = Nc + Nf;
+    std::vector<float> tf(static_cast<std::size_t>(R) * S), one;
+    for (int r = 0; r < R; ++r) {
+      render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf,
+                                       rngs ? &rngs[r] : nullptr, one);
+      std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
+    }
+    return tf;
+  }
+
   double train_tile(const TrainingData& data, const events::SliceCounts& counts, std::size_t slice,
                     const geometry::Pose& pose0, const geometry::Pose& pose1, const std::uint32_t* pix, int P, int batch,
                     std::uint64_t ray_key, float* grads, TileWork& w) const {
@@ -359,13 +372,10 @@ class EvNerf {
     backward_rays(0, R, Nc, w.coarse, grads, w);
     if constexpr (n_fields == 2) {
       constexpr int S = Nc + Nf;
-      std::vector<float> tf(static_cast<std::size_t>(R) * S), nf(static_cast<std::size_t>(R) * S);
-      std::vector<float> one;
-      for (int r = 0; r < R; ++r) {
-        render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf, &ray_rng[r], one);
-        std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
+      const std::vector<float> tf = fine_depths(R, ray_rng.data(), w);
+      std::vector<float> nf(static_cast<std::size_t>(R) * S);
+      for (int r = 0; r < R; ++r)
         for (int k = 0; k < S; ++k) nf[static_cast<std::size_t>(r) * S + k] = static_cast<float>(ray_rng[r].normal());
-      }
       make_samples(origin.data(), dir.data(), R, S, tf, w);
       forward_rays(1, dir.data(), R, S, tf, nf.data(), w, w.fine);
       loss += pair_loss(counts, slice, pix, P, batch, w.fine, grads, w);
@@ -386,11 +396,7 @@ class EvNerf {
     forward_rays(0, dir.data(), R, Nc, w.t, nullptr, w, w.coarse);
     if constexpr (n_fields == 2) {
       constexpr int S = Nc + Nf;
-      std::vector<float> tf(static_cast<std::size_t>(R) * S), one;
-      for (int r = 0; r < R; ++r) {
-        render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf, nullptr, one);
-        std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
-      }
+      const std::vector<float> tf = fine_depths(R, nullptr, w);
       make_samples(origin.data(), dir.data(), R, S, tf, w);
       forward_rays(1, dir.data(), R, S, tf, nullptr, w, w.fine);
     }
