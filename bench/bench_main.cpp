@@ -117,8 +117,12 @@ void BM_fma_peak(benchmark::State& st) {
       const __m512 m = _mm512_set1_ps(0.999999f), c = _mm512_set1_ps(1e-7f);
       for (long k = 0; k < iters; ++k)
         for (int i = 0; i < 12; ++i) a[i] = _mm512_fmadd_ps(a[i], m, c);
+      alignas(64) float lanes[16];
       float s = 0;
-      for (int i = 0; i < 12; ++i) s += _mm512_reduce_add_ps(a[i]);
+      for (int i = 0; i < 12; ++i) {
+        _mm512_store_ps(lanes, a[i]);  // not _mm512_reduce_add_ps: GCC 12 warns inside its own header
+        for (float l : lanes) s += l;
+      }
       benchmark::DoNotOptimize(s);
 #endif
     });

@@ -1,7 +1,10 @@
+#include <evnerf/core/rng.hpp>
 #include <evnerf/io/dataset.hpp>
 #include <evnerf/io/image_io.hpp>
 #include <evnerf/io/inspect.hpp>
 
+#include <algorithm>
+#include <cstdio>
 #include <fstream>
 
 #include "common.hpp"
@@ -57,6 +60,83 @@ TEST_CASE("events.txt: every kind of bad input names the file, the line and what
   CHECK_CONTAINS(error_of([] { io::read_events_txt("/nonexistent/events.txt", 240, 180); }), "/nonexistent/events.txt:0: cannot open file");
 }
 
+namespace {
+/// A few MB of valid events.txt in every line shape the fast scanner handles: fixed, long (17-digit) and
+/// exponent timestamps, tabs and runs of spaces, CRLF, -1 polarity, comments and blank lines.
+std::string varied_events_text(std::size_t lines, std::uint64_t seed) {
+  Rng rng(seed);
+  std::string s = "# t x y p\n";
+  char buf[96];
+  std::uint64_t us = 0;  // times on a microsecond grid, so every format below prints a value in order
+  for (std::size_t i = 0; i < lines; ++i) {
+    us += 1 + rng.below(100);
+    const double t = static_cast<double>(us) * 1e-6;
+    const int x = static_cast<int>(rng.below(240)), y = static_cast<int>(rng.below(180));
+    const char* fmt[] = {"%.9f %d %d %d\n", "%.17g %d %d %d\n", "%.6e\t%d\t%d  %d \r\n", "%.6f %03d %d %d\n"};
+    const int f = static_cast<int>(rng.below(4));
+    const int p = rng.below(2) ? 1 : (rng.below(2) ? 0 : -1);
+    std::snprintf(buf, sizeof buf, fmt[f], t, x, y, p);
+    s += buf;
+    if (rng.below(1000) == 0) s += rng.below(2) ? "\n" : "# a comment\n";
+  }
+  return s;
+}
+}  // namespace
+
+TEST_CASE("events.txt: the threaded fast scanner equals the reference parser bit for bit") {
+  const int saved = thread_count();
+  const std::string text = varied_events_text(120000, 7);  // ~3.5 MB: two pieces on two threads
+  const char* b = text.data();
+  io::detail::EventChunk whole;
+  REQUIRE(io::detail::fast_parse_chunk(b, b + text.size(), 240, 180, whole));  // the fast path really runs
+  const auto ref = io::parse_events_reference(text, "e.txt", 240, 180);
+  for (int threads : {1, 2, 3}) {
+    set_thread_count(threads);
+    const auto ev = io::parse_events(text, "e.txt", 240, 180);
+    REQUIRE(ev.size() == ref.size());
+    CHECK(ev.t == ref.t);
+    CHECK(ev.x == ref.x);
+    CHECK(ev.y == ref.y);
+    CHECK(ev.polarity == ref.polarity);
+  }
+  // An error deep in the second piece, and one that only shows across the cut between pieces, still name
+  // the right line.
+  set_thread_count(2);
+  std::string bad = text;
+  const std::size_t line = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), '\n')) - 10;
+  std::size_t pos = 0;
+  for (std::size_t i = 0; i < line; ++i) pos = bad.find('\n', pos) + 1;
+  bad.insert(pos, "99.0 1 2 9\n");
+  CHECK_CONTAINS(error_of([&] { io::parse_events(bad, "e.txt", 240, 180); }),
+                 "e.txt:" + std::to_string(line + 1) + ": unknown polarity code 9");
+  std::string back = text;
+  const std::size_t mid = back.find('\n', back.size() / 2) + 1;
+  const std::size_t mid_line = static_cast<std::size_t>(std::count(back.begin(), back.begin() + static_cast<std::ptrdiff_t>(mid), '\n'));
+  back.insert(mid, "0.0 1 2 1\n");
+  CHECK_CONTAINS(error_of([&] { io::parse_events(back, "e.txt", 240, 180); }),
+                 "e.txt:" + std::to_string(mid_line + 1) + ": timestamp 0.000000 goes back in time");
+  set_thread_count(saved);
+}
+
+TEST_CASE("events.txt: numbers the scanner leaves to from_chars parse exactly as the reference does") {
+  for (const char* text : {"1. 1 2 1\n", ".5 1 2 1\n", "12345678901234567890.5 1 2 1\n", "-0.5 1 2 1\n",
+                           "0.1234567890123456789 1 2 1\n", "5e-1 1 2 1\n", "0.5 1 2 1\r\n  \n", "0.5,1,2,1\n"}) {
+    CAPTURE(text);
+    auto outcome = [&](auto parse) {
+      try {
+        const auto ev = parse(text, "e.txt", 240, 180);
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%zu events, t0 = %a, x0 = %d", ev.size(), ev.t[0], int(ev.x[0]));
+        return std::string(buf);
+      } catch (const Error& e) {
+        return std::string(e.what());
+      }
+    };
+    CHECK(outcome([](auto... a) { return io::parse_events(a...); }) ==
+          outcome([](auto... a) { return io::parse_events_reference(a...); }));
+  }
+}
+
 TEST_CASE("calib.txt, groundtruth.txt and images.txt: parsing and bad input") {
   auto cam = io::parse_calib("335.4 335.3 129.9 99.1 -0.13 0.09 -0.0003 0.0001 0.0\n", "calib.txt", 240, 180);
   CHECK(cam.fx() == doctest::Approx(335.4));
@@ -93,7 +173,27 @@ TEST_CASE("npy: round trip, atomic write, and corrupt files are reported") {
   write(dir / "b.npy", bytes.substr(0, bytes.size() - 5));
   CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "b.npy"); }), "b.npy");
   write(dir / "c.npy", "not an npy file at all");
-  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "c.npy"); }), "c.npy");
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "c.npy"); }), "c.npy:0: cannot read .npy: not a .npy file");
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "missing.npy"); }), "missing.npy:0: cannot open file");
+  write(dir / "d.npy", bytes + "junk");
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "d.npy"); }), "d.npy:0: corrupt or truncated .npy");
+  // A format-2.0 header (4-byte length), as NumPy writes for very wide headers, and a big-endian file.
+  auto npy = [](int major, const std::string& dict, const std::string& payload) {
+    std::string h = "{" + dict + "}";
+    const std::size_t pre = 6 + 2 + (major == 1 ? 2 : 4);
+    while ((pre + h.size() + 1) % 16) h += ' ';
+    h += '\n';
+    std::string f = "\x93NUMPY";
+    f += char(major);
+    f += char(0);
+    for (std::size_t i = 0; i < (major == 1 ? 2u : 4u); ++i) f += char((h.size() >> (8 * i)) & 0xff);
+    return f + h + payload;
+  };
+  const std::string two(reinterpret_cast<const char*>(v.data()), 2 * sizeof(float));
+  write(dir / "e.npy", npy(2, "'descr': '<f4', 'fortran_order': False, 'shape': (2,), ", two));
+  CHECK(io::load_npy<float>(dir / "e.npy").data == std::vector<float>{1.f, 2.5f});
+  write(dir / "f.npy", npy(1, "'descr': '>f4', 'fortran_order': False, 'shape': (2,), ", two));
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "f.npy"); }), "element type is '>f4', expected '<f4'");
   for (auto& e : fs::directory_iterator(dir)) CHECK(e.path().string().find(".tmp.") == std::string::npos);
   fs::remove_all(dir);
 }
