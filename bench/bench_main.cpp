@@ -214,7 +214,7 @@ void BM_render_fast(benchmark::State& st) {
 }  // namespace
 
 BENCHMARK(BM_fma_peak)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_mlp_fused<256>)->Args({16384, 128})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_fused<256>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<256>)->Args({16384})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_fused<64>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<64>)->Args({65536})->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -213,6 +213,59 @@ TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and back
   SUBCASE("small shape") { check_fused_against_reference<Mlp<16, 32, 2, 4, ReLU, Sigmoid>>(50); }
 }
 
+TEST_CASE("gemm: the tile product equals the plain Eigen product on ragged shapes, both B layouts, with epilogues") {
+  Rng rng(11);
+  int checked = 0;
+  for (int m : {1, 5, 16, 17, 32, 33, 47, 65, 257})
+    for (int n : {1, 3, 12, 13, 29})
+      for (int k : {1, 7, 64}) {
+        CAPTURE(m);
+        CAPTURE(n);
+        CAPTURE(k);
+        std::vector<float> a(static_cast<std::size_t>(m + 3) * k), b(static_cast<std::size_t>(k) * (n + 2)), bias(m), y(static_cast<std::size_t>(m) * n);
+        for (auto* v : {&a, &b, &bias, &y})
+          for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+        for (bool transposed_b : {false, true}) {
+          // A with lda = m + 3 (padding rows never read); B either k × n column-major or n × k (Bᵀ).
+          const std::ptrdiff_t bk = transposed_b ? n : 1, bn = transposed_b ? 1 : k;
+          std::vector<float> c(static_cast<std::size_t>(m + 1) * n), want;
+          for (auto& e : c) e = static_cast<float>(rng.uniform(-1, 1));
+          want = c;
+          const gemm::Operands<float> op{m, n, k, a.data(), m + 3, b.data(), bk, bn, c.data(), m + 1};
+          gemm::Operands<float> ref = op;
+          ref.c = want.data();
+          gemm::eigen_product<true>(ref);
+          gemm::product<true>(op);
+          double err = 0;
+          for (std::size_t i = 0; i < c.size(); ++i) err = std::max(err, double(std::abs(c[i] - want[i])));
+          CHECK(err < 1e-4);
+#if defined(__AVX512F__)
+          // Epilogues: bias + ReLU forward, ReLU' from the output backward; padding rows stay untouched.
+          std::vector<float> f(c.size(), 7.f), g(c.size(), 7.f);
+          gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, f.data(), m + 1},
+                               gemm::BiasActivation<ReLU>{bias.data()});
+          gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, g.data(), m + 1},
+                               gemm::ActivationGrad<ReLU>{y.data(), m});
+          double ef = 0, eg = 0;
+          for (int j = 0; j < n; ++j) {
+            for (int i = 0; i < m; ++i) {
+              double dot = 0;
+              for (int q = 0; q < k; ++q) dot += double(a[i + static_cast<std::size_t>(q) * (m + 3)]) * b[q * bk + j * bn];
+              ef = std::max(ef, std::abs(f[i + static_cast<std::size_t>(j) * (m + 1)] - std::max(dot + bias[i], 0.0)));
+              eg = std::max(eg, std::abs(g[i + static_cast<std::size_t>(j) * (m + 1)] - (y[i + static_cast<std::size_t>(j) * m] > 0 ? dot : 0.0)));
+            }
+            CHECK(f[m + static_cast<std::size_t>(j) * (m + 1)] == 7.f);
+            CHECK(g[m + static_cast<std::size_t>(j) * (m + 1)] == 7.f);
+          }
+          CHECK(ef < 1e-4);
+          CHECK(eg < 1e-4);
+#endif
+          ++checked;
+        }
+      }
+  CHECK(checked == 9 * 5 * 3 * 2);
+}
+
 TEST_CASE("Adam follows its update rule and the decay schedule") {
   AdamConfig cfg;
   cfg.lr = 0.1;

@@ -4,6 +4,7 @@
 // each matrix product, on the tile that product just wrote. Depends on core/ and nn/activation.hpp only.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -11,6 +12,7 @@
 
 #include "../core/rng.hpp"
 #include "activation.hpp"
+#include "gemm.hpp"
 
 namespace evnerf::nn {
 
@@ -86,6 +88,7 @@ struct Mlp {
     std::array<std::vector<T>, n_layers> input;  ///< layer l's input (layer_in(l) × n); [0] unused
     std::vector<T> output;                       ///< Out × n, after OutAct
     std::vector<T> grad_a, grad_b;               ///< ping-pong gradient buffers (max_width × n)
+    std::vector<T> wt;                           ///< one layer's transposed weights (backward)
     const T* x = nullptr;                        ///< the tile's input (In × n), owned by the caller
 
     void resize(int samples) {
@@ -98,8 +101,19 @@ struct Mlp {
       output.resize(static_cast<std::size_t>(Out) * samples);
       grad_a.resize(static_cast<std::size_t>(max_width()) * samples);
       grad_b.resize(static_cast<std::size_t>(max_width()) * samples);
+      wt.resize(static_cast<std::size_t>(max_width()) * max_width());
     }
   };
+
+  /// Whether bias + activation (forward) and the activation's derivative (backward) run inside the
+  /// product's epilogue, in registers; otherwise they are a pass over the tile right after the product.
+  template <class T, class Act>
+  static constexpr bool fused_epilogue() {
+#if defined(__AVX512F__)
+    if constexpr (gemm::has_kernel<T>()) return gemm::VectorActivation<Act>::available;
+#endif
+    return false;
+  }
 
   /// Forward pass of n samples: x is In × n (column-major), the result is ws.output (Out × n).
   template <class T>
@@ -109,29 +123,25 @@ struct Mlp {
     for (int l = 0; l < n_layers; ++l) {
       const int in = layer_in(l), out = layer_out(l);
       const T* src = l == 0 ? x : ws.input[l].data();
-      T* dst;
-      int dst_rows;
-      if (l == Depth) {
-        dst = ws.output.data();
-        dst_rows = Out;
-      } else {
-        dst = ws.input[l + 1].data();
-        dst_rows = layer_in(l + 1);
-      }
-      CMatMap<T> W(params + weight_offset(l), out, in);
-      CMatMap<T> X(src, in, n);
-      Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>, 0, Eigen::OuterStride<>> Y(
-          dst, out, n, Eigen::OuterStride<>(dst_rows));
-      Y.noalias() = W * X;
+      T* dst = l == Depth ? ws.output.data() : ws.input[l + 1].data();
+      const int dst_rows = l == Depth ? Out : layer_in(l + 1);
       const T* b = params + bias_offset(l);
-      // Epilogue on the tile just written: bias and activation.
-      for (int j = 0; j < n; ++j) {
-        T* col = dst + static_cast<std::size_t>(j) * dst_rows;
-        if (l == Depth)
-          for (int i = 0; i < out; ++i) col[i] = OutAct::f(col[i] + b[i]);
-        else
-          for (int i = 0; i < out; ++i) col[i] = HiddenAct::f(col[i] + b[i]);
-      }
+      // Y = act(W·X + b): W is out × in (lda = out), X is in × n, Y goes into the next layer's input rows.
+      const gemm::Operands<T> op{out, n, in, params + weight_offset(l), out, src, 1, in, dst, dst_rows};
+      auto layer = [&](auto act) {
+        using Act = decltype(act);
+        if constexpr (fused_epilogue<T, Act>()) {
+          gemm::product<false>(op, gemm::BiasActivation<Act>{b});
+        } else {
+          gemm::product<false>(op);
+          for (int j = 0; j < n; ++j) {
+            T* col = dst + static_cast<std::size_t>(j) * dst_rows;
+            for (int i = 0; i < out; ++i) col[i] = Act::f(col[i] + b[i]);
+          }
+        }
+      };
+      if (l == Depth) layer(OutAct{});
+      else layer(HiddenAct{});
       if (l == Skip && Skip >= 0) {  // append the input below this layer's output
         for (int j = 0; j < n; ++j) {
           const T* xs = x + static_cast<std::size_t>(j) * In;
@@ -149,41 +159,47 @@ struct Mlp {
   template <class T>
   static void backward(const T* params, Workspace<T>& ws, const T* dy, T* dparams, T* dx) {
     const int n = ws.n;
-    // dz of the output layer: dy ⊙ OutAct'(y), in grad_a.
+    // dz of the output layer: dy ⊙ OutAct'(y), in grad_a; the previous layer's dz goes to the other buffer.
     T* dz = ws.grad_a.data();
-    T* dnext = ws.grad_b.data();
+    T* dz_prev = ws.grad_b.data();
     for (std::size_t k = 0; k < static_cast<std::size_t>(Out) * n; ++k) dz[k] = dy[k] * OutAct::df_from_y(ws.output[k]);
     for (int l = Depth; l >= 0; --l) {
       const int in = layer_in(l), out = layer_out(l);
       const T* src = l == 0 ? ws.x : ws.input[l].data();
-      CMatMap<T> X(src, in, n);
-      CMatMap<T> DZ(dz, out, n);
-      MatMap<T> dW(dparams + weight_offset(l), out, in);
-      dW.noalias() += DZ * X.transpose();
-      Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>> db(dparams + bias_offset(l), out);
-      db += DZ.rowwise().sum();
+      // dW += DZ·Xᵀ: DZ is out × n (lda = out); Xᵀ is read in place (element (j, i) = X[i + j·in]).
+      gemm::product<true>(gemm::Operands<T>{out, in, n, dz, out, src, in, 1, dparams + weight_offset(l), out});
+      T* db = dparams + bias_offset(l);
+      for (int j = 0; j < n; ++j) {
+        const T* col = dz + static_cast<std::size_t>(j) * out;
+        for (int i = 0; i < out; ++i) db[i] += col[i];
+      }
+      if (l == 0 && !dx) break;
+      // Wᵀ (in × out, column-major) so the input gradient's product reads its A operand contiguously.
+      const T* w = params + weight_offset(l);
+      T* wt = ws.wt.data();
+      for (int i0 = 0; i0 < in; i0 += 16)
+        for (int o = 0; o < out; ++o)
+          for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
       if (l == 0) {
-        if (dx) {
-          MatMap<T> DX(dx, in, n);
-          DX.noalias() += CMatMap<T>(params + weight_offset(l), out, in).transpose() * DZ;
-        }
+        gemm::product<true>(gemm::Operands<T>{in, n, out, wt, in, dz, 1, out, dx, in});
         break;
       }
-      // Gradient w.r.t. this layer's input, then through the previous layer's activation (epilogue).
-      MatMap<T> DIN(dnext, in, n);
-      DIN.noalias() = CMatMap<T>(params + weight_offset(l), out, in).transpose() * DZ;
+      // The input rows fed by the skip connection: their gradient goes straight into dx.
       if (l == Skip + 1 && Skip >= 0 && dx)
-        for (int j = 0; j < n; ++j)
-          for (int i = 0; i < In; ++i) dx[static_cast<std::size_t>(j) * In + i] += dnext[static_cast<std::size_t>(j) * in + Width + i];
-      // The previous layer's output occupies the top Width rows of this layer's input.
+        gemm::product<true>(gemm::Operands<T>{In, n, out, wt + Width, in, dz, 1, out, dx, In});
+      // The previous layer's output occupies the top Width rows of this layer's input: its dz is
+      // (Wᵀ·DZ) ⊙ act'(y) over those rows.
       const T* y = ws.input[l].data();
-      T* dzp = dz;  // reuse the other buffer for the previous layer's dz (Width × n, contiguous)
-      for (int j = 0; j < n; ++j)
-        for (int i = 0; i < Width; ++i) {
-          const std::size_t s = static_cast<std::size_t>(j) * in + i;
-          dzp[static_cast<std::size_t>(j) * Width + i] = dnext[s] * HiddenAct::df_from_y(y[s]);
-        }
-      dz = dzp;
+      const gemm::Operands<T> op{Width, n, out, wt, in, dz, 1, out, dz_prev, Width};
+      if constexpr (fused_epilogue<T, HiddenAct>()) {
+        gemm::product<false>(op, gemm::ActivationGrad<HiddenAct>{y, in});
+      } else {
+        gemm::product<false>(op);
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < Width; ++i)
+            dz_prev[static_cast<std::size_t>(j) * Width + i] *= HiddenAct::df_from_y(y[static_cast<std::size_t>(j) * in + i]);
+      }
+      std::swap(dz, dz_prev);
     }
   }
 };

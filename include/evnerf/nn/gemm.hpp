@@ -1,0 +1,190 @@
+// nn/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
+// in place through strides (no packing), so a layer's weights, their transpose or a tile's gradients go
+// straight into the kernel. On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
+// which the gradient checks use) Eigen does the work. Depends on Eigen and nn/activation.hpp only.
+//
+// Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
+// call and reaches about 58 % of the FP32 FMA peak on one core of this project's machine; the kernel below
+// reaches 95–100 % on the same shapes (bench/README.md).
+#pragma once
+#include <Eigen/Core>
+#include <cstddef>
+#include <type_traits>
+
+#include "activation.hpp"
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
+namespace evnerf::nn::gemm {
+
+/// Operand views: element (i, k) of A is a[i + k·lda] (columns contiguous); element (k, j) of B is
+/// b[k·bk + j·bn] (any strides, so B or Bᵀ of a column-major matrix); C is column-major with ldc.
+template <class T>
+struct Operands {
+  int m, n, k;
+  const T* a;
+  std::ptrdiff_t lda;
+  const T* b;
+  std::ptrdiff_t bk, bn;
+  T* c;
+  std::ptrdiff_t ldc;
+};
+
+/// The plain path: Eigen maps over the same strided views. Used for double, for non-AVX-512 builds, and
+/// as the reference the kernel is tested against.
+template <bool Accumulate, class T>
+void eigen_product(const Operands<T>& o) {
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  Eigen::Map<const Mat, 0, Eigen::OuterStride<>> A(o.a, o.m, o.k, Eigen::OuterStride<>(o.lda));
+  Eigen::Map<Mat, 0, Eigen::OuterStride<>> C(o.c, o.m, o.n, Eigen::OuterStride<>(o.ldc));
+  auto apply = [&](const auto& B) {
+    if constexpr (Accumulate) C.noalias() += A * B;
+    else C.noalias() = A * B;
+  };
+  if (o.bk == 1) {  // B column-major
+    apply(Eigen::Map<const Mat, 0, Eigen::OuterStride<>>(o.b, o.k, o.n, Eigen::OuterStride<>(o.bn)));
+  } else {  // B row-major (a transposed column-major matrix) with unit stride along j
+    apply(Eigen::Map<const Mat, 0, Eigen::OuterStride<>>(o.b, o.n, o.k, Eigen::OuterStride<>(o.bk)).transpose());
+  }
+}
+
+/// No epilogue: C gets the product as it is.
+struct NoEpilogue {
+  static constexpr bool active = false;
+};
+
+#if defined(__AVX512F__)
+/// Vector forms of the activations the epilogues can apply in registers (the others run as a scalar pass
+/// after the product, in nn/mlp.hpp).
+template <class Act>
+struct VectorActivation {
+  static constexpr bool available = false;
+};
+template <>
+struct VectorActivation<ReLU> {
+  static constexpr bool available = true;
+  // maskz form: GCC 12 warns about _mm512_max_ps (it passes _mm512_undefined_ps() inside its header)
+  static __m512 f(__m512 x) { return _mm512_maskz_max_ps(0xFFFF, x, _mm512_setzero_ps()); }
+  static __m512 grad(__m512 g, __m512 y) { return _mm512_maskz_mov_ps(_mm512_cmp_ps_mask(y, _mm512_setzero_ps(), _CMP_GT_OQ), g); }
+};
+template <>
+struct VectorActivation<Identity> {
+  static constexpr bool available = true;
+  static __m512 f(__m512 x) { return x; }
+  static __m512 grad(__m512 g, __m512) { return g; }
+};
+
+/// Forward epilogue: C = act(A·B + bias), bias indexed by row.
+template <class Act>
+struct BiasActivation {
+  static constexpr bool active = true;
+  const float* bias;
+  __m512 operator()(__m512 v, int row, int, __mmask16 m) const {
+    return VectorActivation<Act>::f(_mm512_add_ps(v, _mm512_maskz_loadu_ps(m, bias + row)));
+  }
+};
+/// Backward epilogue: C = (A·B) ⊙ act'(y), with act' computed from the activation's output y (ld ldy).
+template <class Act>
+struct ActivationGrad {
+  static constexpr bool active = true;
+  const float* y;
+  std::ptrdiff_t ldy;
+  __m512 operator()(__m512 v, int row, int col, __mmask16 m) const {
+    return VectorActivation<Act>::grad(v, _mm512_maskz_loadu_ps(m, y + row + col * ldy));
+  }
+};
+
+namespace detail {
+
+/// One (16·V) × NR block of C: V 16-lane rows of accumulators per column, A's V vectors loaded once per k
+/// and each B element broadcast once: V·NR FMAs per k against V vector loads and NR broadcasts. `i0` and
+/// `j0` are the block's position in C, for the epilogue.
+template <int V, int NR, bool Accumulate, bool Full, class Epi>
+inline void block(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
+                  std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi,
+                  int i0, int j0) {
+  __m512 acc[V][NR];
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      if constexpr (Accumulate)
+        acc[v][j] = Full ? _mm512_loadu_ps(c + j * ldc + 16 * v) : _mm512_maskz_loadu_ps(mask[v], c + j * ldc + 16 * v);
+      else
+        acc[v][j] = _mm512_setzero_ps();
+    }
+  for (int k = 0; k < K; ++k) {
+    const float* ak = a + k * lda;
+    __m512 av[V];
+    for (int v = 0; v < V; ++v) av[v] = Full ? _mm512_loadu_ps(ak + 16 * v) : _mm512_maskz_loadu_ps(mask[v], ak + 16 * v);
+    const float* bp = b + k * bk;
+#pragma GCC unroll 12
+    for (int j = 0; j < NR; ++j) {
+      const __m512 bj = _mm512_set1_ps(bp[j * bn]);
+      for (int v = 0; v < V; ++v) acc[v][j] = _mm512_fmadd_ps(av[v], bj, acc[v][j]);
+    }
+  }
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      __m512 r = acc[v][j];
+      if constexpr (Epi::active) r = epi(r, i0 + 16 * v, j0 + j, mask[v]);
+      if constexpr (Full) _mm512_storeu_ps(c + j * ldc + 16 * v, r);
+      else _mm512_mask_storeu_ps(c + j * ldc + 16 * v, mask[v], r);
+    }
+}
+
+template <int V, bool Accumulate, bool Full, class Epi>
+inline void panel(const Operands<float>& o, int i0, const __mmask16 (&mask)[2], const Epi& epi) {
+  const float* a = o.a + i0;
+  float* c = o.c + i0;
+  int j = 0;
+  auto run = [&](auto nr) {
+    constexpr int NR = decltype(nr)::value;
+    for (; j + NR <= o.n; j += NR)
+      block<V, NR, Accumulate, Full>(o.k, a, o.lda, o.b + j * o.bn, o.bk, o.bn, c + j * o.ldc, o.ldc, mask, epi, i0, j);
+  };
+  run(std::integral_constant<int, 12>{});
+  run(std::integral_constant<int, 4>{});
+  run(std::integral_constant<int, 1>{});
+}
+
+}  // namespace detail
+#endif
+
+/// Whether product() can apply epilogue `Epi` for element type T (else the caller runs it as a pass).
+template <class T>
+constexpr bool has_kernel() {
+#if defined(__AVX512F__)
+  return std::is_same_v<T, float>;
+#else
+  return false;
+#endif
+}
+
+/// C = A·B (Accumulate = false) or C += A·B, then the epilogue on each result vector before it is stored.
+/// Float on AVX-512 takes the kernel; everything else Eigen (which takes no epilogue).
+template <bool Accumulate, class T, class Epi = NoEpilogue>
+void product(const Operands<T>& o, const Epi& epi = {}) {
+  if (o.m <= 0 || o.n <= 0) return;
+#if defined(__AVX512F__)
+  if constexpr (std::is_same_v<T, float>) {
+    const __mmask16 full[2] = {0xFFFF, 0xFFFF};
+    int i = 0;
+    for (; i + 32 <= o.m; i += 32) detail::panel<2, Accumulate, true>(o, i, full, epi);
+    const int r = o.m - i;
+    if (r == 16) {
+      detail::panel<1, Accumulate, true>(o, i, full, epi);
+    } else if (r > 16) {
+      const __mmask16 m[2] = {0xFFFF, static_cast<__mmask16>((1u << (r - 16)) - 1)};
+      detail::panel<2, Accumulate, false>(o, i, m, epi);
+    } else if (r > 0) {
+      const __mmask16 m[2] = {static_cast<__mmask16>((1u << r) - 1), 0};
+      detail::panel<1, Accumulate, false>(o, i, m, epi);
+    }
+    return;
+  }
+#endif
+  static_assert(!Epi::active || has_kernel<T>(), "gemm::product: epilogues need the AVX-512 float kernel");
+  eigen_product<Accumulate>(o);
+}
+
+}  // namespace evnerf::nn::gemm
