@@ -266,6 +266,68 @@ TEST_CASE("gemm: the tile product equals the plain Eigen product on ragged shape
   CHECK(checked == 9 * 5 * 3 * 2);
 }
 
+namespace {
+/// Fits intensity(u, v) of a 48×48 test image (a smooth wave plus a sharp-edged disc) with Encoding → Net,
+/// full batch, Adam, from a fixed seed; returns the PSNR of the fit over the image's pixels.
+template <class Encoding, class Net>
+double fit_image(int iters, double lr) {
+  constexpr int S = 48, N = S * S;
+  std::vector<float> pts(static_cast<std::size_t>(N) * Encoding::in_dims, 0.5f), target(N);
+  for (int j = 0; j < S; ++j)
+    for (int i = 0; i < S; ++i) {
+      const double u = (i + 0.5) / S, v = (j + 0.5) / S;
+      const bool disc = (u - 0.55) * (u - 0.55) + (v - 0.45) * (v - 0.45) < 0.06;
+      target[static_cast<std::size_t>(j) * S + i] =
+          static_cast<float>(0.45 + 0.25 * std::sin(2 * M_PI * 1.5 * u) * std::cos(2 * M_PI * v) + (disc ? 0.25 : 0.0));
+      pts[static_cast<std::size_t>(j * S + i) * Encoding::in_dims] = static_cast<float>(u);
+      pts[static_cast<std::size_t>(j * S + i) * Encoding::in_dims + 1] = static_cast<float>(v);
+    }
+  ParameterBuffer<float> pb(Encoding::n_params + Net::n_params);
+  Rng rng(2026);
+  Encoding::init(pb.values.data(), rng);
+  Net::init(pb.values.data() + Encoding::n_params, rng);
+  AdamConfig cfg;
+  cfg.lr = lr;
+  Adam<float> adam(pb.size(), cfg);
+  std::vector<float> enc(static_cast<std::size_t>(N) * Encoding::out_dims), dy(N), denc(enc.size());
+  typename Net::template Workspace<float> ws;
+  double mse = 0;
+  for (int it = 0; it <= iters; ++it) {
+    for (int k = 0; k < N; ++k)
+      Encoding::forward(pb.values.data(), &pts[static_cast<std::size_t>(k) * Encoding::in_dims], &enc[static_cast<std::size_t>(k) * Encoding::out_dims]);
+    const float* y = Net::forward(pb.values.data() + Encoding::n_params, enc.data(), N, ws);
+    mse = 0;
+    for (int k = 0; k < N; ++k) {
+      mse += double(y[k] - target[k]) * (y[k] - target[k]) / N;
+      dy[k] = 2 * (y[k] - target[k]) / N;
+    }
+    if (it == iters) break;
+    pb.zero_grads();
+    std::fill(denc.begin(), denc.end(), 0.f);
+    Net::backward(pb.values.data() + Encoding::n_params, ws, dy.data(), pb.grads.data() + Encoding::n_params,
+                  Encoding::n_params ? denc.data() : nullptr);
+    if constexpr (Encoding::n_params > 0)
+      for (int k = 0; k < N; ++k)
+        Encoding::backward(pb.values.data(), &pts[static_cast<std::size_t>(k) * Encoding::in_dims],
+                           &denc[static_cast<std::size_t>(k) * Encoding::out_dims], pb.grads.data(), static_cast<float*>(nullptr));
+    adam.update(pb.values, pb.grads);
+  }
+  return 10 * std::log10(1.0 / mse);
+}
+}  // namespace
+
+TEST_CASE("training smoke test: Frequency and HashGrid MLPs fit a 2-D image from a fixed seed") {
+  // Measured with seed 2026 on x86-64 (AVX-512 kernel): 42.0 dB (Frequency, 600 steps) and 57.3 dB
+  // (HashGrid, 300 steps); the bounds leave 4–7 dB for other instruction sets' rounding.
+  const double freq = fit_image<Frequency<8, 2>, Mlp<34, 64, 2, 1, ReLU, Sigmoid>>(600, 5e-3);
+  const double hash = fit_image<HashGrid<8, 2, 12, 4, 48>, Mlp<16, 32, 1, 1, ReLU, Sigmoid>>(300, 1e-2);
+  MESSAGE("PSNR after fitting: Frequency ", freq, " dB, HashGrid ", hash, " dB");
+  CHECK(freq > 38.0);
+  CHECK(hash > 50.0);
+  // Same seed, same result.
+  CHECK(fit_image<HashGrid<8, 2, 12, 4, 48>, Mlp<16, 32, 1, 1, ReLU, Sigmoid>>(300, 1e-2) == hash);
+}
+
 TEST_CASE("Adam follows its update rule and the decay schedule") {
   AdamConfig cfg;
   cfg.lr = 0.1;
