@@ -93,6 +93,67 @@ TEST_CASE("training: deterministic for a seed and thread count; resume equals un
         e.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
 }
 
+TEST_CASE("occupancy grid: marks the cells of a dense region, and round-trips") {
+  render::OccupancyGrid g(16);
+  CHECK(g.occupied_fraction() == 1.0);
+  const float inside[3] = {0.1f, -0.2f, 0.05f}, outside_box[3] = {1.5f, 0.f, 0.f}, far_cell[3] = {0.9f, 0.9f, -0.9f};
+  CHECK(g.occupied(far_cell));  // before the first update nothing is skipped
+  auto ball = [](const float* p, std::size_t n, float* out) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const float r2 = p[3 * i] * p[3 * i] + p[3 * i + 1] * p[3 * i + 1] + p[3 * i + 2] * p[3 * i + 2];
+      out[i] = r2 < 0.25f ? 50.f : 0.f;
+    }
+  };
+  g.update(ball, Rng(1), 1.f);
+  CHECK(g.occupied(inside));
+  CHECK_FALSE(g.occupied(far_cell));
+  CHECK(g.occupied(outside_box));  // outside the box: never skipped
+  // Cells fully inside the ball (radius 0.5 of the half-width 1) are about 4/3·π·0.5³ / 8 of the grid.
+  CHECK(g.occupied_fraction() > 0.04);
+  CHECK(g.occupied_fraction() < 0.08);
+  // Decay: with zero density everywhere the occupied set shrinks to nothing after enough updates.
+  render::OccupancyGrid h(16);
+  CHECK(h.deserialize(g.serialize()));
+  CHECK(h.occupied(inside));
+  CHECK_FALSE(h.occupied(far_cell));
+  CHECK_FALSE(render::OccupancyGrid(8).deserialize(g.serialize()));
+}
+
+TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, and resumes exactly") {
+  using TinyOcc = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8>>;
+  Fixture f;
+  const auto box = train::scene_box(f.td, f.cfg);
+  TinyOcc a(f.td.slices.size(), box, 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+  for (int s = 0; s < 60; ++s) REQUIRE(std::isfinite(a.train_step(f.td, 256, 3).loss));
+  REQUIRE(a.occupancy().active());
+  const double frac = a.occupancy().occupied_fraction();
+  MESSAGE("occupied fraction after 60 steps: ", frac);
+  CHECK(frac < 0.9);
+  // The same parameters without a grid (fresh model: grid inactive) render almost the same image.
+  TinyOcc full(f.td.slices.size(), box, 7);
+  full.params().values = a.params().values;
+  const auto dirs = render::pixel_directions(f.td.camera);
+  const auto ra = a.render(f.td.camera, dirs, f.td.boundary_poses[1]);
+  const auto rf = full.render(f.td.camera, dirs, f.td.boundary_poses[1]);
+  double diff = 0;
+  for (std::size_t i = 0; i < ra.luminance.data.size(); ++i) diff += std::abs(ra.luminance.data[i] - rf.luminance.data[i]);
+  diff /= static_cast<double>(ra.luminance.data.size());
+  CAPTURE(diff);
+  CHECK(diff < 0.02);
+  // Checkpoint between grid updates, then continue through the next ones: identical to uninterrupted.
+  TinyOcc c(1, box, 1, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});  // the trainer sets Adam's config
+  c.deserialize(a.serialize("tinyocc", ""), "tinyocc", "mem");
+  for (int s = 0; s < 9; ++s) {
+    a.train_step(f.td, 128, 3);
+    c.train_step(f.td, 128, 3);
+  }
+  CHECK(a.params().values == c.params().values);
+  CHECK(a.occupancy().serialize() == c.occupancy().serialize());
+  // A grid-less model refuses a checkpoint with a grid.
+  Tiny t;
+  CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", ""), "tiny", "x.ckpt"), doctest::Contains("occupancy grid"));
+}
+
 TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with a clear error") {
   Fixture f;
   Tiny a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);

@@ -23,6 +23,7 @@
 #include "nn/mlp.hpp"
 #include "nn/params.hpp"
 #include "render/compositing.hpp"
+#include "render/occupancy.hpp"
 #include "render/sampler.hpp"
 #include "render/scene.hpp"
 
@@ -58,6 +59,7 @@ class EvNerf {
   static constexpr int n_fields = SamplerT::two_networks ? 2 : 1;
   static constexpr std::size_t field_params = FieldT::n_params;
   static constexpr int Nc = SamplerT::n_coarse, Nf = SamplerT::n_fine;
+  static constexpr bool has_occupancy = render::has_occupancy<SamplerT>();
   static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
 
   EvNerf() = default;
@@ -65,6 +67,7 @@ class EvNerf {
   EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
       : box_(box), n_slices_(n_slices), params_(n_fields * field_params + 2 * n_slices),
         adam_(n_fields * field_params + 2 * n_slices, adam) {
+    if constexpr (has_occupancy) grid_ = render::OccupancyGrid(SamplerT::grid_res);
     Rng rng(seed);
     for (int f = 0; f < n_fields; ++f) {
       Rng r = rng.split(static_cast<std::uint64_t>(f));
@@ -85,12 +88,37 @@ class EvNerf {
   const nn::ParameterBuffer<float>& params() const { return params_; }
   nn::Adam<float>& optimizer() { return adam_; }
   long step() const { return adam_.step(); }
+  const render::OccupancyGrid& occupancy() const { return grid_; }
+
+  /// Refreshes the occupancy grid from the current density (samplers with a grid only). A cell is
+  /// occupied when its density can give a sample an alpha of 1 % at the stratified spacing.
+  void update_occupancy(const TrainingData& data, std::uint64_t seed) {
+    static_assert(has_occupancy, "update_occupancy: this model's sampler has no occupancy grid");
+    if (!grid_.has_visibility()) grid_.set_visible(visible_cells(data));
+    const float threshold = static_cast<float>(0.01 * Nc / (box_.far - box_.near));
+    const float* params = params_.values.data();
+    grid_.update(
+        [&](const float* pts, std::size_t n, float* out) {
+          parallel_blocks(n, 8192, [&](std::size_t b, std::size_t e, int) {
+            typename FieldT::template Workspace<float> ws;
+            for (std::size_t c = b; c < e; c += 4096) {
+              const int m = static_cast<int>(std::min<std::size_t>(4096, e - c));
+              FieldT::density(params, pts + 3 * c, m, ws, out + c);
+              for (int j = 0; j < m; ++j) out[c + j] = std::max(out[c + j], 0.f);  // α uses relu(σ)
+            }
+          });
+        },
+        Rng(seed), threshold);
+  }
 
   /// One training step (Ev-NeRF §4): slice and pixels drawn from (seed, step), noise injected, both
   /// poses rendered, loss and gradients computed, Adam applied. Deterministic for a seed and thread count.
   StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
     const long s = adam_.step();
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
+    if constexpr (has_occupancy)
+      if (s >= SamplerT::warmup_steps && (s - SamplerT::warmup_steps) % SamplerT::update_interval == 0)
+        update_occupancy(data, rng.split(0xCCu).next_u64());
     // Slice, uniformly among the enabled ones.
     std::vector<std::size_t> enabled;
     for (std::size_t i = 0; i < data.slices.size(); ++i)
@@ -170,6 +198,35 @@ class EvNerf {
     return out;
   }
 
+  /// Cells of the occupancy grid inside the view of some slice-boundary camera between near and far
+  /// (pinhole projection of the cell centre, with a margin of the cell's radius; up to 64 poses spread
+  /// over the recording). Depends only on the data and the box, so a resumed run gets the same mask.
+  std::vector<std::uint8_t> visible_cells(const TrainingData& data) const {
+    std::vector<std::uint8_t> vis(grid_.cells(), 0);
+    const auto& cam = data.camera;
+    const std::size_t np = data.boundary_poses.size(), step = std::max<std::size_t>(1, np / 64);
+    std::vector<const geometry::Pose*> poses;
+    for (std::size_t i = 0; i < np; i += step) poses.push_back(&data.boundary_poses[i]);
+    if (np > 0) poses.push_back(&data.boundary_poses.back());
+    const double radius = std::sqrt(3.0) * box_.scale / grid_.resolution();
+    parallel_for(grid_.cells(), 4096, [&](std::size_t c) {
+      float p[3];
+      grid_.cell_centre(c, p);
+      const Vec3 world = box_.center + box_.scale * Vec3(p[0], p[1], p[2]);
+      for (const auto* pose : poses) {
+        const Vec3 q = pose->q.conjugate() * (world - pose->t);
+        if (q.z() < box_.near - radius || q.z() > box_.far + radius || q.z() <= 1e-6) continue;
+        const double mx = cam.fx() * radius / q.z(), my = cam.fy() * radius / q.z();
+        const double u = cam.fx() * q.x() / q.z() + cam.cx(), v = cam.fy() * q.y() / q.z() + cam.cy();
+        if (u >= -mx && u <= cam.width() + mx && v >= -my && v <= cam.height() + my) {
+          vis[c] = 1;
+          break;
+        }
+      }
+    });
+    return vis;
+  }
+
   // ---- checkpoints -----------------------------------------------------------------------------------
   /// Serialises the model and optimiser state; `extra` carries the caller's metadata (camera, poses…).
   std::string serialize(const std::string& name, const std::string& extra) const {
@@ -192,6 +249,7 @@ class EvNerf {
     put(params_.values.data(), params_.size() * 4);
     put(adam_.m().data(), params_.size() * 4);
     put(adam_.v().data(), params_.size() * 4);
+    put_str(has_occupancy ? grid_.serialize() : std::string());
     put_str(extra);
     put_u64(fnv1a64(b));
     return b;
@@ -222,7 +280,8 @@ class EvNerf {
       get(s.data(), n);
       return s;
     };
-    if (get_u64() != checkpoint_version) fail("unsupported version");
+    const auto version = get_u64();
+    if (version != 1 && version != checkpoint_version) fail("unsupported version " + std::to_string(version));
     const std::string got = get_str();
     if (got != name) fail("written by preset '" + got + "', loading as '" + name + "'");
     const auto n = get_u64();
@@ -242,9 +301,20 @@ class EvNerf {
     get(adam_.m().data(), n * 4);
     get(adam_.v().data(), n * 4);
     adam_.set_step(step);
+    if (version >= 2) {  // version 2 added the occupancy grid
+      const std::string g = get_str();
+      if constexpr (has_occupancy) {
+        grid_ = render::OccupancyGrid(SamplerT::grid_res);
+        if (!grid_.deserialize(g)) fail("occupancy grid does not match this model");
+      } else if (!g.empty()) {
+        fail("has an occupancy grid this model does not use");
+      }
+    } else if constexpr (has_occupancy) {
+      grid_ = render::OccupancyGrid(SamplerT::grid_res);
+    }
     return get_str();
   }
-  static constexpr std::uint64_t checkpoint_version = 1;
+  static constexpr std::uint64_t checkpoint_version = 2;
 
  private:
   static constexpr int default_tile_pixels() {
@@ -259,6 +329,10 @@ class EvNerf {
     std::vector<render::RayComposite<float>> coarse, fine;
     std::vector<std::vector<float>> fine_t;
     std::vector<float> dcolor;
+    // Occupancy skipping: indices of the evaluated samples, their packed inputs and gradients, and the
+    // scattered outputs (skipped samples: density −1e4, luminance 0).
+    std::vector<int> active;
+    std::vector<float> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw;
   };
 
   /// Builds points and directions for R rays with S depths each (depths in w.t, R×S) into w.pts/w.dirs.
@@ -284,9 +358,38 @@ class EvNerf {
                     TileWork& w, std::vector<render::RayComposite<float>>& comp) const {
     const float* params = params_.values.data() + net * field_params;
     const float *sigma = nullptr, *raw = nullptr;
-    FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
+    int stride = FieldT::density_net::out_dims;
+    if constexpr (has_occupancy) {
+      if (grid_.active()) {
+        const int n = R * S;
+        w.active.clear();
+        for (int i = 0; i < n; ++i)
+          if (grid_.occupied(&w.pts[3 * static_cast<std::size_t>(i)])) w.active.push_back(i);
+        const int m = static_cast<int>(w.active.size());
+        w.cpts.resize(3 * static_cast<std::size_t>(m));
+        w.cdirs.resize(3 * static_cast<std::size_t>(m));
+        for (int j = 0; j < m; ++j)
+          for (int d = 0; d < 3; ++d) {
+            w.cpts[3 * static_cast<std::size_t>(j) + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
+            w.cdirs[3 * static_cast<std::size_t>(j) + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
+          }
+        w.sig_full.assign(static_cast<std::size_t>(n), -1e4f);
+        w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
+        if (m > 0) {
+          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sigma, &raw);
+          for (int j = 0; j < m; ++j) {
+            const std::size_t i = static_cast<std::size_t>(w.active[j]);
+            w.sig_full[i] = sigma[static_cast<std::size_t>(j) * stride];
+            for (int c = 0; c < channels; ++c) w.raw_full[i * channels + c] = raw[static_cast<std::size_t>(j) * channels + c];
+          }
+        }
+        sigma = w.sig_full.data();
+        raw = w.raw_full.data();
+        stride = 1;
+      }
+    }
+    if (!sigma) FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
     comp.resize(R);
-    constexpr int stride = FieldT::density_net::out_dims;
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       render::composite_forward<float>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
@@ -328,6 +431,21 @@ class EvNerf {
                                         w.dsigma.data() + o, 1, w.draw.data() + o * channels);
     }
     const float* params = params_.values.data() + net * field_params;
+    if constexpr (has_occupancy) {
+      if (grid_.active()) {  // only the evaluated samples carry gradient
+        const int m = static_cast<int>(w.active.size());
+        if (m == 0) return;
+        w.cdsigma.resize(static_cast<std::size_t>(m));
+        w.cdraw.resize(static_cast<std::size_t>(m) * channels);
+        for (int j = 0; j < m; ++j) {
+          const std::size_t i = static_cast<std::size_t>(w.active[j]);
+          w.cdsigma[j] = w.dsigma[i];
+          for (int c = 0; c < channels; ++c) w.cdraw[static_cast<std::size_t>(j) * channels + c] = w.draw[i * channels + c];
+        }
+        FieldT::backward(params, w.ws, w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
+        return;
+      }
+    }
     FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
   }
 
@@ -403,6 +521,7 @@ class EvNerf {
   }
 
   render::SceneBox box_;
+  render::OccupancyGrid grid_;
   std::size_t n_slices_ = 0;
   nn::ParameterBuffer<float> params_;
   nn::Adam<float> adam_;
@@ -426,7 +545,7 @@ using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics
 template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
 using PaperModel = EvNerf<PaperField<C>, render::Hierarchical<64, 128>, Th, No>;
 template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
-using FastModel = EvNerf<FastField<C>, render::Stratified<64>, Th, No>;
+using FastModel = EvNerf<FastField<C>, render::OccupancySkipping<64>, Th, No>;
 
 using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;

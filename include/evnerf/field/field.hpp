@@ -83,6 +83,20 @@ struct Field {
     *lum = ColorNet::forward(params + color_offset, ws.col_in.data(), n, ws.col);
   }
 
+  /// Raw density only (no colour network) of n points in [−1, 1]³, written to out[j]; for occupancy grids.
+  template <class T>
+  static void density(const T* params, const T* pts, int n, Workspace<T>& ws, T* out) {
+    ws.points.resize(3 * static_cast<std::size_t>(n));
+    ws.enc.resize(static_cast<std::size_t>(pos_in) * n);
+    for (int j = 0; j < n; ++j) {
+      T* q = &ws.points[3 * static_cast<std::size_t>(j)];
+      for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
+      PosEnc::forward(params + pos_offset, q, &ws.enc[static_cast<std::size_t>(j) * pos_in]);
+    }
+    const T* h = DensityNet::forward(params + density_offset, ws.enc.data(), n, ws.dens);
+    for (int j = 0; j < n; ++j) out[j] = h[static_cast<std::size_t>(j) * DensityNet::out_dims];
+  }
+
   /// Backward for the samples of the last forward: dsigma (n, unit stride) and dlum (C×n) are gradients
   /// w.r.t. the raw outputs. Adds parameter gradients to dparams.
   template <class T>

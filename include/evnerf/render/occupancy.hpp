@@ -1,0 +1,141 @@
+// render/occupancy.hpp — empty-space skipping for one-network samplers: a Res³ grid over the scene box
+// [−1, 1]³ holding a decaying maximum of the density seen in each cell (Instant-NGP's occupancy grid).
+// Samples in cells whose density cannot make a visible alpha are not evaluated: they composite as density
+// 0 and get no gradient. Depends on core/ only.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "../core/error.hpp"
+#include "../core/parallel.hpp"
+#include "../core/rng.hpp"
+
+namespace evnerf::render {
+
+/// Sampler: N stratified samples per ray, one network, with a Res³ occupancy grid. The grid is refreshed
+/// every `Interval` steps once `Warmup` steps have passed; until then every cell counts as occupied.
+template <int N, int Res = 64, int Interval = 16, int Warmup = 256>
+struct OccupancySkipping {
+  static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");
+  static_assert(Res >= 2 && Res <= 512, "OccupancySkipping: the grid resolution must be between 2 and 512.");
+  static_assert(Interval >= 1 && Warmup >= 0, "OccupancySkipping: Interval must be positive and Warmup non-negative.");
+  static constexpr int n_coarse = N, n_fine = 0;
+  static constexpr bool two_networks = false;
+  static constexpr int grid_res = Res, update_interval = Interval, warmup_steps = Warmup;
+};
+
+template <class S>
+constexpr bool has_occupancy() {
+  return requires { S::grid_res; };
+}
+
+class OccupancyGrid {
+ public:
+  OccupancyGrid() = default;
+  explicit OccupancyGrid(int res) : res_(res), density_(static_cast<std::size_t>(res) * res * res, 0.f) {}
+
+  int resolution() const { return res_; }
+  bool active() const { return active_; }
+  std::size_t cells() const { return density_.size(); }
+  /// Fraction of cells marked occupied (1 before the first update).
+  double occupied_fraction() const {
+    if (!active_) return 1.0;
+    return static_cast<double>(std::count(occupied_.begin(), occupied_.end(), std::uint8_t{1})) / static_cast<double>(cells());
+  }
+
+  /// Cell of a point in [−1, 1]³, or −1 outside the box (outside counts as occupied: never skipped).
+  long cell_of(const float* p) const {
+    long idx = 0;
+    for (int d = 2; d >= 0; --d) {
+      const float u = (p[d] + 1.f) * 0.5f * static_cast<float>(res_);
+      if (!(u >= 0.f && u < static_cast<float>(res_))) return -1;
+      idx = idx * res_ + static_cast<long>(u);
+    }
+    return idx;
+  }
+  bool occupied(const float* p) const {
+    if (!active_) return true;
+    const long c = cell_of(p);
+    return c < 0 || occupied_[static_cast<std::size_t>(c)];
+  }
+
+  /// Centre of cell c in [−1, 1]³.
+  void cell_centre(std::size_t c, float* p) const {
+    const std::size_t idx[3] = {c % res_, (c / res_) % res_, c / (static_cast<std::size_t>(res_) * res_)};
+    for (int d = 0; d < 3; ++d) p[d] = -1.f + 2.f * (static_cast<float>(idx[d]) + 0.5f) / static_cast<float>(res_);
+  }
+  /// Restricts the grid to cells some training camera sees (1 = seen): the others never get a training
+  /// signal, keep whatever density the initialisation gave them, and are skipped. Empty = all seen.
+  void set_visible(std::vector<std::uint8_t> visible) {
+    require(visible.empty() || visible.size() == cells(), "OccupancyGrid::set_visible: wrong mask size");
+    visible_ = std::move(visible);
+  }
+  bool has_visibility() const { return !visible_.empty(); }
+
+  /// Refreshes the grid: `density(pts, n, out)` evaluates n points (3 floats each, [−1, 1]³) to their
+  /// density after activation. One jittered point per seen cell; a cell keeps max(0.95 · old, new), and
+  /// is occupied when that exceeds min(`threshold`, mean density over seen cells). Deterministic for a
+  /// given rng.
+  template <class DensityFn>
+  void update(DensityFn&& density, Rng rng, float threshold) {
+    const std::size_t n = cells();
+    std::vector<std::size_t> todo;
+    todo.reserve(n);
+    for (std::size_t c = 0; c < n; ++c)
+      if (visible_.empty() || visible_[c]) todo.push_back(c);
+    std::vector<float> pts(3 * todo.size()), sigma(todo.size());
+    const float h = 2.f / static_cast<float>(res_);
+    for (std::size_t i = 0; i < todo.size(); ++i) {
+      cell_centre(todo[i], &pts[3 * i]);
+      for (int d = 0; d < 3; ++d) pts[3 * i + d] += h * (static_cast<float>(rng.uniform()) - 0.5f);
+    }
+    if (!todo.empty()) density(pts.data(), todo.size(), sigma.data());
+    double mean = 0;
+    for (std::size_t i = 0; i < todo.size(); ++i) {
+      const std::size_t c = todo[i];
+      const float s = std::isfinite(sigma[i]) ? sigma[i] : 0.f;
+      density_[c] = std::max(active_ ? 0.95f * density_[c] : 0.f, s);
+      mean += density_[c];
+    }
+    mean /= static_cast<double>(std::max<std::size_t>(1, todo.size()));
+    const float th = std::min(threshold, static_cast<float>(mean));
+    occupied_.assign(n, 0);
+    for (std::size_t c : todo) occupied_[c] = density_[c] > th ? 1 : 0;
+    active_ = true;
+  }
+
+  /// Bytes for checkpoints (resolution, state, densities).
+  std::string serialize() const {
+    std::string b;
+    const std::int64_t head[2] = {res_, active_ ? 1 : 0};
+    b.append(reinterpret_cast<const char*>(head), sizeof head);
+    b.append(reinterpret_cast<const char*>(density_.data()), density_.size() * sizeof(float));
+    b.append(reinterpret_cast<const char*>(occupied_.data()), occupied_.size());
+    return b;
+  }
+  /// Restores serialize()'s bytes; false when they do not describe a grid of this resolution.
+  bool deserialize(std::string_view b) {
+    std::int64_t head[2];
+    if (b.size() < sizeof head) return false;
+    std::memcpy(head, b.data(), sizeof head);
+    const std::size_t n = static_cast<std::size_t>(res_) * res_ * res_;
+    const bool act = head[1] == 1;
+    if (head[0] != res_ || b.size() != sizeof head + n * sizeof(float) + (act ? n : 0)) return false;
+    active_ = act;
+    std::memcpy(density_.data(), b.data() + sizeof head, n * sizeof(float));
+    occupied_.assign(b.begin() + static_cast<std::ptrdiff_t>(sizeof head + n * sizeof(float)), b.end());
+    return true;
+  }
+
+ private:
+  int res_ = 0;
+  bool active_ = false;
+  std::vector<float> density_;
+  std::vector<std::uint8_t> occupied_, visible_;
+};
+
+}  // namespace evnerf::render
