@@ -18,6 +18,7 @@ for r in $(seq "$REPS"); do
     /usr/bin/python3 "$PEER" --mode mlp --width 256 --n-samples 16384 $BEST >> "$OUT/peer.jsonl"
     /usr/bin/python3 "$PEER" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer.jsonl"
     /usr/bin/python3 "$PEER" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer.jsonl"
+    /usr/bin/python3 "$PEER" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iters 2 --warmup 1 $BEST >> "$OUT/peer.jsonl"
   fi
 done
 python3 bench/ratios.py "$OUT"

@@ -46,6 +46,7 @@ struct Rendering {
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   std::size_t rays = 0;
+  std::size_t samples = 0;  ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
 };
 
 template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise>
@@ -145,6 +146,7 @@ class EvNerf {
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.begin_accumulate(threads);
     std::vector<double> loss_ev(threads, 0.0);
+    std::vector<std::size_t> evaluated(threads, 0);
     const geometry::Pose& pose0 = data.boundary_poses[slice];
     const geometry::Pose& pose1 = data.boundary_poses[slice + 1];
     const std::uint64_t ray_key = rng.next_u64();
@@ -155,10 +157,12 @@ class EvNerf {
         loss_ev[th] += train_tile(data, counts, slice, pose0, pose1, pixels.data() + p0, p1 - p0, P, ray_key,
                                   params_.per_thread[th].data(), w);
       }
+      evaluated[th] = w.evaluated;
     });
     params_.end_accumulate(threads);
     StepStats st;
     for (double l : loss_ev) st.event_loss += l;
+    for (std::size_t e : evaluated) st.samples += e;
     // Threshold floor (λ = 1000 for joint training; fixed thresholds get no gradient at all).
     const std::size_t to = threshold_offset() + 2 * slice;
     if constexpr (ThresholdP::learnable) {
@@ -332,6 +336,7 @@ class EvNerf {
     // Occupancy skipping: indices of the evaluated samples, their packed inputs and gradients, and the
     // scattered outputs (skipped samples: density −1e4, luminance 0).
     std::vector<int> active;
+    std::size_t evaluated = 0;  ///< field evaluations so far
     std::vector<float> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw;
   };
 
@@ -375,6 +380,7 @@ class EvNerf {
           }
         w.sig_full.assign(static_cast<std::size_t>(n), -1e4f);
         w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
+        w.evaluated += static_cast<std::size_t>(m);
         if (m > 0) {
           FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sigma, &raw);
           for (int j = 0; j < m; ++j) {
@@ -388,7 +394,10 @@ class EvNerf {
         stride = 1;
       }
     }
-    if (!sigma) FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
+    if (!sigma) {
+      FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
+      w.evaluated += static_cast<std::size_t>(R) * S;
+    }
     comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;

@@ -198,8 +198,16 @@ struct HashGrid {
   /// (zero outside the unit cube, where the encoding is clamped).
   template <class T>
   static void backward(const T* params, const T* p, const T* dy, T* dparams, T* dx) {
+    if (!dx && !dparams) return;
     for (int l = 0; l < Levels; ++l) {
       const std::size_t off = static_cast<std::size_t>(l) * table_size * F;
+      if (!dx) {  // the common case in training (positions are data): only the table gradients
+        corners<T>(l, p, [&](std::uint32_t idx, T w, const T*) {
+          const std::size_t at = off + static_cast<std::size_t>(idx) * F;
+          for (int f = 0; f < F; ++f) dparams[at + f] += w * dy[l * F + f];
+        });
+        continue;
+      }
       corners<T>(l, p, [&](std::uint32_t idx, T w, const T* dw) {
         const std::size_t at = off + static_cast<std::size_t>(idx) * F;
         T dot = 0;
@@ -207,9 +215,8 @@ struct HashGrid {
           if (dparams) dparams[at + f] += w * dy[l * F + f];
           dot += params[at + f] * dy[l * F + f];
         }
-        if (dx)
-          for (int d = 0; d < 3; ++d)
-            if (p[d] > T(0) && p[d] < T(1)) dx[d] += dot * dw[d];
+        for (int d = 0; d < 3; ++d)
+          if (p[d] > T(0) && p[d] < T(1)) dx[d] += dot * dw[d];
       });
     }
   }

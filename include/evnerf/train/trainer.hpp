@@ -175,7 +175,9 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     if (s % 50 == 0 || s == cfg.iterations) {
       log << "{\"step\":" << s << ",\"loss\":" << window_loss / window << ",\"event_loss\":" << st.event_loss
           << ",\"threshold_loss\":" << st.threshold_loss << ",\"lr\":" << model.optimizer().learning_rate()
-          << ",\"rays_per_s\":" << rays / std::max(el, 1e-9) << ",\"seconds\":" << el << "}\n";
+          << ",\"rays_per_s\":" << rays / std::max(el, 1e-9) << ",\"seconds\":" << el;
+      if constexpr (Model::has_occupancy) log << ",\"occupied\":" << model.occupancy().occupied_fraction();
+      log << "}\n";
       log.flush();
       window_loss = 0;
       window = 0;
