@@ -215,10 +215,15 @@ template <class Model>
 void BM_train_step(benchmark::State& st) {
   const auto& td = bench_data();
   Model m = warmed_model<Model>();
-  double samples = 0;
-  for (auto _ : st) samples += static_cast<double>(m.train_step(td, 1024, 1).samples);
+  double samples = 0, backward = 0;
+  for (auto _ : st) {
+    const auto s = m.train_step(td, 1024, 1);
+    samples += static_cast<double>(s.samples);
+    backward += static_cast<double>(s.backward_samples);
+  }
   st.counters["rays_per_s"] = benchmark::Counter(2048, benchmark::Counter::kIsIterationInvariantRate);
   st.counters["samples_per_ray"] = samples / static_cast<double>(st.iterations()) / 2048;
+  st.counters["backward_per_ray"] = backward / static_cast<double>(st.iterations()) / 2048;
   if constexpr (render::has_occupancy<typename Model::sampler_type>())
     st.counters["occupied"] = m.occupancy().occupied_fraction();
 }

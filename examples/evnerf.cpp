@@ -19,11 +19,12 @@ const char* kUsage =
     "usage: evnerf <command> [args]\n"
     "  inspect <folder>                          summary of an IJRR-layout recording\n"
     "  simulate <scene|file> --out DIR [--realistic] [--bayer] [--hdr] [--seed N] [--noise-rate R]\n"
+    "        [--noise-ratio F]                  F: uniform random events added, as a fraction of the signal\n"
     "                                            simulate events (scenes: planes, object, room)\n"
     "  baselines <folder> [--out DIR] [--align log-affine|min-max|none] [--contrast C]\n"
     "                                            direct integration and high-pass filter vs the frames\n"
     "  train <folder> --out DIR [--preset P] [--iters N] [--pixels N] [--seed N] [--threads N]\n"
-    "        [--near M] [--far M] [--lr X] [--resume] [--clamp-poses] [--holdout K] [--noise-ratio R]\n"
+    "        [--near M] [--far M] [--lr X] [--resume] [--clamp-poses] [--holdout K]\n"
     "                                            presets: fast (default), paper, no-joint, no-noise,\n"
     "                                            paper-no-joint, paper-no-noise, colour\n"
     "  render <checkpoint> --out DIR [--novel N]  intensity + depth at the slice boundaries and a novel path\n"
@@ -96,6 +97,8 @@ int cmd_simulate(const std::vector<std::string>& raw) {
   }
   cfg.seed = static_cast<std::uint64_t>(a.num("seed", 1));
   cfg.noise_rate = a.num("noise-rate", cfg.noise_rate);
+  cfg.noise_ratio = a.num("noise-ratio", cfg.noise_ratio);
+  if (!(cfg.noise_ratio >= 0)) throw Error("simulate: --noise-ratio must be a non-negative number");
   cfg.width = static_cast<int>(a.num("width", cfg.width));
   cfg.height = static_cast<int>(a.num("height", cfg.height));
   cfg.fx = cfg.fy = a.num("focal", cfg.fx * cfg.width / 240.0);

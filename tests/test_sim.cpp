@@ -63,6 +63,22 @@ TEST_CASE("simulator: background noise rate matches its parameter; deterministic
   CHECK(on == doctest::Approx(0.5).epsilon(0.1));
 }
 
+TEST_CASE("simulator: noise at a ratio of the signal adds exactly that many events and keeps the signal") {
+  auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3\npath slider -0.1 0 0 0.1 0 0 0 0 1 0.3\n", "move.txt");
+  auto cfg = small_sensor();
+  const auto clean = sim::Simulator(spec, cfg).run();
+  REQUIRE(clean.events.size() > 100);
+  cfg.noise_ratio = 0.5;
+  const auto noisy = sim::Simulator(spec, cfg).run();
+  CHECK(noisy.events.size() == clean.events.size() + static_cast<std::size_t>(std::llround(0.5 * clean.events.size())));
+  // Every clean event is still there (the stream stays sorted, noise interleaved).
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < noisy.events.size() && j < clean.events.size(); ++i)
+    if (noisy.events.t[i] == clean.events.t[j] && noisy.events.x[i] == clean.events.x[j] && noisy.events.y[i] == clean.events.y[j]) ++j;
+  CHECK(j == clean.events.size());
+  noisy.events.validate();
+}
+
 TEST_CASE("simulator: written folder loads back through the IJRR reader, with depth") {
   auto spec = sim::load_scene("planes");
   auto cfg = small_sensor();

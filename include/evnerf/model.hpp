@@ -46,7 +46,8 @@ struct Rendering {
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   std::size_t rays = 0;
-  std::size_t samples = 0;  ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
+  std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
+  std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
 };
 
 template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise>
@@ -146,7 +147,7 @@ class EvNerf {
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.begin_accumulate(threads);
     std::vector<double> loss_ev(threads, 0.0);
-    std::vector<std::size_t> evaluated(threads, 0);
+    std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
     const geometry::Pose& pose0 = data.boundary_poses[slice];
     const geometry::Pose& pose1 = data.boundary_poses[slice + 1];
     const std::uint64_t ray_key = rng.next_u64();
@@ -158,11 +159,13 @@ class EvNerf {
                                   params_.per_thread[th].data(), w);
       }
       evaluated[th] = w.evaluated;
+      backward[th] = w.backward_samples;
     });
     params_.end_accumulate(threads);
     StepStats st;
     for (double l : loss_ev) st.event_loss += l;
     for (std::size_t e : evaluated) st.samples += e;
+    for (std::size_t e : backward) st.backward_samples += e;
     // Threshold floor (λ = 1000 for joint training; fixed thresholds get no gradient at all).
     const std::size_t to = threshold_offset() + 2 * slice;
     if constexpr (ThresholdP::learnable) {
@@ -319,6 +322,8 @@ class EvNerf {
     return get_str();
   }
   static constexpr std::uint64_t checkpoint_version = 2;
+  /// Backward early termination (occupancy samplers): samples behind this transmittance get no gradient.
+  static constexpr float kMinTransmittance = 1e-4f;
 
  private:
   static constexpr int default_tile_pixels() {
@@ -336,7 +341,9 @@ class EvNerf {
     // Occupancy skipping: indices of the evaluated samples, their packed inputs and gradients, and the
     // scattered outputs (skipped samples: density −1e4, luminance 0).
     std::vector<int> active;
-    std::size_t evaluated = 0;  ///< field evaluations so far
+    std::vector<int> keep;
+    std::size_t evaluated = 0;         ///< field evaluations so far
+    std::size_t backward_samples = 0;  ///< samples run backward so far
     std::vector<float> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw;
   };
 
@@ -442,14 +449,40 @@ class EvNerf {
     const float* params = params_.values.data() + net * field_params;
     if constexpr (has_occupancy) {
       if (grid_.active()) {  // only the evaluated samples carry gradient
-        const int m = static_cast<int>(w.active.size());
+        // Early termination for the backward pass: a sample behind transmittance < 1e-4 has weight and
+        // gradients below 1e-4 of the ray's, so it is dropped. When that removes at least a quarter of
+        // the samples, the kept ones are run forward again (refreshing the networks' workspace for just
+        // them) and only they go backward: fwd(kept) + bwd(kept) costs less than bwd(all).
+        std::vector<int>& keep = w.keep;
+        keep.clear();
+        for (int j = 0; j < static_cast<int>(w.active.size()); ++j) {
+          const int i = w.active[j];
+          if (comp[i / S].trans[i % S] > kMinTransmittance) keep.push_back(j);
+        }
+        const bool refresh = 4 * keep.size() <= 3 * w.active.size();
+        if (!refresh) {
+          keep.resize(w.active.size());
+          for (int j = 0; j < static_cast<int>(keep.size()); ++j) keep[j] = j;
+        }
+        const int m = static_cast<int>(keep.size());
+        w.backward_samples += static_cast<std::size_t>(m);
         if (m == 0) return;
         w.cdsigma.resize(static_cast<std::size_t>(m));
         w.cdraw.resize(static_cast<std::size_t>(m) * channels);
         for (int j = 0; j < m; ++j) {
-          const std::size_t i = static_cast<std::size_t>(w.active[j]);
+          const std::size_t i = static_cast<std::size_t>(w.active[keep[j]]);
           w.cdsigma[j] = w.dsigma[i];
           for (int c = 0; c < channels; ++c) w.cdraw[static_cast<std::size_t>(j) * channels + c] = w.draw[i * channels + c];
+        }
+        if (refresh) {
+          for (int j = 0; j < m; ++j)
+            for (int d = 0; d < 3; ++d) {
+              const std::size_t src = 3 * static_cast<std::size_t>(keep[j]), dst = 3 * static_cast<std::size_t>(j);
+              w.cpts[dst + d] = w.cpts[src + d];  // keep[j] ≥ j: compaction in place is safe
+              w.cdirs[dst + d] = w.cdirs[src + d];
+            }
+          const float *sg = nullptr, *rw = nullptr;
+          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sg, &rw);
         }
         FieldT::backward(params, w.ws, w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
         return;

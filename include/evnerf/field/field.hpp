@@ -20,6 +20,29 @@ constexpr bool wants_unit_cube() {
     return false;
 }
 
+/// Encodes n points: the encoding's level-major batch path when it has one (hash grids), else point by
+/// point.
+template <class Enc, class T>
+void encode_batch(const T* params, const T* pts, int n, T* out) {
+  if constexpr (requires { Enc::template forward_batch<T>(params, pts, n, out); }) {
+    Enc::forward_batch(params, pts, n, out);
+  } else {
+    for (int j = 0; j < n; ++j)
+      Enc::forward(params, pts + 3 * static_cast<std::size_t>(j), out + static_cast<std::size_t>(j) * Enc::out_dims);
+  }
+}
+/// Table gradients of n points (no input gradient); batch path when the encoding has one.
+template <class Enc, class T>
+void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T* dparams) {
+  if constexpr (requires { Enc::template backward_batch<T>(pts, n, dy, dparams); }) {
+    Enc::backward_batch(pts, n, dy, dparams);
+  } else {
+    for (int j = 0; j < n; ++j)
+      Enc::backward(params, pts + 3 * static_cast<std::size_t>(j), dy + static_cast<std::size_t>(j) * Enc::out_dims, dparams,
+                    static_cast<T*>(nullptr));
+  }
+}
+
 template <class PosEnc, class DirEnc, class DensityNet, class ColorNet>
 struct Field {
   static_assert(PosEnc::in_dims == 3, "Field: the position encoding must take 3-D points.");
@@ -70,8 +93,8 @@ struct Field {
     for (int j = 0; j < n; ++j) {
       T* q = &ws.points[3 * static_cast<std::size_t>(j)];
       for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
-      PosEnc::forward(params + pos_offset, q, &ws.enc[static_cast<std::size_t>(j) * pos_in]);
     }
+    encode_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.enc.data());
     const T* h = DensityNet::forward(params + density_offset, ws.enc.data(), n, ws.dens);
     for (int j = 0; j < n; ++j) {
       T* c = &ws.col_in[static_cast<std::size_t>(j) * col_in];
@@ -91,8 +114,8 @@ struct Field {
     for (int j = 0; j < n; ++j) {
       T* q = &ws.points[3 * static_cast<std::size_t>(j)];
       for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
-      PosEnc::forward(params + pos_offset, q, &ws.enc[static_cast<std::size_t>(j) * pos_in]);
     }
+    encode_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.enc.data());
     const T* h = DensityNet::forward(params + density_offset, ws.enc.data(), n, ws.dens);
     for (int j = 0; j < n; ++j) out[j] = h[static_cast<std::size_t>(j) * DensityNet::out_dims];
   }
@@ -113,9 +136,7 @@ struct Field {
     if constexpr (PosEnc::n_params > 0) {
       ws.denc.assign(static_cast<std::size_t>(pos_in) * n, T(0));
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, ws.denc.data());
-      for (int j = 0; j < n; ++j)
-        PosEnc::backward(params + pos_offset, &ws.points[3 * static_cast<std::size_t>(j)],
-                         &ws.denc[static_cast<std::size_t>(j) * pos_in], dparams + pos_offset, static_cast<T*>(nullptr));
+      encode_backward_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.denc.data(), dparams + pos_offset);
     } else {
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, static_cast<T*>(nullptr));
     }

@@ -194,6 +194,37 @@ struct HashGrid {
       for (int f = 0; f < F; ++f) y[l * F + f] = acc[f];
     }
   }
+  /// Batch forward of n points (3 each) into y (out_dims each), level by level: one level's table
+  /// (2^Log2T · F floats) stays in cache while every point visits it, instead of all levels' tables being
+  /// touched by each point in turn. Same values as forward() point by point.
+  template <class T>
+  static void forward_batch(const T* params, const T* p, int n, T* y) {
+    for (int l = 0; l < Levels; ++l) {
+      const T* table = params + static_cast<std::size_t>(l) * table_size * F;
+      for (int j = 0; j < n; ++j) {
+        T acc[F] = {};
+        corners<T>(l, p + 3 * static_cast<std::size_t>(j), [&](std::uint32_t idx, T w, const T*) {
+          for (int f = 0; f < F; ++f) acc[f] += w * table[static_cast<std::size_t>(idx) * F + f];
+        });
+        T* yj = y + static_cast<std::size_t>(j) * out_dims + l * F;
+        for (int f = 0; f < F; ++f) yj[f] = acc[f];
+      }
+    }
+  }
+  /// Batch backward to the tables only (no input gradient), level by level like forward_batch; adds
+  /// exactly what backward() would, in the same order per table entry.
+  template <class T>
+  static void backward_batch(const T* p, int n, const T* dy, T* dparams) {
+    for (int l = 0; l < Levels; ++l) {
+      T* g = dparams + static_cast<std::size_t>(l) * table_size * F;
+      for (int j = 0; j < n; ++j) {
+        const T* dyj = dy + static_cast<std::size_t>(j) * out_dims + l * F;
+        corners<T>(l, p + 3 * static_cast<std::size_t>(j), [&](std::uint32_t idx, T w, const T*) {
+          for (int f = 0; f < F; ++f) g[static_cast<std::size_t>(idx) * F + f] += w * dyj[f];
+        });
+      }
+    }
+  }
   /// Scatters dy into the tables' gradients; dx (may be null) gets the gradient w.r.t. the point
   /// (zero outside the unit cube, where the encoding is clamped).
   template <class T>

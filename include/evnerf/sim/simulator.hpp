@@ -32,6 +32,8 @@ struct SensorConfig {
   double threshold_sigma = 0.0;      ///< per-pixel mismatch: relative standard deviation
   double refractory = 0.0;           ///< seconds
   double noise_rate = 0.0;           ///< background activity, events per pixel per second
+  double noise_ratio = 0.0;          ///< extra uniform random events, as a fraction of the signal events
+                                     ///< (Ev-NeRF's noise-robustness experiment: 0.5 adds half as many)
   int hot_pixels = 0;                ///< pixels firing at `hot_rate`
   double hot_rate = 200.0;
   double jitter = 0.0;               ///< timestamp jitter standard deviation, seconds
@@ -176,6 +178,10 @@ class Simulator {
       }
       return k;
     };
+    // Noise at a ratio of the signal (drawn before the sensor's own noise, so the signal is unchanged).
+    const auto n_ratio = static_cast<std::size_t>(std::llround(cfg_.noise_ratio * static_cast<double>(evs.size())));
+    for (std::size_t k = 0; k < n_ratio; ++k)
+      evs.push_back({rng.uniform(0, T), static_cast<std::uint32_t>(rng.below(n)), static_cast<std::int8_t>(rng.below(2) ? 1 : -1)});
     const std::size_t n_noise = poisson(cfg_.noise_rate * n * T);
     for (std::size_t k = 0; k < n_noise; ++k)
       evs.push_back({rng.uniform(0, T), static_cast<std::uint32_t>(rng.below(n)), static_cast<std::int8_t>(rng.below(2) ? 1 : -1)});
