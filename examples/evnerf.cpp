@@ -28,7 +28,7 @@ const char* kUsage =
     "                                            presets: fast (default), paper, no-joint, no-noise,\n"
     "                                            paper-no-joint, paper-no-noise, colour\n"
     "  render <checkpoint> --out DIR [--novel N]  intensity + depth at the slice boundaries and a novel path\n"
-    "  eval <checkpoint> <folder> --out DIR [--align A]\n"
+    "  eval <checkpoint> <folder> --out DIR [--align A] [--holdout K]\n"
     "                                            metrics JSON + montage (ground truth | ours | baselines)\n";
 
 int usage() {
@@ -40,10 +40,19 @@ int usage() {
 struct Args {
   std::vector<std::string> positional;
   std::map<std::string, std::string> flags;
-  Args(const std::vector<std::string>& a, const std::vector<std::string>& booleans) {
+  /// `booleans` are flags without a value, `values` flags with one; anything else is an error (a
+  /// mistyped flag must not be silently ignored).
+  Args(const std::vector<std::string>& a, const std::vector<std::string>& booleans, const std::vector<std::string>& values) {
     for (std::size_t i = 0; i < a.size(); ++i) {
       if (a[i].rfind("--", 0) == 0) {
         const std::string k = a[i].substr(2);
+        if (std::find(values.begin(), values.end(), k) == values.end() &&
+            std::find(booleans.begin(), booleans.end(), k) == booleans.end()) {
+          std::string known;
+          for (const auto* list : {&values, &booleans})
+            for (const auto& v : *list) known += " --" + v;
+          throw Error("unknown flag --" + k + " (this command takes:" + known + ")");
+        }
         if (std::find(booleans.begin(), booleans.end(), k) != booleans.end()) {
           flags[k] = "1";
         } else {
@@ -86,7 +95,7 @@ int cmd_inspect(const std::vector<std::string>& a) {
 }
 
 int cmd_simulate(const std::vector<std::string>& raw) {
-  Args a(raw, {"realistic", "bayer", "hdr"});
+  Args a(raw, {"realistic", "bayer", "hdr"}, {"out", "focal", "width", "height", "noise-rate", "noise-ratio", "seed"});
   if (a.positional.size() != 1 || !a.has("out")) return usage();
   auto spec = sim::load_scene(a.positional[0]);
   sim::SensorConfig cfg = a.has("realistic") ? sim::SensorConfig::realistic() : sim::SensorConfig{};
@@ -181,7 +190,7 @@ std::vector<MethodScores> score_baselines(const io::Dataset& d, const std::vecto
 }
 
 int cmd_baselines(const std::vector<std::string>& raw) {
-  Args a(raw, {});
+  Args a(raw, {}, {"out", "align", "contrast"});
   if (a.positional.size() != 1) return usage();
   const auto d = io::load_ijrr(a.positional[0]);
   const auto al = eval::parse_alignment(a.str("align", "log-affine"));
@@ -223,7 +232,8 @@ std::string checkpoint_preset(const fs::path& path) {
 }
 
 int cmd_train(const std::vector<std::string>& raw) {
-  Args a(raw, {"resume", "clamp-poses", "quiet"});
+  Args a(raw, {"resume", "clamp-poses", "quiet"},
+         {"out", "checkpoint-every", "far", "near", "holdout", "iters", "lr", "lr-decay-steps", "pixels", "seed", "threads", "preset"});
   if (a.positional.size() != 1 || !a.has("out")) return usage();
   train::Config cfg;
   cfg.iterations = static_cast<long>(a.num("iters", 3000));
@@ -270,7 +280,7 @@ void write_rendering(const fs::path& out, const std::string& stem, const Renderi
 }
 
 int cmd_render(const std::vector<std::string>& raw) {
-  Args a(raw, {});
+  Args a(raw, {}, {"out", "novel"});
   if (a.positional.size() != 1 || !a.has("out")) return usage();
   const fs::path ckpt = a.positional[0], out = a.str("out", "");
   return with_preset(checkpoint_preset(ckpt), [&]<class Model>(const std::string& name) {
@@ -302,7 +312,7 @@ int cmd_render(const std::vector<std::string>& raw) {
 }
 
 int cmd_eval(const std::vector<std::string>& raw) {
-  Args a(raw, {});
+  Args a(raw, {}, {"out", "align", "holdout"});
   if (a.positional.size() != 2 || !a.has("out")) return usage();
   const fs::path ckpt = a.positional[0], out = a.str("out", "");
   const auto d = io::load_ijrr(a.positional[1]);
@@ -361,10 +371,37 @@ int cmd_eval(const std::vector<std::string>& raw) {
       }
       if (n) extra += "  \"depth_absrel_median_scaled\": " + json_num(absrel / n) + ",\n";
     }
+    // Novel views: with --holdout K (as given to train), the frames at every K-th boundary were never
+    // trained on (both slices touching them were held out); their scores are reported on their own.
+    const int holdout = static_cast<int>(a.num("holdout", 0));
+    std::vector<MethodScores> held;
+    if (holdout > 0) {
+      std::vector<std::size_t> pick;  // positions in ids
+      for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))
+        for (std::size_t q = 0; q < ids.size(); ++q)
+          if (std::abs(d.frames.t[ids[q]] - desc.times[k]) < 1e-9) pick.push_back(q);
+      require(!pick.empty(), "eval: --holdout " + std::to_string(holdout) + " selects no frame of this recording");
+      std::string j = "  \"heldout\": {\"every\": " + std::to_string(holdout) + ", \"frames\": [";
+      for (std::size_t q = 0; q < pick.size(); ++q) j += (q ? "," : "") + std::to_string(ids[pick[q]]);
+      j += "], \"methods\": {";
+      for (std::size_t m = 0; m < methods.size(); ++m) {
+        MethodScores h{methods[m].name, {}};
+        for (auto q : pick) h.per_frame.push_back(methods[m].per_frame[q]);
+        const auto sc = h.mean();
+        j += (m ? ", " : "") + ("\"" + h.name + "\": {\"mse\": " + json_num(sc.mse) + ", \"psnr\": " + json_num(sc.psnr) +
+                                 ", \"ssim\": " + json_num(sc.ssim) + "}");
+        held.push_back(std::move(h));
+      }
+      extra += j + "}},\n";
+    }
     write_file_atomic(out / "metrics.json", scores_json(methods, ids, al, extra));
     const std::size_t mid = ids.size() / 2;
     io::write_png(out / "montage.png", io::montage({gts[mid], mine[mid], di[mid], hp[mid]}));
     print_table(methods, al);
+    if (!held.empty()) {
+      std::printf("held-out frames only (%zu, novel views):\n", held.front().per_frame.size());
+      print_table(held, al);
+    }
     std::printf("%.2f s per %dx%d render; wrote %s/metrics.json, montage.png (ground truth | ours | direct integration | "
                 "high-pass filter), renders/\n",
                 render_s, d.camera.width(), d.camera.height(), out.c_str());
