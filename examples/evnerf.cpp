@@ -27,7 +27,7 @@ const char* kUsage =
     "                                            direct integration and high-pass filter vs the frames\n"
     "  train <folder> --out DIR [--preset P] [--iters N] [--pixels N] [--seed N] [--threads N]\n"
     "        [--near M] [--far M] [--lr X] [--lr-decay-steps S] [--checkpoint-every N] [--resume]\n"
-    "        [--clamp-poses] [--holdout K] [--quiet]\n"
+    "        [--clamp-poses] [--holdout K] [--density-per-box] [--quiet]\n"
     "                                            presets: fast (default), paper, no-joint, no-noise,\n"
     "                                            paper-no-joint, paper-no-noise, colour; defaults: 3000\n"
     "                                            steps, lr 5e-3 decaying 0.1^(s/S), S = 250000 (spec)\n"
@@ -236,7 +236,7 @@ std::string checkpoint_preset(const fs::path& path) {
 }
 
 int cmd_train(const std::vector<std::string>& raw) {
-  Args a(raw, {"resume", "clamp-poses", "quiet"},
+  Args a(raw, {"resume", "clamp-poses", "quiet", "density-per-box"},
          {"out", "checkpoint-every", "far", "near", "holdout", "iters", "lr", "lr-decay-steps", "pixels", "seed", "threads", "preset"});
   if (a.positional.size() != 1 || !a.has("out")) return usage();
   train::Config cfg;
@@ -250,6 +250,7 @@ int cmd_train(const std::vector<std::string>& raw) {
   cfg.lr_decay_steps = a.num("lr-decay-steps", 250000);
   cfg.checkpoint_every = static_cast<long>(a.num("checkpoint-every", 500));
   cfg.clamp_poses = a.has("clamp-poses");
+  cfg.density_per_box = a.has("density-per-box");
   cfg.holdout_every = static_cast<int>(a.num("holdout", 0));
   cfg.progress = !a.has("quiet");
   const fs::path out = a.str("out", "");

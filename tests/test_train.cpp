@@ -1,3 +1,5 @@
+#include <cstring>
+
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
 
@@ -172,6 +174,47 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   Tiny c;
   CHECK(train::load_checkpoint(dir / "m.ckpt", c, "tiny") == "meta");
   fs::remove_all(dir);
+}
+
+TEST_CASE("checkpoints: version 3 keeps the density length; version 2 files load with density per world unit") {
+  Fixture f;
+  f.cfg.density_per_box = true;
+  const auto box = train::scene_box(f.td, f.cfg);
+  REQUIRE(box.scale > 1.5);
+  CHECK(box.density_length == box.scale);
+  Tiny a(f.td.slices.size(), box, 7);
+  for (int s = 0; s < 4; ++s) a.train_step(f.td, 128, 3);
+  const std::string v3 = a.serialize("tiny", "meta");
+  // Rewrite as version 2: no density length after the box, checksum over the rest.
+  const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
+  auto with_sum = [](std::string b) {
+    const std::uint64_t sum = fnv1a64(b);
+    b.append(reinterpret_cast<const char*>(&sum), 8);
+    return b;
+  };
+  std::string v2 = v3.substr(0, v3.size() - 8);
+  double length = 0;
+  std::memcpy(&length, v2.data() + at, 8);
+  REQUIRE(length == box.scale);
+  v2.erase(at, 8);
+  const std::uint64_t two = 2;
+  std::memcpy(v2.data() + 8, &two, 8);
+  Tiny b;
+  CHECK(b.deserialize(with_sum(v2), "tiny", "old.ckpt") == "meta");
+  CHECK(b.box().density_length == 1.0);
+  CHECK(b.params().values == a.params().values);
+  const auto dirs = render::pixel_directions(f.td.camera);
+  CHECK(a.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data !=
+        b.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data);
+  // A version 3 file with a nonsensical length is refused.
+  std::string bad = v3.substr(0, v3.size() - 8);
+  const double zero = 0.0;
+  std::memcpy(bad.data() + at, &zero, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(bad), "tiny", "x.ckpt"), doctest::Contains("density length is not a positive number"));
+  std::string future = v3.substr(0, v3.size() - 8);
+  const std::uint64_t four = 4;
+  std::memcpy(future.data() + 8, &four, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 4"));
 }
 
 TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {

@@ -97,7 +97,7 @@ class EvNerf {
   void update_occupancy(const TrainingData& data, std::uint64_t seed) {
     static_assert(has_occupancy, "update_occupancy: this model's sampler has no occupancy grid");
     if (!grid_.has_visibility()) grid_.set_visible(visible_cells(data));
-    const float threshold = static_cast<float>(0.01 * Nc / (box_.far - box_.near));
+    const float threshold = static_cast<float>(0.01 * Nc * box_.density_length / (box_.far - box_.near));
     const float* params = params_.values.data();
     grid_.update(
         [&](const float* pts, std::size_t n, float* out) {
@@ -135,6 +135,16 @@ class EvNerf {
     std::vector<std::uint32_t> pixels;
     pixels.reserve(P);
     std::vector<bool> taken(hw, false);
+    static const double evfrac = std::getenv("EVFRAC") ? std::atof(std::getenv("EVFRAC")) : 0.0;
+    const auto& act = data.slices.slices[slice].active;
+    const int n_ev = act.empty() ? 0 : static_cast<int>(std::min<double>(evfrac * P, act.size() * 0.5));
+    while (static_cast<int>(pixels.size()) < n_ev) {
+      const auto p = act[rng.below(act.size())];
+      if (!taken[p]) {
+        taken[p] = true;
+        pixels.push_back(p);
+      }
+    }
     while (static_cast<int>(pixels.size()) < P) {
       const auto p = static_cast<std::uint32_t>(rng.below(hw));
       if (!taken[p]) {
@@ -253,6 +263,7 @@ class EvNerf {
     put(&step, 8);
     const double boxv[6] = {box_.center.x(), box_.center.y(), box_.center.z(), box_.scale, box_.near, box_.far};
     put(boxv, sizeof boxv);
+    put(&box_.density_length, 8);
     put(params_.values.data(), params_.size() * 4);
     put(adam_.m().data(), params_.size() * 4);
     put(adam_.v().data(), params_.size() * 4);
@@ -288,7 +299,7 @@ class EvNerf {
       return s;
     };
     const auto version = get_u64();
-    if (version != 1 && version != checkpoint_version) fail("unsupported version " + std::to_string(version));
+    if (version < 1 || version > checkpoint_version) fail("unsupported version " + std::to_string(version));
     const std::string got = get_str();
     if (got != name) fail("written by preset '" + got + "', loading as '" + name + "'");
     const auto n = get_u64();
@@ -302,6 +313,12 @@ class EvNerf {
     box_.scale = boxv[3];
     box_.near = boxv[4];
     box_.far = boxv[5];
+    box_.density_length = 1.0;  // versions 1 and 2 measured density per world unit
+    if (version >= 3) {
+      get(&box_.density_length, 8);
+      if (!(box_.density_length > 0) || !std::isfinite(box_.density_length))
+        fail("density length is not a positive number");
+    }
     params_ = nn::ParameterBuffer<float>(n);
     adam_ = nn::Adam<float>(n, adam_.config());
     get(params_.values.data(), n * 4);
@@ -321,7 +338,8 @@ class EvNerf {
     }
     return get_str();
   }
-  static constexpr std::uint64_t checkpoint_version = 2;
+  /// 2 added the occupancy grid, 3 the box's density length.
+  static constexpr std::uint64_t checkpoint_version = 3;
   /// Backward early termination (occupancy samplers): samples behind this transmittance get no gradient.
   static constexpr float kMinTransmittance = 1e-4f;
 
@@ -409,7 +427,7 @@ class EvNerf {
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       render::composite_forward<float>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
-                                       static_cast<float>(dir[r].norm()), noise ? noise + o : nullptr, comp[r]);
+                                       static_cast<float>(dir[r].norm() / box_.density_length), noise ? noise + o : nullptr, comp[r]);
     }
   }
 

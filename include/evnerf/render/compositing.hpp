@@ -35,8 +35,8 @@ struct RayComposite {
 };
 
 /// Composites S samples of one ray with C channels. sigma[k·sigma_stride] raw density, raw[k·C + c] raw
-/// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d|,
-/// noise[k] density noise (or null). The last interval is open (δ = 1e10), as in NeRF.
+/// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
+/// the units density is measured in (EvNerf: |d| / density_length()), noise[k] density noise (or null). The last interval is open (δ = 1e10), as in NeRF.
 template <class T>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
                        const T* noise, RayComposite<T>& r) {

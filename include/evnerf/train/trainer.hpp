@@ -31,6 +31,8 @@ struct Config {
   double near = 0.1, far = 6.0;
   int holdout_every = 0;       ///< hold out every k-th slice boundary (0 = none)
   bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
+  bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
+                                 ///< (render::SceneBox::density_length)
   bool progress = true;
 };
 
@@ -78,7 +80,9 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
   for (auto& p : td.boundary_poses) c.push_back(p.t);
-  return render::SceneBox::from_cameras(c, cfg.near, cfg.far);
+  auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
+  if (cfg.density_per_box) box.density_length = box.scale;
+  return box;
 }
 
 /// What a checkpoint carries besides the model: the camera and the boundary poses, so `render` and
