@@ -8,7 +8,7 @@ scripts/deps.sh libbenchmark-dev
 cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null
-OUT=build-bench/results; mkdir -p "$OUT"; : > "$OUT/peer.jsonl"
+OUT=build-bench/results; mkdir -p "$OUT"; rm -f "$OUT"/ours_*.json; : > "$OUT/peer.jsonl"  # no stale runs in the medians
 PEER=../shared/peers/peer_torch.py
 BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
 for r in $(seq "$REPS"); do
