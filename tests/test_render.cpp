@@ -1,3 +1,5 @@
+#include <array>
+
 #include <evnerf/loss/event_loss.hpp>
 #include <evnerf/render/compositing.hpp>
 #include <evnerf/render/sampler.hpp>
@@ -6,7 +8,8 @@
 
 using namespace evnerf;
 
-TEST_CASE("compositing: finite-difference check of colour w.r.t. densities and raw luminance") {
+TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densities and raw luminance", Act, nn::ReLU,
+                   nn::TruncExp) {
   const int S = 9, C = 2;
   Rng rng(3);
   std::vector<double> sigma(S), raw(S * C), t(S), noise(S), dcolor(C);
@@ -19,13 +22,13 @@ TEST_CASE("compositing: finite-difference check of colour w.r.t. densities and r
   for (auto& v : dcolor) v = rng.uniform(-1, 1);
   auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
     render::RayComposite<double> r;
-    render::composite_forward<double>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r);
+    render::composite_forward<double, Act>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r);
     double s = 0;
     for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
     return s;
   };
   render::RayComposite<double> r;
-  render::composite_forward<double>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r);
+  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r);
   std::vector<double> ds(S), dr(S * C);
   render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
   CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
@@ -58,13 +61,36 @@ TEST_CASE("event loss: zero inside the bounds, growing outside; gradients match 
   loss::EventBounds three{3, 0};
   CHECK(three.evaluate(0.2, 0.2 * std::exp(0.9), 0.3, -0.3)[0] == doctest::Approx(0.0).epsilon(1e-9));
   CHECK(three.evaluate(0.2, 0.2 * std::exp(0.3), 0.3, -0.3)[0] > 0);
-  for (auto [np, nn] : {std::pair{2.0, 1.0}, std::pair{0.0, 3.0}, std::pair{0.0, 0.0}}) {
-    loss::EventBounds lb{np, nn};
+  for (auto [np, nn, kn, kp] : {std::array{2.0, 1.0, 1.0, 1.0}, std::array{0.0, 3.0, 1.0, 1.0}, std::array{0.0, 0.0, 1.0, 1.0},
+                                std::array{2.0, 0.0, 0.0, 1.0}, std::array{0.0, 1.0, 1.0, 0.0}, std::array{1.0, 1.0, 2.0, 2.0}}) {
+    loss::EventBounds lb{np, nn, kn, kp};
     const std::vector<double> x{0.3, 0.7, 0.27, -0.33};
     const auto r = lb.evaluate(x[0], x[1], x[2], x[3]);
     CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return lb.evaluate(v[0], v[1], v[2], v[3])[0]; }, x,
                                {r[1], r[2], r[3], r[4]}) < 1e-6);
   }
+}
+
+TEST_CASE("bound policies: split counts with slack K and the signed count give the spec's intervals") {
+  // The interval [lo, hi] of a policy, read off the loss: zero inside, slope 1 outside.
+  auto interval = [](const loss::EventBounds& b) {
+    const double bp = 0.3, bm = -0.3, l0 = 0.2;
+    auto at = [&](double change) { return b.evaluate(l0, (l0 + b.eps) * std::exp(change) - b.eps, bp, bm)[0]; };
+    const double lo = at(-5.0) - 5.0, hi = 5.0 - at(5.0);  // loss = lo − c below, c − hi above
+    return std::pair{lo, hi};
+  };
+  auto near = [](std::pair<double, double> got, double lo, double hi) {
+    return std::abs(got.first - lo) < 1e-9 && std::abs(got.second - hi) < 1e-9;
+  };
+  CHECK(near(interval(loss::SplitCounts<1>::make(0, 0)), -0.3, 0.3));
+  CHECK(near(interval(loss::SplitCounts<1>::make(1, 0)), 0.0, 0.6));
+  CHECK(near(interval(loss::SplitCounts<1>::make(3, 1)), 0.3, 0.9));
+  CHECK(near(interval(loss::SplitCounts<2>::make(1, 0)), -0.3, 0.9));
+  CHECK(near(interval(loss::SignedCount::make(0, 0)), -0.3, 0.3));
+  CHECK(near(interval(loss::SignedCount::make(1, 0)), 0.3, 0.6));
+  CHECK(near(interval(loss::SignedCount::make(0, 2)), -0.9, -0.6));
+  CHECK(near(interval(loss::SignedCount::make(3, 1)), 0.6, 0.9));
+  CHECK(near(interval(loss::SignedCount::make(2, 2)), -0.3, 0.3));
 }
 
 TEST_CASE("threshold floor: zero above |B| >= 0.3, gradient pushes thresholds back up") {

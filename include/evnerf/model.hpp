@@ -50,13 +50,17 @@ struct StepStats {
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
 };
 
-template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise>
+/// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and how event
+/// counts become an interval (loss::SplitCounts<K> or loss::SignedCount).
+template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
+          class BoundP = loss::SplitCounts<1>>
 class EvNerf {
  public:
   using field_type = FieldT;
   using sampler_type = SamplerT;
   using threshold_policy = ThresholdP;
   using noise_policy = NoiseP;
+  using bound_policy = BoundP;
   static constexpr int channels = FieldT::channels;
   static constexpr int n_fields = SamplerT::two_networks ? 2 : 1;
   static constexpr std::size_t field_params = FieldT::n_params;
@@ -106,7 +110,7 @@ class EvNerf {
             for (std::size_t c = b; c < e; c += 4096) {
               const int m = static_cast<int>(std::min<std::size_t>(4096, e - c));
               FieldT::density(params, pts + 3 * c, m, ws, out + c);
-              for (int j = 0; j < m; ++j) out[c + j] = std::max(out[c + j], 0.f);  // α uses relu(σ)
+              for (int j = 0; j < m; ++j) out[c + j] = FieldT::density_activation::f(out[c + j]);  // σ as α sees it
             }
           });
         },
@@ -426,7 +430,7 @@ class EvNerf {
     comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
-      render::composite_forward<float>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
+      render::composite_forward<float, typename FieldT::density_activation>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
                                        static_cast<float>(dir[r].norm() / box_.density_length), noise ? noise + o : nullptr, comp[r]);
     }
   }
@@ -442,7 +446,7 @@ class EvNerf {
     const int width = counts.width;
     for (int i = 0; i < P; ++i) {
       const int c = channels == 1 ? 0 : geometry::rggb_channel(static_cast<int>(pix[i] % width), static_cast<int>(pix[i] / width));
-      const loss::EventBounds lb{double(counts.pos[pix[i]]), double(counts.neg[pix[i]])};
+      const loss::EventBounds lb = BoundP::make(counts.pos[pix[i]], counts.neg[pix[i]]);
       const auto r = lb.evaluate(comp[2 * i].color[c], comp[2 * i + 1].color[c], bp, bm);
       total += r[0] / batch;
       w.dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<float>(r[1] / batch);
@@ -604,8 +608,10 @@ using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics
 
 template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
 using PaperModel = EvNerf<PaperField<C>, render::Hierarchical<64, 128>, Th, No>;
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
-using FastModel = EvNerf<FastField<C>, render::OccupancySkipping<64>, Th, No>;
+/// Fast uses the signed-count interval: with split counts and k = 1 a constant image costs nothing on
+/// pixels with one event, and on sparse recordings (`object`) the hash-grid field never leaves it.
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::SignedCount>
+using FastModel = EvNerf<FastField<C>, render::OccupancySkipping<64>, Th, No, Bound>;
 
 using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;

@@ -43,8 +43,11 @@ void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T*
   }
 }
 
-template <class PosEnc, class DirEnc, class DensityNet, class ColorNet>
+/// `DensityAct` turns the raw density (plus training noise) into σ ≥ 0: nn::ReLU as in NeRF and the
+/// paper, nn::TruncExp as in Instant-NGP (large densities within reach of a small network).
+template <class PosEnc, class DirEnc, class DensityNet, class ColorNet, class DensityAct = nn::ReLU>
 struct Field {
+  static_assert(nn::Activation<DensityAct>, "Field: DensityAct must be an activation type (nn::ReLU, nn::TruncExp, ...).");
   static_assert(PosEnc::in_dims == 3, "Field: the position encoding must take 3-D points.");
   static_assert(DirEnc::in_dims == 3, "Field: the direction encoding must take 3-D directions.");
   static_assert(DensityNet::in_dims == PosEnc::out_dims,
@@ -57,6 +60,7 @@ struct Field {
   using dir_encoding = DirEnc;
   using density_net = DensityNet;
   using color_net = ColorNet;
+  using density_activation = DensityAct;
   static constexpr int channels = ColorNet::out_dims;
   static constexpr int features = DensityNet::out_dims - 1;
   static constexpr int pos_in = PosEnc::out_dims, col_in = ColorNet::in_dims;

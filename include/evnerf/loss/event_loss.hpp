@@ -11,21 +11,41 @@
 namespace evnerf::loss {
 
 /// Bound of the log change for n⁺ positive and n⁻ negative events with thresholds B⁺ > 0 > B⁻:
-/// μ = n⁺B⁺ + n⁻B⁻, interval [μ + k·B⁻, μ + k·B⁺] (k = slack in thresholds; spec §2, default 1).
+/// μ = n⁺B⁺ + n⁻B⁻, interval [μ + k⁻·B⁻, μ + k⁺·B⁺] (k± = slack in thresholds; spec §2, default 1).
 /// Hinge L1 outside the interval, zero inside. eps keeps log(ℓ + eps) finite (spec: 1e-3).
 struct EventBounds {
-  double n_pos, n_neg, slack = 1.0, eps = 1e-3;
+  double n_pos, n_neg, k_neg = 1.0, k_pos = 1.0, eps = 1e-3;
   /// Arguments: luminance at T_i, luminance at T_i+1, B⁺, B⁻.
   template <class L0, class L1, class BP, class BM>
   auto operator()(const L0& l0, const L1& l1, const BP& bp, const BM& bm) const {
     const auto change = ad::log(l1 + eps) - ad::log(l0 + eps);
     const auto mu = n_pos * bp + n_neg * bm;
-    return ad::relu((mu + slack * bm) - change) + ad::relu(change - (mu + slack * bp));
+    return ad::relu((mu + k_neg * bm) - change) + ad::relu(change - (mu + k_pos * bp));
   }
   /// Value and gradient w.r.t. (ℓ0, ℓ1, B⁺, B⁻).
   std::array<double, 5> evaluate(double l0, double l1, double bp, double bm) const {
     const auto vg = ad::value_and_grad(*this, std::array<double, 4>{l0, l1, bp, bm});
     return {vg.value, vg.grad[0], vg.grad[1], vg.grad[2], vg.grad[3]};
+  }
+};
+
+/// How a pixel's counts become its interval (spec §2 and §9 #1), as a policy of the model.
+/// Split counts with slack K: [μ + K·B⁻, μ + K·B⁺], μ = n⁺B⁺ + n⁻B⁻. K = 1 is the spec's default; K = 2 is
+/// the worst case for an unknown reference level at T_i. A pixel with one event allows no change at all.
+template <int K = 1>
+struct SplitCounts {
+  static_assert(K >= 0, "SplitCounts: the slack K must not be negative.");
+  static constexpr const char* name = K == 1 ? "split" : "split-k";
+  static EventBounds make(int n_pos, int n_neg) { return {double(n_pos), double(n_neg), double(K), double(K)}; }
+};
+/// The signed count n = n⁺ − n⁻ only: n > 0 → [nB⁺, (n+1)B⁺], n < 0 → [(|n|+1)B⁻, |n|B⁻], n = 0 → [B⁻, B⁺].
+/// Every pixel with a net event demands a change of at least one threshold, so a constant image is no
+/// longer free wherever events fired (see bench/README.md: the Fast preset uses it).
+struct SignedCount {
+  static constexpr const char* name = "signed";
+  static EventBounds make(int n_pos, int n_neg) {
+    const int n = n_pos - n_neg;
+    return {double(n > 0 ? n : 0), double(n < 0 ? -n : 0), n <= 0 ? 1.0 : 0.0, n >= 0 ? 1.0 : 0.0};
   }
 };
 

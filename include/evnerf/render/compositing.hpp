@@ -7,15 +7,18 @@
 #include <vector>
 
 #include "../ad/expr.hpp"
+#include "../nn/activation.hpp"
 
 namespace evnerf::render {
 
-/// α = 1 − exp(−relu(σ + noise)·δ), written once: value and dα/dσ both come from this text.
+/// α = 1 − exp(−act(σ + noise)·δ), written once: value and dα/dσ both come from this text. `Act` is the
+/// field's density activation (ReLU in the paper; TruncExp for Instant-NGP-style fields).
+template <class Act = nn::ReLU>
 struct AlphaOfDensity {
   double delta, noise;
   template <class S>
   auto operator()(const S& sigma) const {
-    return 1.0 - ad::exp(-(ad::relu(sigma + noise) * delta));
+    return 1.0 - ad::exp(-(Act::apply(sigma + noise) * delta));
   }
 };
 /// Luminance from the network's raw output.
@@ -36,8 +39,9 @@ struct RayComposite {
 
 /// Composites S samples of one ray with C channels. sigma[k·sigma_stride] raw density, raw[k·C + c] raw
 /// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
-/// the units density is measured in (EvNerf: |d| / density_length()), noise[k] density noise (or null). The last interval is open (δ = 1e10), as in NeRF.
-template <class T>
+/// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
+/// null). The last interval is open (δ = 1e10), as in NeRF.
+template <class T, class DensityAct = nn::ReLU>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
                        const T* noise, RayComposite<T>& r) {
   r.alpha.resize(S);
@@ -51,7 +55,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
   T trans = 1;
   for (int k = 0; k < S; ++k) {
     const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : 1e10;
-    const auto a = ad::value_and_grad(AlphaOfDensity{delta, noise ? double(noise[k]) : 0.0},
+    const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0},
                                       std::array<double, 1>{double(sigma[static_cast<std::size_t>(k) * sigma_stride])});
     r.alpha[k] = static_cast<T>(a.value);
     r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
