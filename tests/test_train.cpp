@@ -40,9 +40,11 @@ struct Fixture {
 };
 }  // namespace
 
-TEST_CASE("training: a short run on a tiny simulated scene lowers the loss") {
+using TinySigned = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::SignedCount>;
+
+TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned) {
   Fixture f;
-  Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+  Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   double first = 0, last = 0;
   for (int s = 0; s < 150; ++s) {
     const auto st = m.train_step(f.td, 256, 3);
