@@ -71,7 +71,7 @@ TEST_CASE("event loss: zero inside the bounds, growing outside; gradients match 
   }
 }
 
-TEST_CASE("bound policies: split counts with slack K and the signed count give the spec's intervals") {
+TEST_CASE("bound policies: split counts with slack K, the signed count and half slack give their intervals") {
   // The interval [lo, hi] of a policy, read off the loss: zero inside, slope 1 outside.
   auto interval = [](const loss::EventBounds& b) {
     const double bp = 0.3, bm = -0.3, l0 = 0.2;
@@ -91,6 +91,10 @@ TEST_CASE("bound policies: split counts with slack K and the signed count give t
   CHECK(near(interval(loss::SignedCount::make(0, 2)), -0.9, -0.6));
   CHECK(near(interval(loss::SignedCount::make(3, 1)), 0.6, 0.9));
   CHECK(near(interval(loss::SignedCount::make(2, 2)), -0.3, 0.3));
+  CHECK(near(interval(loss::HalfSlackCounts::make(0, 0)), -0.3, 0.3));
+  CHECK(near(interval(loss::HalfSlackCounts::make(1, 0)), 0.15, 0.45));
+  CHECK(near(interval(loss::HalfSlackCounts::make(0, 2)), -0.75, -0.45));
+  CHECK(near(interval(loss::HalfSlackCounts::make(3, 1)), 0.45, 0.75));
 }
 
 TEST_CASE("threshold floor: zero above |B| >= 0.3, gradient pushes thresholds back up") {

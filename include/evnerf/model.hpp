@@ -51,7 +51,7 @@ struct StepStats {
 };
 
 /// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and how event
-/// counts become an interval (loss::SplitCounts<K> or loss::SignedCount).
+/// counts become an interval (loss::SplitCounts<K>, loss::SignedCount or loss::HalfSlackCounts).
 template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
           class BoundP = loss::SplitCounts<1>>
 class EvNerf {
@@ -608,9 +608,9 @@ using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics
 
 template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
 using PaperModel = EvNerf<PaperField<C>, render::Hierarchical<64, 128>, Th, No>;
-/// Fast uses the signed-count interval: with split counts and k = 1 a constant image costs nothing on
-/// pixels with one event, and on sparse recordings (`object`) the hash-grid field never leaves it.
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::SignedCount>
+/// Fast uses the half-slack interval: with split counts and k = 1 a constant image costs nothing on
+/// pixels with one event, and on sparse or noisy recordings the hash-grid field never leaves it.
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::HalfSlackCounts>
 using FastModel = EvNerf<FastField<C>, render::OccupancySkipping<64>, Th, No, Bound>;
 
 using Paper = PaperModel<>;
