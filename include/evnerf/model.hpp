@@ -139,16 +139,6 @@ class EvNerf {
     std::vector<std::uint32_t> pixels;
     pixels.reserve(P);
     std::vector<bool> taken(hw, false);
-    static const double evfrac = std::getenv("EVFRAC") ? std::atof(std::getenv("EVFRAC")) : 0.0;
-    const auto& act = data.slices.slices[slice].active;
-    const int n_ev = act.empty() ? 0 : static_cast<int>(std::min<double>(evfrac * P, act.size() * 0.5));
-    while (static_cast<int>(pixels.size()) < n_ev) {
-      const auto p = act[rng.below(act.size())];
-      if (!taken[p]) {
-        taken[p] = true;
-        pixels.push_back(p);
-      }
-    }
     while (static_cast<int>(pixels.size()) < P) {
       const auto p = static_cast<std::uint32_t>(rng.below(hw));
       if (!taken[p]) {
@@ -430,8 +420,9 @@ class EvNerf {
     comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
-      render::composite_forward<float, typename FieldT::density_activation>(S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
-                                       static_cast<float>(dir[r].norm() / box_.density_length), noise ? noise + o : nullptr, comp[r]);
+      render::composite_forward<float, typename FieldT::density_activation>(
+          S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
+          static_cast<float>(dir[r].norm() / box_.density_length), noise ? noise + o : nullptr, comp[r]);
     }
   }
 

@@ -31,7 +31,8 @@ struct EventBounds {
 
 /// How a pixel's counts become its interval (spec §2 and §9 #1), as a policy of the model.
 /// Split counts with slack K: [μ + K·B⁻, μ + K·B⁺], μ = n⁺B⁺ + n⁻B⁻. K = 1 is the spec's default; K = 2 is
-/// the worst case for an unknown reference level at T_i. A pixel with one event allows no change at all.
+/// the worst case for an unknown reference level at T_i. With K = 1 a pixel with one event also allows no
+/// change, so a constant image costs nothing there.
 template <int K = 1>
 struct SplitCounts {
   static_assert(K >= 0, "SplitCounts: the slack K must not be negative.");
