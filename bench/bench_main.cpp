@@ -19,10 +19,10 @@ namespace {
 
 /// The paper's network without encodings (inputs pre-encoded, as the peer's --mode mlp): trunk
 /// 63 → 8×W (skip) → W+1 (density + feature), view branch W+27 → W/2 → 1.
-template <int W>
+template <int W, class Prec = nn::Fp32>
 struct PaperNet {
-  using Trunk = nn::Mlp<63, W, 8, W + 1, nn::ReLU, nn::Identity, 4>;
-  using View = nn::Mlp<W + 27, W / 2, 1, 1, nn::ReLU, nn::Identity>;
+  using Trunk = nn::Mlp<63, W, 8, W + 1, nn::ReLU, nn::Identity, 4, Prec>;
+  using View = nn::Mlp<W + 27, W / 2, 1, 1, nn::ReLU, nn::Identity, -1, Prec>;
   static constexpr std::size_t n_params = Trunk::n_params + View::n_params;
   static constexpr double flops_fwdbwd() {
     // 2 FLOP per MAC forward; backward = dW + dX, except dX of the first layer (as the peer counts).
@@ -31,10 +31,10 @@ struct PaperNet {
   }
 };
 
-template <int W>
+template <int W, class Prec>
 void run_fused(std::vector<float>& params, const std::vector<float>& xe, const std::vector<float>& de, int n,
                nn::ParameterBuffer<float>& pb, int tile) {
-  using Net = PaperNet<W>;
+  using Net = PaperNet<W, Prec>;
   const int n_tiles = (n + tile - 1) / tile;
   pb.begin_accumulate(thread_count());
   parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
@@ -65,9 +65,9 @@ void run_fused(std::vector<float>& params, const std::vector<float>& xe, const s
   pb.end_accumulate(thread_count());
 }
 
-template <int W>
+template <int W, class Prec = nn::Fp32>
 void BM_mlp_fused(benchmark::State& st) {
-  using Net = PaperNet<W>;
+  using Net = PaperNet<W, Prec>;
   const int n = static_cast<int>(st.range(0));
   Rng rng(1);
   std::vector<float> params(Net::n_params), xe(static_cast<std::size_t>(n) * 63), de(static_cast<std::size_t>(n) * 27);
@@ -76,7 +76,7 @@ void BM_mlp_fused(benchmark::State& st) {
   for (auto& v : xe) v = rng.uniformf() * 2 - 1;
   for (auto& v : de) v = rng.uniformf() * 2 - 1;
   nn::ParameterBuffer<float> pb(Net::n_params);
-  for (auto _ : st) run_fused<W>(params, xe, de, n, pb, static_cast<int>(st.range(1)));
+  for (auto _ : st) run_fused<W, Prec>(params, xe, de, n, pb, static_cast<int>(st.range(1)));
   st.counters["samples_per_s"] = benchmark::Counter(double(n), benchmark::Counter::kIsIterationInvariantRate);
   st.counters["gflops"] = benchmark::Counter(n * Net::flops_fwdbwd() / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 }
@@ -248,6 +248,8 @@ BENCHMARK(BM_fma_peak)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_fused<256>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<256>)->Args({16384})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_fused<64>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_fused<256, nn::Bf16>)->Args({16384, 256})->Args({16384, 128})->Args({16384, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_mlp_fused<64, nn::Bf16>)->Args({65536, 256})->Args({65536, 128})->Args({65536, 512})->Args({65536, 1024})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<64>)->Args({65536})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_parse_events_fast)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_parse_events_naive)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);

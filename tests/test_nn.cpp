@@ -1,8 +1,11 @@
 #include <evnerf/nn/activation.hpp>
+#include <evnerf/nn/bf16.hpp>
 #include <evnerf/nn/encoding.hpp>
 #include <evnerf/nn/mlp.hpp>
 #include <evnerf/nn/params.hpp>
 #include <evnerf/nn/reference.hpp>
+
+#include <limits>
 
 #include "common.hpp"
 
@@ -193,8 +196,9 @@ TEST_CASE("encoding → MLP composed: finite-difference check through both (hash
   CHECK(worst < 1e-6);
 }
 
+/// `tol`: the allowed max-norm error relative to the result's max norm (FP32 rounding, or bf16 factors).
 template <class M>
-void check_fused_against_reference(int n) {
+void check_fused_against_reference(int n, double tol = 1e-4) {
   Rng rng(5);
   std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
   M::init(params.data(), rng);
@@ -219,9 +223,11 @@ void check_fused_against_reference(int n) {
     xmax = std::max(xmax, std::abs(double(ref.dx[i])));
     xerr = std::max(xerr, std::abs(double(ref.dx[i]) - dx[i]));
   }
-  CHECK(yerr <= 1e-4 * std::max(1.0, ymax));
-  CHECK(gerr <= 1e-4 * std::max(1.0, gmax));
-  CHECK(xerr <= 1e-4 * std::max(1.0, xmax));
+  MESSAGE("relative max error: y ", yerr / std::max(1.0, ymax), ", dparams ", gerr / std::max(1.0, gmax), ", dx ",
+          xerr / std::max(1.0, xmax));
+  CHECK(yerr <= tol * std::max(1.0, ymax));
+  CHECK(gerr <= tol * std::max(1.0, gmax));
+  CHECK(xerr <= tol * std::max(1.0, xmax));
 }
 
 TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and backward") {
@@ -229,6 +235,103 @@ TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and back
     check_fused_against_reference<Mlp<63, 256, 8, 257, ReLU, Identity, 4>>(96);
   }
   SUBCASE("small shape") { check_fused_against_reference<Mlp<16, 32, 2, 4, ReLU, Sigmoid>>(50); }
+}
+
+TEST_CASE("Bf16 MLP: fused forward and backward equal the reference with the same bf16 factors") {
+  // The reference rounds both factors of each product as the kernel does and sums in double, so on shallow
+  // networks the two agree to FP32 summation error (measured ≤ 3e-6 relative). In a deep network a factor
+  // now and then rounds the other way (its FP32 activation differs from the double one in the last bit);
+  // the 0.4 % step that makes moves later activations enough to round differently too, so the paper trunk
+  // agrees only to bf16 noise: measured 0.3 % (y), 1.7 % (dW), 3.9 % (dx) of the max norm. A packing or
+  // pairing error gives errors of order 100 %.
+  SUBCASE("paper width, skip, odd input width and an odd tile") {
+    check_fused_against_reference<Mlp<63, 256, 2, 257, ReLU, Identity, 0, Bf16>>(97, 1e-5);
+  }
+  SUBCASE("small shape with non-fused activations") {
+    check_fused_against_reference<Mlp<17, 32, 2, 5, Softplus, Sigmoid, 0, Bf16>>(50, 1e-5);
+  }
+  SUBCASE("paper trunk shape") { check_fused_against_reference<Mlp<63, 256, 8, 257, ReLU, Identity, 4, Bf16>>(97, 0.1); }
+}
+
+TEST_CASE("bf16: rounding, both packings and the product against their plain definitions") {
+  // Round to nearest, ties to even, as the hardware conversion.
+  CHECK(bf16::round(1.0f) == 0x3F80);
+  CHECK(bf16::round(1.0f + 0x1p-8f) == 0x3F80);              // tie → even (down)
+  CHECK(bf16::round(1.0f + 3 * 0x1p-8f) == 0x3F82);          // tie → even (up)
+  CHECK(bf16::round(1.0f + 0x1p-8f + 0x1p-20f) == 0x3F81);   // above the tie
+  CHECK(bf16::widen(bf16::round(-2.5f)) == -2.5f);
+  CHECK(std::isnan(bf16::widen(bf16::round(std::numeric_limits<float>::quiet_NaN()))));
+  CHECK(std::isinf(bf16::widen(bf16::round(std::numeric_limits<float>::infinity()))));
+  Rng rng(17);
+  int checked = 0;
+  for (int m : {1, 15, 16, 17, 33, 64})
+    for (int k : {1, 2, 7, 16, 33})
+      for (int n : {1, 5, 13}) {
+        CAPTURE(m);
+        CAPTURE(k);
+        CAPTURE(n);
+        std::vector<float> a(static_cast<std::size_t>(m + 2) * k), b(static_cast<std::size_t>(k + 1) * n), bias(m),
+            y(static_cast<std::size_t>(m) * n);
+        for (auto* v : {&a, &b, &bias, &y})
+          for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+        const int kp = (k + 1) / 2;
+        // A: m × k, rows contiguous (lda m + 2), paired across columns; B: k × n, k contiguous (ld k + 1).
+        std::vector<std::uint32_t> pa(static_cast<std::size_t>(m) * kp), pb(static_cast<std::size_t>(kp) * n);
+        bf16::pack_across(a.data(), m, k, m + 2, pa.data(), m);
+        bf16::pack_along(b.data(), k, n, k + 1, pb.data(), 1, kp);
+        // The strided form (pairs of a column spread with stride n + 3, as the transposed weights of dX).
+        std::vector<std::uint32_t> ps(static_cast<std::size_t>(kp) * (n + 3), 0xDEADBEEF);
+        bf16::pack_along(b.data(), k, n, k + 1, ps.data(), n + 3, 1);
+        for (int p = 0; p < kp; ++p) {
+          for (int i = 0; i < m; ++i) {
+            const float hi = 2 * p + 1 < k ? a[i + static_cast<std::size_t>(2 * p + 1) * (m + 2)] : 0.f;
+            REQUIRE(pa[i + static_cast<std::size_t>(p) * m] == bf16::pair(a[i + static_cast<std::size_t>(2 * p) * (m + 2)], hi));
+          }
+          for (int j = 0; j < n; ++j) {
+            const float hi = 2 * p + 1 < k ? b[2 * p + 1 + static_cast<std::size_t>(j) * (k + 1)] : 0.f;
+            REQUIRE(pb[p + static_cast<std::size_t>(j) * kp] == bf16::pair(b[2 * p + static_cast<std::size_t>(j) * (k + 1)], hi));
+            REQUIRE(ps[static_cast<std::size_t>(p) * (n + 3) + j] == pb[p + static_cast<std::size_t>(j) * kp]);
+          }
+          for (int j = n; j < n + 3; ++j) REQUIRE(ps[static_cast<std::size_t>(p) * (n + 3) + j] == 0xDEADBEEF);  // gaps untouched
+        }
+        // The product, plain and with both epilogues, against sums of the widened factors in double.
+        std::vector<float> c(static_cast<std::size_t>(m + 1) * n, 0.f), f(c.size(), 7.f), g(c.size(), 7.f);
+        for (auto& e : c) e = static_cast<float>(rng.uniform(-1, 1));
+        std::vector<float> c0 = c, plain = c;
+        const bf16::Operands op{m, n, kp, pa.data(), m, pb.data(), 1, kp, c.data(), m + 1};
+        bf16::product<true>(op);
+        bf16::Operands ref = op;
+        ref.c = plain.data();
+        bf16::reference_product<true>(ref);
+#if defined(__AVX512BF16__) && defined(__AVX512BW__)
+        bf16::product<false>(bf16::Operands{m, n, kp, pa.data(), m, pb.data(), 1, kp, f.data(), m + 1},
+                             gemm::BiasActivation<ReLU>{bias.data()});
+        bf16::product<false>(bf16::Operands{m, n, kp, pa.data(), m, pb.data(), 1, kp, g.data(), m + 1},
+                             gemm::ActivationGrad<ReLU>{y.data(), m});
+#endif
+        double err = 0, eref = 0, ef = 0, eg = 0;
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < m; ++i) {
+            double dot = 0;
+            for (int q = 0; q < k; ++q)
+              dot += double(bf16::widen(bf16::round(a[i + static_cast<std::size_t>(q) * (m + 2)]))) *
+                     bf16::widen(bf16::round(b[q + static_cast<std::size_t>(j) * (k + 1)]));
+            const std::size_t at = i + static_cast<std::size_t>(j) * (m + 1);
+            err = std::max(err, std::abs(c[at] - (c0[at] + dot)));
+            eref = std::max(eref, std::abs(plain[at] - (c0[at] + dot)));
+#if defined(__AVX512BF16__) && defined(__AVX512BW__)
+            ef = std::max(ef, std::abs(f[at] - std::max(dot + bias[i], 0.0)));
+            eg = std::max(eg, std::abs(g[at] - (y[i + static_cast<std::size_t>(j) * m] > 0 ? dot : 0.0)));
+#endif
+          }
+        CHECK(err < 1e-5);  // FP32 accumulation of exact bf16 products
+        CHECK(eref < 1e-5);
+        CHECK(ef < 1e-5);
+        CHECK(eg < 1e-5);
+        for (int j = 0; j < n; ++j) CHECK(c[m + static_cast<std::size_t>(j) * (m + 1)] == c0[m + static_cast<std::size_t>(j) * (m + 1)]);
+        ++checked;
+      }
+  CHECK(checked == 6 * 5 * 3);
 }
 
 TEST_CASE("gemm: the tile product equals the plain Eigen product on ragged shapes, both B layouts, with epilogues") {
@@ -344,6 +447,16 @@ TEST_CASE("training smoke test: Frequency and HashGrid MLPs fit a 2-D image from
   CHECK(hash > 50.0);
   // Same seed, same result.
   CHECK(fit_image<HashGrid<8, 2, 12, 4, 48>, Mlp<16, 32, 1, 1, ReLU, Sigmoid>>(300, 1e-2) == hash);
+}
+
+TEST_CASE("training smoke test: the Bf16 networks fit the same image") {
+  // Measured with seed 2026 on this project's machine (AVX-512 BF16): 41.3 dB (Frequency) and 57.1 dB
+  // (HashGrid), against 42.0 and 57.3 dB in FP32.
+  const double freq = fit_image<Frequency<8, 2>, Mlp<34, 64, 2, 1, ReLU, Sigmoid, -1, Bf16>>(600, 5e-3);
+  const double hash = fit_image<HashGrid<8, 2, 12, 4, 48>, Mlp<16, 32, 1, 1, ReLU, Sigmoid, -1, Bf16>>(300, 1e-2);
+  MESSAGE("PSNR after fitting (Bf16): Frequency ", freq, " dB, HashGrid ", hash, " dB");
+  CHECK(freq > 38.0);
+  CHECK(hash > 50.0);
 }
 
 TEST_CASE("Adam follows its update rule and the decay schedule") {

@@ -8,10 +8,13 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "../core/rng.hpp"
 #include "activation.hpp"
+#include "bf16.hpp"
 #include "gemm.hpp"
 
 namespace evnerf::nn {
@@ -25,8 +28,10 @@ using CMatMap = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic
 /// of `Out` units with `OutAct`. With Skip = s ≥ 0 the encoded input is concatenated again to the output
 /// of hidden layer s, so hidden layer s+1 sees Width + In inputs (the NeRF trunk uses Depth 8, Skip 4).
 /// Samples are columns of column-major matrices (features × samples). Parameters are one flat array:
-/// per layer, W (out × in, column-major) then b (out).
-template <int In, int Width, int Depth, int Out, class HiddenAct = ReLU, class OutAct = Identity, int Skip = -1>
+/// per layer, W (out × in, column-major) then b (out). `Prec` (Fp32 or Bf16, nn/bf16.hpp) sets how the
+/// float matrix products round their operands; double always computes in double.
+template <int In, int Width, int Depth, int Out, class HiddenAct = ReLU, class OutAct = Identity, int Skip = -1,
+          class Prec = Fp32>
 struct Mlp {
   static_assert(Activation<HiddenAct>, "Mlp: HiddenAct must be an activation type such as ReLU, Softplus, Sigmoid, TruncExp or Identity.");
   static_assert(Activation<OutAct>, "Mlp: OutAct must be an activation type such as ReLU, Softplus, Sigmoid, TruncExp or Identity.");
@@ -37,11 +42,19 @@ struct Mlp {
   static_assert(Skip >= -1, "Mlp: Skip must be -1 (no skip) or a hidden layer index.");
   static_assert(Skip + 1 < Depth || Skip == -1,
                 "Mlp: the skip connection must feed a hidden layer: Skip + 1 must be less than Depth.");
+  static_assert(std::is_same_v<Prec, Fp32> || std::is_same_v<Prec, Bf16>, "Mlp: Prec must be nn::Fp32 or nn::Bf16.");
 
   static constexpr int in_dims = In, out_dims = Out, width = Width, depth = Depth, skip = Skip;
   static constexpr int n_layers = Depth + 1;
   using hidden_activation = HiddenAct;
   using output_activation = OutAct;
+  using precision = Prec;
+
+  /// Whether the products of a T network run on bf16 pairs (float, Prec = Bf16, a CPU with AVX-512 BF16).
+  template <class T>
+  static constexpr bool bf16_products() {
+    return std::is_same_v<T, float> && std::is_same_v<Prec, Bf16> && bf16::available();
+  }
 
   static constexpr int layer_in(int l) {
     return l == 0 ? In : Width + (l == Skip + 1 && Skip >= 0 ? In : 0);
@@ -89,6 +102,7 @@ struct Mlp {
     std::vector<T> output;                       ///< Out × n, after OutAct
     std::vector<T> grad_a, grad_b;               ///< ping-pong gradient buffers (max_width × n)
     std::vector<T> wt;                           ///< one layer's transposed weights (backward)
+    std::vector<std::uint32_t> pack_a, pack_b;   ///< bf16 pairs of both factors (Bf16 only)
     const T* x = nullptr;                        ///< the tile's input (In × n), owned by the caller
 
     void resize(int samples) {
@@ -102,6 +116,14 @@ struct Mlp {
       grad_a.resize(static_cast<std::size_t>(max_width()) * samples);
       grad_b.resize(static_cast<std::size_t>(max_width()) * samples);
       wt.resize(static_cast<std::size_t>(max_width()) * max_width());
+      if constexpr (bf16_products<T>()) {
+        // ⌈a/2⌉·b pairs for a, b ≤ max(samples, max_width) with at least one of them ≤ max_width (+ 1: the
+        // row of ones that gives the bias gradient).
+        const std::size_t w = max_width(), big = std::max<std::size_t>(w, samples);
+        const std::size_t size = std::max((w + 1) / 2 * big, (big + 1) / 2 * (w + 1));
+        pack_a.resize(size);
+        pack_b.resize(size);
+      }
     }
   };
 
@@ -128,12 +150,22 @@ struct Mlp {
       const T* b = params + bias_offset(l);
       // Y = act(W·X + b): W is out × in (lda = out), X is in × n, Y goes into the next layer's input rows.
       const gemm::Operands<T> op{out, n, in, params + weight_offset(l), out, src, 1, in, dst, dst_rows};
+      auto multiply = [&](const auto&... epi) {
+        if constexpr (bf16_products<T>()) {  // W's pairs across its columns, X's down each sample
+          const int kp = (in + 1) / 2;
+          bf16::pack_across(params + weight_offset(l), out, in, out, ws.pack_a.data(), out);
+          bf16::pack_along(src, in, n, in, ws.pack_b.data(), 1, kp);
+          bf16::product<false>(bf16::Operands{out, n, kp, ws.pack_a.data(), out, ws.pack_b.data(), 1, kp, dst, dst_rows}, epi...);
+        } else {
+          gemm::product<false>(op, epi...);
+        }
+      };
       auto layer = [&](auto act) {
         using Act = decltype(act);
         if constexpr (fused_epilogue<T, Act>()) {
-          gemm::product<false>(op, gemm::BiasActivation<Act>{b});
+          multiply(gemm::BiasActivation<Act>{b});
         } else {
-          gemm::product<false>(op);
+          multiply();
           for (int j = 0; j < n; ++j) {
             T* col = dst + static_cast<std::size_t>(j) * dst_rows;
             for (int i = 0; i < out; ++i) col[i] = Act::f(col[i] + b[i]);
@@ -167,34 +199,56 @@ struct Mlp {
       const int in = layer_in(l), out = layer_out(l);
       const T* src = l == 0 ? ws.x : ws.input[l].data();
       // dW += DZ·Xᵀ: DZ is out × n (lda = out); Xᵀ is read in place (element (j, i) = X[i + j·in]).
-      gemm::product<true>(gemm::Operands<T>{out, in, n, dz, out, src, in, 1, dparams + weight_offset(l), out});
-      T* db = dparams + bias_offset(l);
-      for (int j = 0; j < n; ++j) {
-        const T* col = dz + static_cast<std::size_t>(j) * out;
-        for (int i = 0; i < out; ++i) db[i] += col[i];
+      if constexpr (bf16_products<T>()) {
+        // Both factors paired across samples; X gets a row of ones, so the product's last column (which
+        // the parameter layout puts at b) is db = DZ·1.
+        const int np = (n + 1) / 2;
+        bf16::pack_across(dz, out, n, out, ws.pack_a.data(), out);
+        bf16::pack_across(src, in, n, in, ws.pack_b.data(), in + 1);
+        for (int p = 0; p < np; ++p) ws.pack_b[static_cast<std::size_t>(p) * (in + 1) + in] = bf16::pair(1.f, 1.f);
+        bf16::product<true>(bf16::Operands{out, in + 1, np, ws.pack_a.data(), out, ws.pack_b.data(), in + 1, 1,
+                                           dparams + weight_offset(l), out});
+      } else {
+        gemm::product<true>(gemm::Operands<T>{out, in, n, dz, out, src, in, 1, dparams + weight_offset(l), out});
+        T* db = dparams + bias_offset(l);
+        for (int j = 0; j < n; ++j) {
+          const T* col = dz + static_cast<std::size_t>(j) * out;
+          for (int i = 0; i < out; ++i) db[i] += col[i];
+        }
       }
       if (l == 0 && !dx) break;
-      // Wᵀ (in × out, column-major) so the input gradient's product reads its A operand contiguously.
+      // Products with Wᵀ (rows `row0` on, `rows` of them) as A and DZ as B.
       const T* w = params + weight_offset(l);
       T* wt = ws.wt.data();
-      for (int i0 = 0; i0 < in; i0 += 16)
-        for (int o = 0; o < out; ++o)
-          for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
+      const int kp = (out + 1) / 2;
+      if constexpr (bf16_products<T>()) {  // W's pairs down each column (Wᵀ's rows), DZ's down each sample
+        bf16::pack_along(w, out, in, out, ws.pack_a.data(), in, 1);
+        bf16::pack_along(dz, out, n, out, ws.pack_b.data(), 1, kp);
+      } else {  // Wᵀ (in × out, column-major) so the product reads its A operand contiguously
+        for (int i0 = 0; i0 < in; i0 += 16)
+          for (int o = 0; o < out; ++o)
+            for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
+      }
+      auto multiply = [&](auto accumulate, int row0, int rows, T* c, int ldc, const auto&... epi) {
+        if constexpr (bf16_products<T>())
+          bf16::product<decltype(accumulate)::value>(
+              bf16::Operands{rows, n, kp, ws.pack_a.data() + row0, in, ws.pack_b.data(), 1, kp, c, ldc}, epi...);
+        else
+          gemm::product<decltype(accumulate)::value>(gemm::Operands<T>{rows, n, out, wt + row0, in, dz, 1, out, c, ldc}, epi...);
+      };
       if (l == 0) {
-        gemm::product<true>(gemm::Operands<T>{in, n, out, wt, in, dz, 1, out, dx, in});
+        multiply(std::true_type{}, 0, in, dx, in);
         break;
       }
       // The input rows fed by the skip connection: their gradient goes straight into dx.
-      if (l == Skip + 1 && Skip >= 0 && dx)
-        gemm::product<true>(gemm::Operands<T>{In, n, out, wt + Width, in, dz, 1, out, dx, In});
+      if (l == Skip + 1 && Skip >= 0 && dx) multiply(std::true_type{}, Width, In, dx, In);
       // The previous layer's output occupies the top Width rows of this layer's input: its dz is
       // (Wᵀ·DZ) ⊙ act'(y) over those rows.
       const T* y = ws.input[l].data();
-      const gemm::Operands<T> op{Width, n, out, wt, in, dz, 1, out, dz_prev, Width};
       if constexpr (fused_epilogue<T, HiddenAct>()) {
-        gemm::product<false>(op, gemm::ActivationGrad<HiddenAct>{y, in});
+        multiply(std::false_type{}, 0, Width, dz_prev, Width, gemm::ActivationGrad<HiddenAct>{y, in});
       } else {
-        gemm::product<false>(op);
+        multiply(std::false_type{}, 0, Width, dz_prev, Width);
         for (int j = 0; j < n; ++j)
           for (int i = 0; i < Width; ++i)
             dz_prev[static_cast<std::size_t>(j) * Width + i] *= HiddenAct::df_from_y(y[static_cast<std::size_t>(j) * in + i]);

@@ -15,11 +15,19 @@ struct ReferenceResult {
 };
 
 /// Runs M's computation layer by layer on the whole batch: each layer is one product, then a separate
-/// pass for bias and activation; the backward mirrors it. Uses double internally.
+/// pass for bias and activation; the backward mirrors it. Uses double internally. For a float network whose
+/// products run on bf16 pairs (M::bf16_products<float>()), both factors of every product are rounded to
+/// bf16 first, as the fused kernel does, so the two agree to FP32 summation error.
 template <class M, class T>
 ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, const std::vector<T>& x, int n,
                                                  const std::vector<T>& dy) {
   using Mat = Eigen::MatrixXd;
+  const auto R = [](const Mat& m) -> Mat {
+    if constexpr (M::template bf16_products<T>())
+      return m.unaryExpr([](double v) { return double(bf16::widen(bf16::round(static_cast<float>(v)))); });
+    else
+      return m;
+  };
   std::vector<Mat> inputs(M::n_layers + 1);
   Mat X = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>>(x.data(), M::in_dims, n).template cast<double>();
   auto W = [&](int l) {
@@ -35,7 +43,7 @@ ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, 
   };
   inputs[0] = X;
   for (int l = 0; l < M::n_layers; ++l) {
-    Mat z = W(l) * inputs[l];
+    Mat z = R(W(l)) * R(inputs[l]);
     z.colwise() += B(l);
     const bool last = l == M::depth;
     Mat y = z.unaryExpr([&](double v) {
@@ -62,9 +70,9 @@ ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, 
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < M::layer_out(l); ++i)
         dz(i, j) = G(i, j) * (last ? M::output_activation::df_from_y(out(i, j)) : M::hidden_activation::df_from_y(out(i, j)));
-    Eigen::Map<Mat>(dp.data() + M::weight_offset(l), M::layer_out(l), M::layer_in(l)) += dz * inputs[l].transpose();
-    Eigen::Map<Eigen::VectorXd>(dp.data() + M::bias_offset(l), M::layer_out(l)) += dz.rowwise().sum();
-    Mat din = W(l).transpose() * dz;
+    Eigen::Map<Mat>(dp.data() + M::weight_offset(l), M::layer_out(l), M::layer_in(l)) += R(dz) * R(inputs[l]).transpose();
+    Eigen::Map<Eigen::VectorXd>(dp.data() + M::bias_offset(l), M::layer_out(l)) += R(dz).rowwise().sum();
+    Mat din = R(W(l)).transpose() * R(dz);
     if (l == 0) {
       dX += din;
     } else {
