@@ -256,6 +256,8 @@ BENCHMARK(BM_parse_events_naive)->Unit(benchmark::kMillisecond)->UseRealTime()->
 BENCHMARK(BM_event_cache_load)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step<presets::Fast>)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step_cold<presets::Fast>)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_train_step<presets::FastBf16>)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step<presets::Paper>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_train_step<presets::PaperBf16>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_render_fast)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 BENCHMARK_MAIN();

@@ -11,6 +11,7 @@ cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
 OUT=${OUT:-out/quality}
 ITERS=${ITERS:-1500}
+PRESET=${PRESET:-fast}
 EV="$BUILD/examples/evnerf"
 [ -x "$EV" ] || { scripts/deps.sh; cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 ROWS=("$@")
@@ -20,7 +21,7 @@ row() {  # name recording-folder eval-args [train args…]
   local name=$1 folder=$2 evargs=$3
   shift 3
   mkdir -p "$OUT/$name"
-  "$EV" train "$folder" --preset fast --iters "$ITERS" --out "$OUT/$name/run" --quiet "$@" > "$OUT/$name/train.log" 2>&1
+  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --out "$OUT/$name/run" --quiet "$@" > "$OUT/$name/train.log" 2>&1
   "$EV" eval "$OUT/$name/run/model.ckpt" "$folder" --out "$OUT/$name/eval" $evargs | tee "$OUT/$name/eval.txt"
 }
 for r in "${ROWS[@]}"; do

@@ -216,13 +216,15 @@ template <class Fn>
 int with_preset(const std::string& preset, Fn&& fn) {
   using namespace presets;
   if (preset == "fast") return fn.template operator()<Fast>("fast");
+  if (preset == "fast-bf16") return fn.template operator()<FastBf16>("fast-bf16");
   if (preset == "no-joint") return fn.template operator()<FastNoJointThresholds>("no-joint");
   if (preset == "no-noise") return fn.template operator()<FastNoNoiseInjection>("no-noise");
   if (preset == "colour") return fn.template operator()<FastColour>("colour");
   if (preset == "paper") return fn.template operator()<Paper>("paper");
+  if (preset == "paper-bf16") return fn.template operator()<PaperBf16>("paper-bf16");
   if (preset == "paper-no-joint") return fn.template operator()<PaperNoJointThresholds>("paper-no-joint");
   if (preset == "paper-no-noise") return fn.template operator()<PaperNoNoiseInjection>("paper-no-noise");
-  throw Error("unknown preset '" + preset + "' (fast, paper, no-joint, no-noise, paper-no-joint, paper-no-noise, colour)");
+  throw Error("unknown preset '" + preset + "' (fast, fast-bf16, paper, paper-bf16, no-joint, no-noise, paper-no-joint, paper-no-noise, colour)");
 }
 
 /// The preset name stored in a checkpoint.

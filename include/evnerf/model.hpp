@@ -587,22 +587,24 @@ namespace presets {
 using namespace nn;
 
 /// The paper's field: Frequency 10/4, 8×256 ReLU trunk with the skip before layer 5, a linear head giving
-/// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs.
-template <int C = 1, int W = 256>
-using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4>,
-                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity>>;
+/// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs. `Prec` is the networks'
+/// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/bf16.hpp).
+template <int C = 1, int W = 256, class Prec = Fp32>
+using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4, Prec>,
+                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity, -1, Prec>>;
 /// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
 /// spherical harmonics into two 64-wide networks.
-template <int C = 1>
-using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity>,
-                               Mlp<15 + 16, 64, 2, C, ReLU, Identity>>;
+template <int C = 1, class Prec = Fp32>
+using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity, -1, Prec>,
+                               Mlp<15 + 16, 64, 2, C, ReLU, Identity, -1, Prec>>;
 
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1>
-using PaperModel = EvNerf<PaperField<C>, render::Hierarchical<64, 128>, Th, No>;
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Prec = Fp32>
+using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128>, Th, No>;
 /// Fast uses the half-slack interval: with split counts and k = 1 a constant image costs nothing on
 /// pixels with one event, and on sparse or noisy recordings the hash-grid field never leaves it.
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::HalfSlackCounts>
-using FastModel = EvNerf<FastField<C>, render::OccupancySkipping<64>, Th, No, Bound>;
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::HalfSlackCounts,
+          class Prec = Fp32>
+using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Bound>;
 
 using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
@@ -611,6 +613,10 @@ using Fast = FastModel<>;
 using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
 using FastNoNoiseInjection = FastModel<loss::JointThresholds, loss::NoNoise>;
 using FastColour = FastModel<loss::JointThresholds, loss::DefaultNoise, 3>;
+/// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
+/// gradients); checkpoints are interchangeable with the FP32 presets'.
+using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;
+using FastBf16 = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts, Bf16>;
 }  // namespace presets
 
 }  // namespace evnerf

@@ -155,10 +155,12 @@ struct HashGrid {
     return (x ^ (y * 2654435761u) ^ (z * 805459861u)) & (table_size - 1);
   }
 
-  /// Visits the 8 corners of level l around point p: fn(table_index, weight, dweight/dp[3]).
+  /// Visits the 8 corners of level l around point p: fn(table_index, weight, dweight/dp[3]). The weight is
+  /// (wx·wy)·wz of the per-axis linear weights; dweight is only formed where fn reads it (it is inlined).
   template <class T, class Fn>
   static void corners(int l, const T* p, Fn&& fn) {
-    const T s = static_cast<T>(scale(l));
+    const LevelInfo& lv = levels()[l];
+    const T s = static_cast<T>(lv.scale);
     std::uint32_t base[3];
     T frac[3];
     for (int d = 0; d < 3; ++d) {
@@ -168,19 +170,23 @@ struct HashGrid {
       base[d] = static_cast<std::uint32_t>(fl);
       frac[d] = c - fl;
     }
+    // Per-axis index terms: dense levels add x + res·y + res²·z, hashed ones xor x, y·π₂, z·π₃.
+    std::uint32_t term[3][2];
+    const auto res = static_cast<std::uint32_t>(lv.res);
+    const std::uint32_t mul[3] = {1u, lv.dense ? res : 2654435761u, lv.dense ? res * res : 805459861u};
+    for (int d = 0; d < 3; ++d) {
+      term[d][0] = base[d] * mul[d];
+      term[d][1] = (base[d] + 1) * mul[d];
+    }
+    const T wd[3][2] = {{T(1) - frac[0], frac[0]}, {T(1) - frac[1], frac[1]}, {T(1) - frac[2], frac[2]}};
     for (int c = 0; c < 8; ++c) {
-      T w = 1;
-      T dw[3];
-      for (int d = 0; d < 3; ++d) {
-        const bool hi = (c >> d) & 1;
-        const T wd = hi ? frac[d] : T(1) - frac[d];
-        T prod_others = 1;
-        for (int e = 0; e < 3; ++e)
-          if (e != d) prod_others *= ((c >> e) & 1) ? frac[e] : T(1) - frac[e];
-        dw[d] = (hi ? s : -s) * prod_others;
-        w *= wd;
-      }
-      fn(index(l, base[0] + (c & 1), base[1] + ((c >> 1) & 1), base[2] + ((c >> 2) & 1)), w, dw);
+      const int bx = c & 1, by = (c >> 1) & 1, bz = (c >> 2) & 1;
+      const std::uint32_t idx = lv.dense ? term[0][bx] + term[1][by] + term[2][bz]
+                                         : (term[0][bx] ^ term[1][by] ^ term[2][bz]) & (table_size - 1);
+      const T w = (wd[0][bx] * wd[1][by]) * wd[2][bz];
+      const T dw[3] = {(bx ? s : -s) * (wd[1][by] * wd[2][bz]), (by ? s : -s) * (wd[0][bx] * wd[2][bz]),
+                       (bz ? s : -s) * (wd[0][bx] * wd[1][by])};
+      fn(idx, w, dw);
     }
   }
   template <class T>
