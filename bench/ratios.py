@@ -23,6 +23,14 @@ for w in (256, 64):
     fg, ps = med(f"BM_mlp_fused<{w}>", "gflops"), peer_med("mlp", w, "samples_per_s")
     print(f"MLP W={w}: fused {f:,.0f} samples/s ({fg:.0f} GFLOP/s, {100 * fg / peak:.0f} % of peak); "
           f"reference {r:,.0f} ({f / r:.2f}x); PyTorch peer {ps:,.0f} ({f / ps:.2f}x)")
+bpeak = med("BM_bf16_peak", "gflops")
+if bpeak == bpeak:  # built with AVX-512 BF16
+    print(f"BF16 dot-product peak (2 threads): {bpeak:.0f} GFLOP/s")
+    for w in (256, 64):
+        f, fg = med(f"BM_mlp_fused<{w}, nn::Bf16>", "samples_per_s"), med(f"BM_mlp_fused<{w}, nn::Bf16>", "gflops")
+        ps = peer_med("mlp", w, "samples_per_s")
+        print(f"MLP W={w} Bf16: fused {f:,.0f} samples/s ({fg:.0f} GFLOP/s, {100 * fg / bpeak:.0f} % of the BF16 peak, "
+              f"{100 * fg / peak:.0f} % of the FP32 peak); PyTorch peer (FP32) {ps:,.0f} ({f / ps:.2f}x)")
 print("parse events.txt: %.0f MB/s vs naive %.0f MB/s (%.1fx); npy cache %.2f GB/s" % (
     med("BM_parse_events_fast", "bytes_per_second") / 1e6, med("BM_parse_events_naive", "bytes_per_second") / 1e6,
     med("BM_parse_events_fast", "bytes_per_second") / med("BM_parse_events_naive", "bytes_per_second"),
@@ -31,7 +39,8 @@ for name, b in runs.items():
     if name.startswith("BM_train_step") or name.startswith("BM_render"):
         print(f"{name}: {statistics.median(x['real_time'] for x in b):.0f} ms")
 peer64, peer256 = peer_med("step", 64, "ms_per_step"), peer_med("step", 256, "ms_per_step")
-fast = med("BM_train_step<presets::Fast>", "real_time")
-paper = med("BM_train_step<presets::Paper>", "real_time")
-print(f"Fast step {fast:.0f} ms vs PyTorch peer W=64 32+32 step {peer64:.0f} ms: {peer64 / fast:.1f}x")
-print(f"Paper step {paper:.0f} ms vs PyTorch peer paper step {peer256:.0f} ms: {peer256 / paper:.2f}x")
+for suffix in ("", "Bf16"):
+    fast = med(f"BM_train_step<presets::Fast{suffix}>", "real_time")
+    paper = med(f"BM_train_step<presets::Paper{suffix}>", "real_time")
+    print(f"Fast{suffix} step {fast:.0f} ms vs PyTorch peer W=64 32+32 step {peer64:.0f} ms: {peer64 / fast:.1f}x")
+    print(f"Paper{suffix} step {paper:.0f} ms vs PyTorch peer paper step {peer256:.0f} ms: {peer256 / paper:.2f}x")

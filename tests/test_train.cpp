@@ -42,8 +42,14 @@ struct Fixture {
 
 using TinySigned = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::SignedCount>;
 using TinyHalf = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
+// The same model with mixed-precision networks (bf16 factors, FP32 accumulation).
+using TinyBf16Field = field::Field<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmonics<2>,
+                                   nn::Mlp<12, 16, 1, 5, nn::ReLU, nn::Identity, -1, nn::Bf16>,
+                                   nn::Mlp<4 + 4, 16, 1, 1, nn::ReLU, nn::Identity, -1, nn::Bf16>>;
+using TinyBf16 = EvNerf<TinyBf16Field, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
 
-TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned, TinyHalf) {
+TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned, TinyHalf,
+                   TinyBf16) {
   Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   double first = 0, last = 0;
@@ -71,10 +77,11 @@ TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants 
   CHECK(m.threshold_neg(0) == doctest::Approx(-0.3f));
 }
 
-TEST_CASE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip") {
+TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip",
+                   Model, Tiny, TinyBf16) {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
-  Tiny a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
+  Model a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
   for (int s = 0; s < 6; ++s) {
     a.train_step(f.td, 128, 3);
     b.train_step(f.td, 128, 3);
@@ -82,7 +89,7 @@ TEST_CASE("training: deterministic for a seed and thread count; resume equals un
   CHECK(a.params().values == b.params().values);
   // Save after 6 steps, continue both the original and a restored copy.
   const std::string bytes = a.serialize("tiny", "meta");
-  Tiny c;
+  Model c;
   CHECK(c.deserialize(bytes, "tiny", "mem") == "meta");
   for (int s = 0; s < 4; ++s) {
     a.train_step(f.td, 128, 3);
@@ -91,7 +98,7 @@ TEST_CASE("training: deterministic for a seed and thread count; resume equals un
   CHECK(a.params().values == c.params().values);
   CHECK(a.step() == c.step());
   // A restored model renders bit-identically.
-  Tiny e;
+  Model e;
   e.deserialize(a.serialize("tiny", ""), "tiny", "mem");
   const auto dirs = render::pixel_directions(f.td.camera);
   CHECK(a.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==

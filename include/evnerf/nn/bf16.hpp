@@ -184,7 +184,7 @@ inline void panel(const Operands& o, int i0, const __mmask16 (&mask)[2], const E
 /// C = A·B or C += A·B over packed operands, then the epilogue (gemm::BiasActivation, gemm::ActivationGrad)
 /// on each result vector. Needs available(); the reference path takes no epilogue.
 template <bool Accumulate, class Epi = gemm::NoEpilogue>
-void product(const Operands& o, const Epi& epi = {}) {
+void product(const Operands& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
   const __mmask16 full[2] = {0xFFFF, 0xFFFF};

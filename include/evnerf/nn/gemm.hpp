@@ -54,6 +54,12 @@ struct NoEpilogue {
   static constexpr bool active = false;
 };
 
+/// The epilogues (defined for AVX-512 builds below; elsewhere they stay declared for discarded branches).
+template <class Act>
+struct BiasActivation;
+template <class Act>
+struct ActivationGrad;
+
 #if defined(__AVX512F__)
 /// Vector forms of the activations the epilogues can apply in registers (the others run as a scalar pass
 /// after the product, in nn/mlp.hpp).
@@ -163,7 +169,7 @@ constexpr bool has_kernel() {
 /// C = A·B (Accumulate = false) or C += A·B, then the epilogue on each result vector before it is stored.
 /// Float on AVX-512 takes the kernel; everything else Eigen (which takes no epilogue).
 template <bool Accumulate, class T, class Epi = NoEpilogue>
-void product(const Operands<T>& o, const Epi& epi = {}) {
+void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512F__)
   if constexpr (std::is_same_v<T, float>) {
