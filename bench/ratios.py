@@ -6,14 +6,16 @@ runs = {}
 for f in sorted(glob.glob(f"{out}/ours_*.json")):
     for b in json.load(open(f))["benchmarks"]:
         runs.setdefault(b["name"], []).append(b)
-peer = [json.loads(l) for l in open(f"{out}/peer.jsonl") if l.strip()] if glob.glob(f"{out}/peer.jsonl") else []
+def load(name):
+    return [json.loads(l) for l in open(f"{out}/{name}") if l.strip()] if glob.glob(f"{out}/{name}") else []
+peer, peer_bf16 = load("peer.jsonl"), load("peer_bf16.jsonl")
 
 def med(name, key):
     vals = [b[key] for n, bs in runs.items() if n.startswith(name) for b in bs if key in b]
     return statistics.median(vals) if vals else float("nan")
 
-def peer_med(mode, width, key):
-    vals = [p[key] for p in peer if p["mode"] == mode and p["width"] == width]
+def peer_med(mode, width, key, runs=None):
+    vals = [p[key] for p in (peer if runs is None else runs) if p["mode"] == mode and p["width"] == width]
     return statistics.median(vals) if vals else float("nan")
 
 peak = med("BM_fma_peak", "gflops")
@@ -28,9 +30,9 @@ if bpeak == bpeak:  # built with AVX-512 BF16
     print(f"BF16 dot-product peak (2 threads): {bpeak:.0f} GFLOP/s")
     for w in (256, 64):
         f, fg = med(f"BM_mlp_fused<{w}, nn::Bf16>", "samples_per_s"), med(f"BM_mlp_fused<{w}, nn::Bf16>", "gflops")
-        ps = peer_med("mlp", w, "samples_per_s")
-        print(f"MLP W={w} Bf16: fused {f:,.0f} samples/s ({fg:.0f} GFLOP/s, {100 * fg / bpeak:.0f} % of the BF16 peak, "
-              f"{100 * fg / peak:.0f} % of the FP32 peak); PyTorch peer (FP32) {ps:,.0f} ({f / ps:.2f}x)")
+        ps, pb = peer_med("mlp", w, "samples_per_s"), peer_med("mlp", w, "samples_per_s", peer_bf16)
+        print(f"MLP W={w} Bf16: fused {f:,.0f} samples/s ({fg:.0f} GFLOP/s, {100 * fg / bpeak:.0f} % of the BF16 peak); "
+              f"PyTorch peer FP32 {ps:,.0f} ({f / ps:.2f}x); PyTorch peer bf16 autocast {pb:,.0f} ({f / pb:.2f}x)")
 print("parse events.txt: %.0f MB/s vs naive %.0f MB/s (%.1fx); npy cache %.2f GB/s" % (
     med("BM_parse_events_fast", "bytes_per_second") / 1e6, med("BM_parse_events_naive", "bytes_per_second") / 1e6,
     med("BM_parse_events_fast", "bytes_per_second") / med("BM_parse_events_naive", "bytes_per_second"),
@@ -39,8 +41,10 @@ for name, b in runs.items():
     if name.startswith("BM_train_step") or name.startswith("BM_render"):
         print(f"{name}: {statistics.median(x['real_time'] for x in b):.0f} ms")
 peer64, peer256 = peer_med("step", 64, "ms_per_step"), peer_med("step", 256, "ms_per_step")
+b64, b256 = peer_med("step", 64, "ms_per_step", peer_bf16), peer_med("step", 256, "ms_per_step", peer_bf16)
+print(f"PyTorch peer steps: FP32 W=64 {peer64:.0f} ms, W=256 {peer256:.0f} ms; bf16 autocast W=64 {b64:.0f} ms, W=256 {b256:.0f} ms")
 for suffix in ("", "Bf16"):
     fast = med(f"BM_train_step<presets::Fast{suffix}>", "real_time")
     paper = med(f"BM_train_step<presets::Paper{suffix}>", "real_time")
-    print(f"Fast{suffix} step {fast:.0f} ms vs PyTorch peer W=64 32+32 step {peer64:.0f} ms: {peer64 / fast:.1f}x")
-    print(f"Paper{suffix} step {paper:.0f} ms vs PyTorch peer paper step {peer256:.0f} ms: {peer256 / paper:.2f}x")
+    print(f"Fast{suffix} step {fast:.0f} ms: {peer64 / fast:.1f}x the FP32 peer's W=64 32+32 step, {b64 / fast:.1f}x its bf16 autocast")
+    print(f"Paper{suffix} step {paper:.0f} ms: {peer256 / paper:.2f}x the FP32 peer's paper step, {b256 / paper:.2f}x its bf16 autocast")

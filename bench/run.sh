@@ -8,7 +8,11 @@ scripts/deps.sh libbenchmark-dev
 cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null
-OUT=build-bench/results; mkdir -p "$OUT"; rm -f "$OUT"/ours_*.json; : > "$OUT/peer.jsonl"  # no stale runs in the medians
+OUT=build-bench/results; mkdir -p "$OUT"; rm -f "$OUT"/ours_*.json; : > "$OUT/peer.jsonl"; : > "$OUT/peer_bf16.jsonl"  # no stale runs
+LIB=/usr/lib/x86_64-linux-gnu
+# What the best-configuration flags set, in advance, so the autocast wrapper's peer does not re-execute.
+AUTOCAST_ENV=(env LD_LIBRARY_PATH="$LIB/openblas-openmp:${LD_LIBRARY_PATH:-}" LD_PRELOAD="$LIB/libtcmalloc_minimal.so.4"
+  OPENBLAS_CORETYPE=SkylakeX OMP_WAIT_POLICY=PASSIVE OMP_NUM_THREADS=2 OPENBLAS_NUM_THREADS=2)
 PEER=../shared/peers/peer_torch.py
 BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
 for r in $(seq "$REPS"); do
@@ -19,6 +23,12 @@ for r in $(seq "$REPS"); do
     /usr/bin/python3 "$PEER" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer.jsonl"
     /usr/bin/python3 "$PEER" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer.jsonl"
     /usr/bin/python3 "$PEER" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iters 2 --warmup 1 $BEST >> "$OUT/peer.jsonl"
+    # The same peer under PyTorch's bf16 autocast: the like-for-like reference for our Bf16 networks.
+    AC=("${AUTOCAST_ENV[@]}" /usr/bin/python3 bench/peer_autocast.py "$PEER")
+    "${AC[@]}" --mode mlp --width 256 --n-samples 16384 $BEST >> "$OUT/peer_bf16.jsonl"
+    "${AC[@]}" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer_bf16.jsonl"
+    "${AC[@]}" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer_bf16.jsonl"
+    "${AC[@]}" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iters 2 --warmup 1 $BEST >> "$OUT/peer_bf16.jsonl"
   fi
 done
 python3 bench/ratios.py "$OUT"

@@ -237,6 +237,28 @@ TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and back
   SUBCASE("small shape") { check_fused_against_reference<Mlp<16, 32, 2, 4, ReLU, Sigmoid>>(50); }
 }
 
+TEST_CASE_TEMPLATE("MLP backward: a partial input gradient equals the leading rows of the full one", M,
+                   Mlp<17, 32, 2, 5, ReLU, Identity, 0>, Mlp<17, 32, 2, 5, ReLU, Identity, 0, Bf16>) {
+  const int n = 23, rows = 6;
+  Rng rng(9);
+  std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
+  M::init(params.data(), rng);
+  for (auto* v : {&x, &dy})
+    for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+  typename M::template Workspace<float> ws;
+  M::forward(params.data(), x.data(), n, ws);
+  std::vector<float> dp_full(M::n_params, 0.f), dp_part(M::n_params, 0.f), dx_full(x.size(), 0.f), dx_part(x.size(), 7.f);
+  M::backward(params.data(), ws, dy.data(), dp_full.data(), dx_full.data());
+  M::backward(params.data(), ws, dy.data(), dp_part.data(), dx_part.data(), rows);
+  CHECK(dp_part == dp_full);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < M::in_dims; ++i) {
+      const std::size_t at = i + static_cast<std::size_t>(j) * M::in_dims;
+      if (i < rows) CHECK(dx_part[at] == doctest::Approx(7.f + dx_full[at]).epsilon(1e-5));
+      else CHECK(dx_part[at] == 7.f);  // rows past dx_rows are left alone
+    }
+}
+
 TEST_CASE("Bf16 MLP: fused forward and backward equal the reference with the same bf16 factors") {
   // The reference rounds both factors of each product as the kernel does and sums in double, so on shallow
   // networks the two agree to FP32 summation error (measured ≤ 3e-6 relative). In a deep network a factor

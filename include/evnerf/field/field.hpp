@@ -130,7 +130,8 @@ struct Field {
   static void backward(const T* params, Workspace<T>& ws, const T* dsigma, const T* dlum, T* dparams) {
     const int n = ws.n;
     ws.dcol_in.assign(static_cast<std::size_t>(col_in) * n, T(0));
-    ColorNet::backward(params + color_offset, ws.col, dlum, dparams + color_offset, ws.dcol_in.data());
+    // Only the features' rows of the colour network's input gradient are used (the view encoding is data).
+    ColorNet::backward(params + color_offset, ws.col, dlum, dparams + color_offset, ws.dcol_in.data(), features);
     ws.dout.resize(static_cast<std::size_t>(DensityNet::out_dims) * n);
     for (int j = 0; j < n; ++j) {
       T* o = &ws.dout[static_cast<std::size_t>(j) * DensityNet::out_dims];

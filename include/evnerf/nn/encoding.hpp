@@ -227,51 +227,95 @@ struct HashGrid {
     }
   }
 #if defined(__AVX512F__)
-  /// forward_batch for float with two features per entry, 8 points at a time: an entry is one 64-bit
-  /// pair, so each corner is one 8-lane gather and each level's result one 8-lane scatter. The arithmetic
-  /// is corners()' in the same order (per-axis weights, (wx·wy)·wz, one fused multiply-add per corner),
-  /// so the values equal forward()'s bit for bit (tested).
-  static void forward_batch_pairs(const float* params, const float* p, int n, float* y) {
-    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const __m512i twice = _mm512_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7);
+  /// The 8 corners of level `lv` around 8 points (lanes masked by k) of p: table indices and weights, as
+  /// corners() computes them (per-axis weights, (wx·wy)·wz), so the values are bit-identical to it.
+  struct Cells8 {
+    __m256i idx[8];
+    __m256 w[8];
+  };
+  static Cells8 cells8(const LevelInfo& lv, const float* p, int j0, __mmask8 k) {
     const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.f);
+    const float sc = static_cast<float>(lv.scale);
+    const __m256 s = _mm256_set1_ps(sc), last = _mm256_set1_ps(sc - 1);
+    const auto res = static_cast<std::uint32_t>(lv.res);
+    const __m256i mul[3] = {_mm256_set1_epi32(1), _mm256_set1_epi32(static_cast<int>(lv.dense ? res : 2654435761u)),
+                            _mm256_set1_epi32(static_cast<int>(lv.dense ? res * res : 805459861u))};
+    const __m256i at = _mm256_add_epi32(_mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21), _mm256_set1_epi32(3 * j0));
+    __m256i term[3][2];
+    __m256 wd[3][2];
+    for (int d = 0; d < 3; ++d) {
+      const __m256 x = _mm256_mmask_i32gather_ps(zero, k, _mm256_add_epi32(at, _mm256_set1_epi32(d)), p, 4);
+      const __m256 c = _mm256_mul_ps(_mm256_min_ps(_mm256_max_ps(x, zero), one), s);
+      const __m256 fl = _mm256_min_ps(_mm256_roundscale_ps(c, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), last);
+      const __m256i base = _mm256_cvttps_epi32(fl);
+      const __m256 frac = _mm256_sub_ps(c, fl);
+      term[d][0] = _mm256_mullo_epi32(base, mul[d]);
+      term[d][1] = _mm256_mullo_epi32(_mm256_add_epi32(base, _mm256_set1_epi32(1)), mul[d]);
+      wd[d][0] = _mm256_sub_ps(one, frac);
+      wd[d][1] = frac;
+    }
+    const __m256i hash_mask = _mm256_set1_epi32(static_cast<int>(table_size - 1));
+    Cells8 cell;
+    for (int c = 0; c < 8; ++c) {
+      const int bx = c & 1, by = (c >> 1) & 1, bz = (c >> 2) & 1;
+      cell.idx[c] = lv.dense ? _mm256_add_epi32(_mm256_add_epi32(term[0][bx], term[1][by]), term[2][bz])
+                             : _mm256_and_si256(_mm256_xor_si256(_mm256_xor_si256(term[0][bx], term[1][by]), term[2][bz]), hash_mask);
+      cell.w[c] = _mm256_mul_ps(_mm256_mul_ps(wd[0][bx], wd[1][by]), wd[2][bz]);
+    }
+    return cell;
+  }
+  static __mmask8 lanes8(int n, int j0) {
+    return n - j0 >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - j0)) - 1);
+  }
+
+  /// forward_batch for float with two features per entry, 8 points at a time: an entry is one 64-bit
+  /// pair, so each corner is one 8-lane gather and each level's result one 8-lane scatter; one fused
+  /// multiply-add per corner in corners()' order, so the values equal forward()'s bit for bit (tested).
+  static void forward_batch_pairs(const float* params, const float* p, int n, float* y) {
+    const __m512i twice = _mm512_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7);
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     for (int l = 0; l < Levels; ++l) {
       const LevelInfo& lv = levels()[l];
-      const float sc = static_cast<float>(lv.scale);
-      const __m256 s = _mm256_set1_ps(sc), last = _mm256_set1_ps(sc - 1);
-      const auto res = static_cast<std::uint32_t>(lv.res);
-      const __m256i mul[3] = {_mm256_set1_epi32(1), _mm256_set1_epi32(static_cast<int>(lv.dense ? res : 2654435761u)),
-                              _mm256_set1_epi32(static_cast<int>(lv.dense ? res * res : 805459861u))};
-      const __m256i hash_mask = _mm256_set1_epi32(static_cast<int>(table_size - 1));
       const double* table = reinterpret_cast<const double*>(params + static_cast<std::size_t>(l) * table_size * F);
       for (int j0 = 0; j0 < n; j0 += 8) {
-        const __mmask8 k = n - j0 >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - j0)) - 1);
-        const __m256i at = _mm256_add_epi32(_mm256_mullo_epi32(lane, _mm256_set1_epi32(3)), _mm256_set1_epi32(3 * j0));
-        __m256i term[3][2];
-        __m256 wd[3][2];
-        for (int d = 0; d < 3; ++d) {
-          const __m256 x = _mm256_mmask_i32gather_ps(zero, k, _mm256_add_epi32(at, _mm256_set1_epi32(d)), p, 4);
-          const __m256 c = _mm256_mul_ps(_mm256_min_ps(_mm256_max_ps(x, zero), one), s);
-          const __m256 fl = _mm256_min_ps(_mm256_roundscale_ps(c, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), last);
-          const __m256i base = _mm256_cvttps_epi32(fl);
-          const __m256 frac = _mm256_sub_ps(c, fl);
-          term[d][0] = _mm256_mullo_epi32(base, mul[d]);
-          term[d][1] = _mm256_mullo_epi32(_mm256_add_epi32(base, _mm256_set1_epi32(1)), mul[d]);
-          wd[d][0] = _mm256_sub_ps(one, frac);
-          wd[d][1] = frac;
-        }
+        const __mmask8 k = lanes8(n, j0);
+        const Cells8 cell = cells8(lv, p, j0, k);
         __m512 acc = _mm512_setzero_ps();
         for (int c = 0; c < 8; ++c) {
-          const int bx = c & 1, by = (c >> 1) & 1, bz = (c >> 2) & 1;
-          const __m256i idx =
-              lv.dense ? _mm256_add_epi32(_mm256_add_epi32(term[0][bx], term[1][by]), term[2][bz])
-                       : _mm256_and_si256(_mm256_xor_si256(_mm256_xor_si256(term[0][bx], term[1][by]), term[2][bz]), hash_mask);
-          const __m256 w = _mm256_mul_ps(_mm256_mul_ps(wd[0][bx], wd[1][by]), wd[2][bz]);
-          const __m512d entry = _mm512_mask_i32gather_pd(_mm512_setzero_pd(), k, idx, table, 8);
-          acc = _mm512_fmadd_ps(_mm512_permutexvar_ps(twice, _mm512_castps256_ps512(w)), _mm512_castpd_ps(entry), acc);
+          const __m512d entry = _mm512_mask_i32gather_pd(_mm512_setzero_pd(), k, cell.idx[c], table, 8);
+          acc = _mm512_fmadd_ps(_mm512_permutexvar_ps(twice, _mm512_castps256_ps512(cell.w[c])), _mm512_castpd_ps(entry), acc);
         }
         const __m256i row = _mm256_mullo_epi32(_mm256_add_epi32(lane, _mm256_set1_epi32(j0)), _mm256_set1_epi32(out_dims / 2));
         _mm512_mask_i32scatter_pd(y + l * F, k, row, _mm512_castps_pd(acc), 8);
+      }
+    }
+  }
+
+  /// backward_batch for float with two features per entry: indices and weights 8 points at a time
+  /// (cells8), the additions to the tables one by one in backward()'s order (points, then corners), so
+  /// entries that several points touch get exactly the same sums.
+  static void backward_batch_pairs(const float* p, int n, const float* dy, float* dparams) {
+    alignas(32) std::uint32_t idx[8][8];
+    alignas(32) float w[8][8];
+    for (int l = 0; l < Levels; ++l) {
+      const LevelInfo& lv = levels()[l];
+      float* g = dparams + static_cast<std::size_t>(l) * table_size * F;
+      for (int j0 = 0; j0 < n; j0 += 8) {
+        const __mmask8 k = lanes8(n, j0);
+        const Cells8 cell = cells8(lv, p, j0, k);
+        for (int c = 0; c < 8; ++c) {
+          _mm256_store_si256(reinterpret_cast<__m256i*>(idx[c]), cell.idx[c]);
+          _mm256_store_ps(w[c], cell.w[c]);
+        }
+        const int m = std::min(8, n - j0);
+        for (int q = 0; q < m; ++q) {
+          const float* dyj = dy + static_cast<std::size_t>(j0 + q) * out_dims + l * F;
+          for (int c = 0; c < 8; ++c) {
+            float* e = g + static_cast<std::size_t>(idx[c][q]) * F;
+            e[0] += w[c][q] * dyj[0];
+            e[1] += w[c][q] * dyj[1];
+          }
+        }
       }
     }
   }
@@ -280,6 +324,12 @@ struct HashGrid {
   /// exactly what backward() would, in the same order per table entry.
   template <class T>
   static void backward_batch(const T* p, int n, const T* dy, T* dparams) {
+#if defined(__AVX512F__)
+    if constexpr (std::is_same_v<T, float> && F == 2) {
+      backward_batch_pairs(p, n, dy, dparams);
+      return;
+    }
+#endif
     for (int l = 0; l < Levels; ++l) {
       T* g = dparams + static_cast<std::size_t>(l) * table_size * F;
       for (int j = 0; j < n; ++j) {

@@ -187,9 +187,10 @@ struct Mlp {
 
   /// Backward pass for the tile last run through forward(): dy is Out × n (gradient of the loss w.r.t.
   /// the output after OutAct). Adds weight and bias gradients to dparams and, when dx is not null, the
-  /// input gradient (In × n) to dx.
+  /// input gradient (In × n) to dx: its first `dx_rows` rows (the rest are left alone), for callers that
+  /// need the gradient of only the leading inputs (a colour network's features, not its view encoding).
   template <class T>
-  static void backward(const T* params, Workspace<T>& ws, const T* dy, T* dparams, T* dx) {
+  static void backward(const T* params, Workspace<T>& ws, const T* dy, T* dparams, T* dx, int dx_rows = In) {
     const int n = ws.n;
     // dz of the output layer: dy ⊙ OutAct'(y), in grad_a; the previous layer's dz goes to the other buffer.
     T* dz = ws.grad_a.data();
@@ -237,11 +238,11 @@ struct Mlp {
           gemm::product<decltype(accumulate)::value>(gemm::Operands<T>{rows, n, out, wt + row0, in, dz, 1, out, c, ldc}, epi...);
       };
       if (l == 0) {
-        multiply(std::true_type{}, 0, in, dx, in);
+        multiply(std::true_type{}, 0, std::min(in, dx_rows), dx, in);
         break;
       }
       // The input rows fed by the skip connection: their gradient goes straight into dx.
-      if (l == Skip + 1 && Skip >= 0 && dx) multiply(std::true_type{}, Width, In, dx, In);
+      if (l == Skip + 1 && Skip >= 0 && dx) multiply(std::true_type{}, Width, std::min(In, dx_rows), dx, In);
       // The previous layer's output occupies the top Width rows of this layer's input: its dz is
       // (Wᵀ·DZ) ⊙ act'(y) over those rows.
       const T* y = ws.input[l].data();
