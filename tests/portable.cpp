@@ -4,37 +4,22 @@
 // Exit code 0 when all agree.
 #include <evnerf/nn/encoding.hpp>
 #include <evnerf/nn/mlp.hpp>
-#include <evnerf/nn/reference.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <vector>
+
+#include "mlp_vs_reference.hpp"
 
 using namespace evnerf;
 using namespace evnerf::nn;
 
 template <class M>
 bool mlp_matches(int n) {
-  Rng rng(5);
-  std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
-  M::init(params.data(), rng);
-  for (auto& v : x) v = static_cast<float>(rng.uniform(-1, 1));
-  for (auto& v : dy) v = static_cast<float>(rng.uniform(-1, 1));
-  typename M::template Workspace<float> ws;
-  const float* y = M::forward(params.data(), x.data(), n, ws);
-  std::vector<float> dp(M::n_params, 0.f), dx(x.size(), 0.f);
-  M::backward(params.data(), ws, dy.data(), dp.data(), dx.data());
-  const auto ref = reference_mlp_forward_backward<M>(params, x, n, dy);
-  auto worst = [](const std::vector<float>& want, const float* got) {
-    double err = 0, scale = 1;
-    for (std::size_t i = 0; i < want.size(); ++i) {
-      err = std::max(err, std::abs(double(want[i]) - got[i]));
-      scale = std::max(scale, std::abs(double(want[i])));
-    }
-    return err / scale;
-  };
-  const double e = std::max({worst(ref.y, y), worst(ref.dparams, dp.data()), worst(ref.dx, dx.data())});
-  std::printf("%s: relative error %.2g\n", std::is_same_v<typename M::precision, Bf16> ? "Mlp Bf16" : "Mlp Fp32", e);
-  return e < 1e-4;
+  const auto e = testing::mlp_vs_reference<M>(n);
+  const double worst = std::max({e.y, e.dparams, e.dx});
+  std::printf("%s: relative error %.2g\n", std::is_same_v<typename M::precision, Bf16> ? "Mlp Bf16" : "Mlp Fp32", worst);
+  return worst < 1e-4;
 }
 
 int main() {

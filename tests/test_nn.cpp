@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "common.hpp"
+#include "mlp_vs_reference.hpp"
 
 using namespace evnerf;
 using namespace evnerf::nn;
@@ -199,35 +200,11 @@ TEST_CASE("encoding → MLP composed: finite-difference check through both (hash
 /// `tol`: the allowed max-norm error relative to the result's max norm (FP32 rounding, or bf16 factors).
 template <class M>
 void check_fused_against_reference(int n, double tol = 1e-4) {
-  Rng rng(5);
-  std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
-  M::init(params.data(), rng);
-  for (auto& p : params) p += static_cast<float>(rng.uniform(-0.01, 0.01));
-  for (auto& v : x) v = static_cast<float>(rng.uniform(-1, 1));
-  for (auto& v : dy) v = static_cast<float>(rng.uniform(-1, 1));
-  typename M::template Workspace<float> ws;
-  const float* y = M::forward(params.data(), x.data(), n, ws);
-  std::vector<float> dp(M::n_params, 0.f), dx(x.size(), 0.f);
-  M::backward(params.data(), ws, dy.data(), dp.data(), dx.data());
-  auto ref = reference_mlp_forward_backward<M>(params, x, n, dy);
-  double ymax = 0, yerr = 0, gmax = 0, gerr = 0, xmax = 0, xerr = 0;
-  for (std::size_t i = 0; i < ref.y.size(); ++i) {
-    ymax = std::max(ymax, std::abs(double(ref.y[i])));
-    yerr = std::max(yerr, std::abs(double(ref.y[i]) - y[i]));
-  }
-  for (std::size_t i = 0; i < dp.size(); ++i) {
-    gmax = std::max(gmax, std::abs(double(ref.dparams[i])));
-    gerr = std::max(gerr, std::abs(double(ref.dparams[i]) - dp[i]));
-  }
-  for (std::size_t i = 0; i < dx.size(); ++i) {
-    xmax = std::max(xmax, std::abs(double(ref.dx[i])));
-    xerr = std::max(xerr, std::abs(double(ref.dx[i]) - dx[i]));
-  }
-  MESSAGE("relative max error: y ", yerr / std::max(1.0, ymax), ", dparams ", gerr / std::max(1.0, gmax), ", dx ",
-          xerr / std::max(1.0, xmax));
-  CHECK(yerr <= tol * std::max(1.0, ymax));
-  CHECK(gerr <= tol * std::max(1.0, gmax));
-  CHECK(xerr <= tol * std::max(1.0, xmax));
+  const auto e = testing::mlp_vs_reference<M>(n);
+  MESSAGE("relative max error: y ", e.y, ", dparams ", e.dparams, ", dx ", e.dx);
+  CHECK(e.y <= tol);
+  CHECK(e.dparams <= tol);
+  CHECK(e.dx <= tol);
 }
 
 TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and backward") {

@@ -130,19 +130,14 @@ void reference_product(const Operands& o) {
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
 namespace detail {
 
-/// One (16·V) × NR block of C, as gemm::detail::block but one vdpbf16ps (two k) per FMA slot.
+/// One (16·V) × NR block of C, as gemm::detail::block but one vdpbf16ps (two k) per FMA slot; the
+/// blocking around it is gemm::detail's.
 template <int V, int NR, bool Accumulate, bool Full, class Epi>
 inline void block(int KP, const std::uint32_t* __restrict a, std::ptrdiff_t lda, const std::uint32_t* __restrict b,
                   std::ptrdiff_t bk, std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2],
                   const Epi& epi, int i0, int j0) {
   __m512 acc[V][NR];
-  for (int j = 0; j < NR; ++j)
-    for (int v = 0; v < V; ++v) {
-      if constexpr (Accumulate)
-        acc[v][j] = Full ? _mm512_loadu_ps(c + j * ldc + 16 * v) : _mm512_maskz_loadu_ps(mask[v], c + j * ldc + 16 * v);
-      else
-        acc[v][j] = _mm512_setzero_ps();
-    }
+  gemm::detail::load_block<V, NR, Accumulate, Full>(acc, c, ldc, mask);
   for (int p = 0; p < KP; ++p) {
     const std::uint32_t* ap = a + p * lda;
     __m512bh av[V];
@@ -155,27 +150,7 @@ inline void block(int KP, const std::uint32_t* __restrict a, std::ptrdiff_t lda,
       for (int v = 0; v < V; ++v) acc[v][j] = _mm512_dpbf16_ps(acc[v][j], av[v], bj);
     }
   }
-  for (int j = 0; j < NR; ++j)
-    for (int v = 0; v < V; ++v) {
-      __m512 r = acc[v][j];
-      if constexpr (Epi::active) r = epi(r, i0 + 16 * v, j0 + j, mask[v]);
-      if constexpr (Full) _mm512_storeu_ps(c + j * ldc + 16 * v, r);
-      else _mm512_mask_storeu_ps(c + j * ldc + 16 * v, mask[v], r);
-    }
-}
-
-template <int V, bool Accumulate, bool Full, class Epi>
-inline void panel(const Operands& o, int i0, const __mmask16 (&mask)[2], const Epi& epi) {
-  int j = 0;
-  auto run = [&](auto nr) {
-    constexpr int NR = decltype(nr)::value;
-    for (; j + NR <= o.n; j += NR)
-      block<V, NR, Accumulate, Full>(o.kp, o.a + i0, o.lda, o.b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask,
-                                     epi, i0, j);
-  };
-  run(std::integral_constant<int, 12>{});
-  run(std::integral_constant<int, 4>{});
-  run(std::integral_constant<int, 1>{});
+  gemm::detail::store_block<V, NR, Full>(acc, c, ldc, mask, epi, i0, j0);
 }
 
 }  // namespace detail
@@ -187,19 +162,12 @@ template <bool Accumulate, class Epi = gemm::NoEpilogue>
 void product(const Operands& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
-  const __mmask16 full[2] = {0xFFFF, 0xFFFF};
-  int i = 0;
-  for (; i + 32 <= o.m; i += 32) detail::panel<2, Accumulate, true>(o, i, full, epi);
-  const int r = o.m - i;
-  if (r == 16) {
-    detail::panel<1, Accumulate, true>(o, i, full, epi);
-  } else if (r > 16) {
-    const __mmask16 m[2] = {0xFFFF, static_cast<__mmask16>((1u << (r - 16)) - 1)};
-    detail::panel<2, Accumulate, false>(o, i, m, epi);
-  } else if (r > 0) {
-    const __mmask16 m[2] = {static_cast<__mmask16>((1u << r) - 1), 0};
-    detail::panel<1, Accumulate, false>(o, i, m, epi);
-  }
+  gemm::detail::row_panels(o.m, [&](auto v, auto full, int i0, const __mmask16(&mask)[2]) {
+    gemm::detail::column_blocks(o.n, [&](auto nr, int j) {
+      detail::block<decltype(v)::value, decltype(nr)::value, Accumulate, decltype(full)::value>(
+          o.kp, o.a + i0, o.lda, o.b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
+    });
+  });
 #else
   static_assert(!Epi::active, "bf16::product: epilogues need the AVX-512 BF16 kernel");
   reference_product<Accumulate>(o);

@@ -103,6 +103,30 @@ struct ActivationGrad {
 
 namespace detail {
 
+/// A block's accumulators: C's values (Accumulate) or zeros; masked rows read as zero.
+template <int V, int NR, bool Accumulate, bool Full>
+inline void load_block(__m512 (&acc)[V][NR], const float* c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2]) {
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      if constexpr (Accumulate)
+        acc[v][j] = Full ? _mm512_loadu_ps(c + j * ldc + 16 * v) : _mm512_maskz_loadu_ps(mask[v], c + j * ldc + 16 * v);
+      else
+        acc[v][j] = _mm512_setzero_ps();
+    }
+}
+/// Stores a block through the epilogue; masked rows are left untouched.
+template <int V, int NR, bool Full, class Epi>
+inline void store_block(const __m512 (&acc)[V][NR], float* c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi,
+                        int i0, int j0) {
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      __m512 r = acc[v][j];
+      if constexpr (Epi::active) r = epi(r, i0 + 16 * v, j0 + j, mask[v]);
+      if constexpr (Full) _mm512_storeu_ps(c + j * ldc + 16 * v, r);
+      else _mm512_mask_storeu_ps(c + j * ldc + 16 * v, mask[v], r);
+    }
+}
+
 /// One (16·V) × NR block of C: V 16-lane rows of accumulators per column, A's V vectors loaded once per k
 /// and each B element broadcast once: V·NR FMAs per k against V vector loads and NR broadcasts. `i0` and
 /// `j0` are the block's position in C, for the epilogue.
@@ -111,13 +135,7 @@ inline void block(int K, const float* __restrict a, std::ptrdiff_t lda, const fl
                   std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi,
                   int i0, int j0) {
   __m512 acc[V][NR];
-  for (int j = 0; j < NR; ++j)
-    for (int v = 0; v < V; ++v) {
-      if constexpr (Accumulate)
-        acc[v][j] = Full ? _mm512_loadu_ps(c + j * ldc + 16 * v) : _mm512_maskz_loadu_ps(mask[v], c + j * ldc + 16 * v);
-      else
-        acc[v][j] = _mm512_setzero_ps();
-    }
+  load_block<V, NR, Accumulate, Full>(acc, c, ldc, mask);
   for (int k = 0; k < K; ++k) {
     const float* ak = a + k * lda;
     __m512 av[V];
@@ -129,24 +147,35 @@ inline void block(int K, const float* __restrict a, std::ptrdiff_t lda, const fl
       for (int v = 0; v < V; ++v) acc[v][j] = _mm512_fmadd_ps(av[v], bj, acc[v][j]);
     }
   }
-  for (int j = 0; j < NR; ++j)
-    for (int v = 0; v < V; ++v) {
-      __m512 r = acc[v][j];
-      if constexpr (Epi::active) r = epi(r, i0 + 16 * v, j0 + j, mask[v]);
-      if constexpr (Full) _mm512_storeu_ps(c + j * ldc + 16 * v, r);
-      else _mm512_mask_storeu_ps(c + j * ldc + 16 * v, mask[v], r);
-    }
+  store_block<V, NR, Full>(acc, c, ldc, mask, epi, i0, j0);
 }
 
-template <int V, bool Accumulate, bool Full, class Epi>
-inline void panel(const Operands<float>& o, int i0, const __mmask16 (&mask)[2], const Epi& epi) {
-  const float* a = o.a + i0;
-  float* c = o.c + i0;
+/// The blocking shared by the FP32 and the BF16 kernels. Rows: 32-row panels (V = 2 vectors), then the
+/// remainder as one full or masked panel; calls panel(V, Full, i0, mask) with V and Full as constants.
+template <class Panel>
+inline void row_panels(int m, Panel&& panel) {
+  using V1 = std::integral_constant<int, 1>;
+  using V2 = std::integral_constant<int, 2>;
+  const __mmask16 full[2] = {0xFFFF, 0xFFFF};
+  int i = 0;
+  for (; i + 32 <= m; i += 32) panel(V2{}, std::true_type{}, i, full);
+  const int r = m - i;
+  if (r == 16) {
+    panel(V1{}, std::true_type{}, i, full);
+  } else if (r > 16) {
+    const __mmask16 mask[2] = {0xFFFF, static_cast<__mmask16>((1u << (r - 16)) - 1)};
+    panel(V2{}, std::false_type{}, i, mask);
+  } else if (r > 0) {
+    const __mmask16 mask[2] = {static_cast<__mmask16>((1u << r) - 1), 0};
+    panel(V1{}, std::false_type{}, i, mask);
+  }
+}
+/// Columns: blocks of 12, then 4, then 1; calls block(NR, j) with NR as a constant.
+template <class Block>
+inline void column_blocks(int n, Block&& block) {
   int j = 0;
   auto run = [&](auto nr) {
-    constexpr int NR = decltype(nr)::value;
-    for (; j + NR <= o.n; j += NR)
-      block<V, NR, Accumulate, Full>(o.k, a, o.lda, o.b + j * o.bn, o.bk, o.bn, c + j * o.ldc, o.ldc, mask, epi, i0, j);
+    for (; j + decltype(nr)::value <= n; j += decltype(nr)::value) block(nr, j);
   };
   run(std::integral_constant<int, 12>{});
   run(std::integral_constant<int, 4>{});
@@ -173,19 +202,12 @@ void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512F__)
   if constexpr (std::is_same_v<T, float>) {
-    const __mmask16 full[2] = {0xFFFF, 0xFFFF};
-    int i = 0;
-    for (; i + 32 <= o.m; i += 32) detail::panel<2, Accumulate, true>(o, i, full, epi);
-    const int r = o.m - i;
-    if (r == 16) {
-      detail::panel<1, Accumulate, true>(o, i, full, epi);
-    } else if (r > 16) {
-      const __mmask16 m[2] = {0xFFFF, static_cast<__mmask16>((1u << (r - 16)) - 1)};
-      detail::panel<2, Accumulate, false>(o, i, m, epi);
-    } else if (r > 0) {
-      const __mmask16 m[2] = {static_cast<__mmask16>((1u << r) - 1), 0};
-      detail::panel<1, Accumulate, false>(o, i, m, epi);
-    }
+    detail::row_panels(o.m, [&](auto v, auto full, int i0, const __mmask16(&mask)[2]) {
+      detail::column_blocks(o.n, [&](auto nr, int j) {
+        detail::block<decltype(v)::value, decltype(nr)::value, Accumulate, decltype(full)::value>(
+            o.k, o.a + i0, o.lda, o.b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
+      });
+    });
     return;
   }
 #endif
