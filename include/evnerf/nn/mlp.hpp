@@ -101,7 +101,7 @@ struct Mlp {
     std::array<std::vector<T>, n_layers> input;  ///< layer l's input (layer_in(l) × n); [0] unused
     std::vector<T> output;                       ///< Out × n, after OutAct
     std::vector<T> grad_a, grad_b;               ///< ping-pong gradient buffers (max_width × n)
-    std::vector<T> wt;                           ///< one layer's transposed weights (backward)
+    std::vector<T> wt;                           ///< one layer's transposed weights (backward; Fp32 only)
     std::vector<std::uint32_t> pack_a, pack_b;   ///< bf16 pairs of both factors (Bf16 only)
     const T* x = nullptr;                        ///< the tile's input (In × n), owned by the caller
 
@@ -115,7 +115,7 @@ struct Mlp {
       output.resize(static_cast<std::size_t>(Out) * samples);
       grad_a.resize(static_cast<std::size_t>(max_width()) * samples);
       grad_b.resize(static_cast<std::size_t>(max_width()) * samples);
-      wt.resize(static_cast<std::size_t>(max_width()) * max_width());
+      if constexpr (!bf16_products<T>()) wt.resize(static_cast<std::size_t>(max_width()) * max_width());
       if constexpr (bf16_products<T>()) {
         // ⌈a/2⌉·b pairs for a, b ≤ max(samples, max_width) with at least one of them ≤ max_width (+ 1: the
         // row of ones that gives the bias gradient).
