@@ -105,6 +105,71 @@ TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume 
         e.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
 }
 
+TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluating the kept samples alone", F, TinyField,
+                   TinyBf16Field) {
+  Rng rng(11);
+  std::vector<float> params(F::n_params);
+  F::init(params.data(), rng);
+  // Two tiles of samples; of the first, only some are kept (as behind-the-surface samples are dropped).
+  const int na = 41, nb = 19;
+  auto samples = [&](int n, std::vector<float>& pts, std::vector<float>& dirs) {
+    pts.resize(3 * static_cast<std::size_t>(n));
+    dirs.resize(pts.size());
+    for (int j = 0; j < n; ++j) {
+      const Vec3 d = Vec3(rng.normal(), rng.normal(), rng.normal()).normalized();
+      for (int k = 0; k < 3; ++k) {
+        pts[3 * j + k] = static_cast<float>(rng.uniform(-1.1, 1.1));  // a few outside the box: clamped
+        dirs[3 * j + k] = static_cast<float>(d[k]);
+      }
+    }
+  };
+  std::vector<float> pa, da, pb, db;
+  samples(na, pa, da);
+  samples(nb, pb, db);
+  std::vector<int> keep;
+  for (int j = 0; j < na; ++j)
+    if (j % 3 != 1 && j != 0) keep.push_back(j);
+  const int m = static_cast<int>(keep.size());
+  std::vector<float> pk, dk;
+  for (int j : keep)
+    for (int k = 0; k < 3; ++k) {
+      pk.push_back(pa[3 * j + k]);
+      dk.push_back(da[3 * j + k]);
+    }
+  std::vector<float> dsig(std::max(na, nb)), dlum(dsig.size() * F::channels);
+  for (auto* v : {&dsig, &dlum})
+    for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+  constexpr int so = F::density_net::out_dims;
+
+  // Reference: the kept samples and the second tile evaluated on their own, gradients applied at once.
+  typename F::template Workspace<float> ref;
+  std::vector<float> g_ref(F::n_params, 0.f);
+  const float *sig = nullptr, *lum = nullptr;
+  F::forward(params.data(), pk.data(), dk.data(), m, ref, &sig, &lum);
+  const std::vector<float> sig_ref(sig, sig + static_cast<std::size_t>(m) * so), lum_ref(lum, lum + static_cast<std::size_t>(m) * F::channels);
+  F::backward(params.data(), ref, dsig.data(), dlum.data(), g_ref.data());
+  F::forward(params.data(), pb.data(), db.data(), nb, ref, &sig, &lum);
+  F::backward(params.data(), ref, dsig.data(), dlum.data(), g_ref.data());
+
+  // All of the first tile, compacted to the kept samples; table gradients deferred over both tiles.
+  typename F::template Workspace<float> ws;
+  ws.defer_encoding_grad = true;
+  std::vector<float> g(F::n_params, 0.f);
+  F::forward(params.data(), pa.data(), da.data(), na, ws, &sig, &lum);
+  F::keep_only(ws, keep.data(), m, &sig, &lum);
+  CHECK(std::vector<float>(sig, sig + static_cast<std::size_t>(m) * so) == sig_ref);
+  CHECK(std::vector<float>(lum, lum + static_cast<std::size_t>(m) * F::channels) == lum_ref);
+  F::backward(params.data(), ws, dsig.data(), dlum.data(), g.data());
+  F::forward(params.data(), pb.data(), db.data(), nb, ws, &sig, &lum);
+  F::backward(params.data(), ws, dsig.data(), dlum.data(), g.data());
+  const auto tables = static_cast<std::ptrdiff_t>(F::pos_encoding::n_params);
+  CHECK(std::all_of(g.begin(), g.begin() + tables, [](float v) { return v == 0.f; }));  // not yet applied
+  CHECK(std::equal(g.begin() + tables, g.end(), g_ref.begin() + tables));              // the networks' are
+  F::flush_encoding_grad(ws);
+  CHECK(g == g_ref);  // the same additions per table entry in the same order: bit-identical
+  CHECK(ws.deferred_points.empty());
+}
+
 TEST_CASE("occupancy grid: marks the cells of a dense region, and round-trips") {
   render::OccupancyGrid g(16);
   CHECK(g.occupied_fraction() == 1.0);

@@ -155,13 +155,17 @@ class EvNerf {
     const geometry::Pose& pose0 = data.boundary_poses[slice];
     const geometry::Pose& pose1 = data.boundary_poses[slice + 1];
     const std::uint64_t ray_key = rng.next_u64();
+    if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
-      TileWork w;
+      TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
+      w.evaluated = w.backward_samples = 0;
+      w.ws.defer_encoding_grad = true;  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
         loss_ev[th] += train_tile(data, counts, slice, pose0, pose1, pixels.data() + p0, p1 - p0, P, ray_key,
                                   params_.per_thread[th].data(), w);
       }
+      FieldT::flush_encoding_grad(w.ws);
       evaluated[th] = w.evaluated;
       backward[th] = w.backward_samples;
     });
@@ -463,19 +467,13 @@ class EvNerf {
     if constexpr (has_occupancy) {
       if (grid_.active()) {  // only the evaluated samples carry gradient
         // Early termination for the backward pass: a sample behind transmittance < 1e-4 has weight and
-        // gradients below 1e-4 of the ray's, so it is dropped. When that removes at least a quarter of
-        // the samples, the kept ones are run forward again (refreshing the networks' workspace for just
-        // them) and only they go backward: fwd(kept) + bwd(kept) costs less than bwd(all).
+        // gradients below 1e-4 of the ray's, so it is dropped: the forward's workspace is compacted to
+        // the kept samples (Field::keep_only) and only they go backward.
         std::vector<int>& keep = w.keep;
         keep.clear();
         for (int j = 0; j < static_cast<int>(w.active.size()); ++j) {
           const int i = w.active[j];
           if (comp[i / S].trans[i % S] > kMinTransmittance) keep.push_back(j);
-        }
-        const bool refresh = 4 * keep.size() <= 3 * w.active.size();
-        if (!refresh) {
-          keep.resize(w.active.size());
-          for (int j = 0; j < static_cast<int>(keep.size()); ++j) keep[j] = j;
         }
         const int m = static_cast<int>(keep.size());
         w.backward_samples += static_cast<std::size_t>(m);
@@ -487,15 +485,9 @@ class EvNerf {
           w.cdsigma[j] = w.dsigma[i];
           for (int c = 0; c < channels; ++c) w.cdraw[static_cast<std::size_t>(j) * channels + c] = w.draw[i * channels + c];
         }
-        if (refresh) {
-          for (int j = 0; j < m; ++j)
-            for (int d = 0; d < 3; ++d) {
-              const std::size_t src = 3 * static_cast<std::size_t>(keep[j]), dst = 3 * static_cast<std::size_t>(j);
-              w.cpts[dst + d] = w.cpts[src + d];  // keep[j] ≥ j: compaction in place is safe
-              w.cdirs[dst + d] = w.cdirs[src + d];
-            }
+        if (m < static_cast<int>(w.active.size())) {
           const float *sg = nullptr, *rw = nullptr;
-          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sg, &rw);
+          FieldT::keep_only(w.ws, keep.data(), m, &sg, &rw);
         }
         FieldT::backward(params, w.ws, w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
         return;
@@ -580,6 +572,7 @@ class EvNerf {
   std::size_t n_slices_ = 0;
   nn::ParameterBuffer<float> params_;
   nn::Adam<float> adam_;
+  std::vector<TileWork> work_;  ///< train_step's per-thread scratch (no state: any content gives the same step)
 };
 
 // ---- named presets -------------------------------------------------------------------------------------

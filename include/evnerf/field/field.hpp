@@ -83,7 +83,17 @@ struct Field {
     typename DensityNet::template Workspace<T> dens;
     typename ColorNet::template Workspace<T> col;
     int n = 0;
+    /// Deferred table gradients: when set, backward() keeps the points and their encoding gradients
+    /// and flush_encoding_grad() applies them in one batch. A hash grid then visits each level's table
+    /// once for many tiles instead of once per tile, while every table entry still receives the same
+    /// additions in the same order (the result is bit-identical).
+    bool defer_encoding_grad = false;
+    std::vector<T> deferred_points, deferred_denc;
+    const T* deferred_params = nullptr;
+    T* deferred_to = nullptr;
   };
+  /// Points held by a deferring workspace before backward() flushes on its own (about 9 MB for 16×2 features).
+  static constexpr std::size_t max_deferred_points = 1 << 16;
 
   /// Evaluates n samples. `pts` are 3×n points in the normalised scene box [−1, 1]³, `dirs` 3×n unit
   /// directions. Returns pointers to raw density (stride DensityNet::out_dims) and raw luminance (C×n).
@@ -108,6 +118,37 @@ struct Field {
     }
     *sigma = h;
     *lum = ColorNet::forward(params + color_offset, ws.col_in.data(), n, ws.col);
+  }
+
+  /// Keeps samples keep[0..m) (increasing) of the last forward: afterwards the workspace and the outputs
+  /// are those forward() gives for the kept samples alone, without evaluating anything again (the
+  /// encodings and the networks' activations are compacted in place).
+  template <class T>
+  static void keep_only(Workspace<T>& ws, const int* keep, int m, const T** sigma, const T** lum) {
+    for (int j = 0; j < m; ++j) {
+      const auto src = static_cast<std::size_t>(keep[j]), dst = static_cast<std::size_t>(j);  // keep[j] ≥ j
+      std::copy_n(&ws.points[3 * src], 3, &ws.points[3 * dst]);
+      std::copy_n(&ws.enc[src * pos_in], pos_in, &ws.enc[dst * pos_in]);
+      std::copy_n(&ws.col_in[src * col_in], col_in, &ws.col_in[dst * col_in]);
+    }
+    ws.n = m;
+    DensityNet::keep_samples(ws.dens, keep, m);
+    ColorNet::keep_samples(ws.col, keep, m);
+    *sigma = ws.dens.output.data();
+    *lum = ws.col.output.data();
+  }
+
+  /// Applies the table gradients a deferring workspace holds (see Workspace::defer_encoding_grad).
+  template <class T>
+  static void flush_encoding_grad(Workspace<T>& ws) {
+    if constexpr (PosEnc::n_params > 0) {
+      const int n = static_cast<int>(ws.deferred_points.size() / 3);
+      if (n > 0) encode_backward_batch<PosEnc>(ws.deferred_params, ws.deferred_points.data(), n, ws.deferred_denc.data(), ws.deferred_to);
+    }
+    ws.deferred_points.clear();
+    ws.deferred_denc.clear();
+    ws.deferred_params = nullptr;
+    ws.deferred_to = nullptr;
   }
 
   /// Raw density only (no colour network) of n points in [−1, 1]³, written to out[j]; for occupancy grids.
@@ -141,7 +182,17 @@ struct Field {
     if constexpr (PosEnc::n_params > 0) {
       ws.denc.assign(static_cast<std::size_t>(pos_in) * n, T(0));
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, ws.denc.data());
-      encode_backward_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.denc.data(), dparams + pos_offset);
+      if (!ws.defer_encoding_grad) {
+        encode_backward_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.denc.data(), dparams + pos_offset);
+        return;
+      }
+      if (ws.deferred_to && (ws.deferred_to != dparams + pos_offset || ws.deferred_params != params + pos_offset))
+        flush_encoding_grad(ws);  // another network's tables: theirs first
+      ws.deferred_params = params + pos_offset;
+      ws.deferred_to = dparams + pos_offset;
+      ws.deferred_points.insert(ws.deferred_points.end(), ws.points.begin(), ws.points.begin() + 3 * static_cast<std::ptrdiff_t>(n));
+      ws.deferred_denc.insert(ws.deferred_denc.end(), ws.denc.begin(), ws.denc.begin() + static_cast<std::ptrdiff_t>(pos_in) * n);
+      if (ws.deferred_points.size() / 3 >= max_deferred_points) flush_encoding_grad(ws);
     } else {
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, static_cast<T*>(nullptr));
     }

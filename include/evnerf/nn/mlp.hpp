@@ -185,6 +185,20 @@ struct Mlp {
     return ws.output.data();
   }
 
+  /// Keeps samples keep[0..m) (increasing) of the last forward: the workspace then holds what forward()
+  /// on just those samples leaves, without computing it again. The caller compacts its input x the same
+  /// way (the workspace only points to it).
+  template <class T>
+  static void keep_samples(Workspace<T>& ws, const int* keep, int m) {
+    auto compact = [&](std::vector<T>& v, int rows) {
+      for (int j = 0; j < m; ++j)  // keep[j] ≥ j: in place, front to back
+        std::copy_n(v.begin() + static_cast<std::ptrdiff_t>(keep[j]) * rows, rows, v.begin() + static_cast<std::ptrdiff_t>(j) * rows);
+    };
+    for (int l = 1; l < n_layers; ++l) compact(ws.input[l], layer_in(l));
+    compact(ws.output, Out);
+    ws.n = m;
+  }
+
   /// Backward pass for the tile last run through forward(): dy is Out × n (gradient of the loss w.r.t.
   /// the output after OutAct). Adds weight and bias gradients to dparams and, when dx is not null, the
   /// input gradient (In × n) to dx: its first `dx_rows` rows (the rest are left alone), for callers that
