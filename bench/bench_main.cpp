@@ -40,6 +40,7 @@ void run_fused(std::vector<float>& params, const std::vector<float>& xe, const s
   parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
     typename Net::Trunk::template Workspace<float> wt;
     typename Net::View::template Workspace<float> wv;
+    wt.cache_weights = wv.cache_weights = true;  // one parameter update per call, as in a training step
     std::vector<float> vin, dy(static_cast<std::size_t>(tile)), dvin, dtr;
     float* g = pb.per_thread[th].data();
     for (std::size_t t = b; t < e; ++t) {
