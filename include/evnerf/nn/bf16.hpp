@@ -159,7 +159,7 @@ inline void block(int KP, const std::uint32_t* __restrict a, std::ptrdiff_t lda,
 /// C = A·B or C += A·B over packed operands, then the epilogue (gemm::BiasActivation, gemm::ActivationGrad)
 /// on each result vector. Needs available(); the reference path takes no epilogue.
 template <bool Accumulate, class Epi = gemm::NoEpilogue>
-void product(const Operands& o, [[maybe_unused]] const Epi& epi = {}) {
+[[gnu::noinline]] void product(const Operands& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
   gemm::detail::row_panels(o.m, [&](auto v, auto full, int i0, const __mmask16(&mask)[2]) {

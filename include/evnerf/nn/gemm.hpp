@@ -198,7 +198,7 @@ constexpr bool has_kernel() {
 /// C = A·B (Accumulate = false) or C += A·B, then the epilogue on each result vector before it is stored.
 /// Float on AVX-512 takes the kernel; everything else Eigen (which takes no epilogue).
 template <bool Accumulate, class T, class Epi = NoEpilogue>
-void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
+[[gnu::noinline]] void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512F__)
   if constexpr (std::is_same_v<T, float>) {
