@@ -33,14 +33,13 @@ struct PaperNet {
 
 template <int W, class Prec>
 void run_fused(std::vector<float>& params, const std::vector<float>& xe, const std::vector<float>& de, int n,
-               nn::ParameterBuffer<float>& pb, int tile, bool cache) {
+               nn::ParameterBuffer<float>& pb, int tile) {
   using Net = PaperNet<W, Prec>;
   const int n_tiles = (n + tile - 1) / tile;
   pb.begin_accumulate(thread_count());
   parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
     typename Net::Trunk::template Workspace<float> wt;
     typename Net::View::template Workspace<float> wv;
-    wt.cache_weights = wv.cache_weights = cache;  // one parameter update per call, as in a training step
     std::vector<float> vin, dy(static_cast<std::size_t>(tile)), dvin, dtr;
     float* g = pb.per_thread[th].data();
     for (std::size_t t = b; t < e; ++t) {
@@ -66,8 +65,7 @@ void run_fused(std::vector<float>& params, const std::vector<float>& xe, const s
   pb.end_accumulate(thread_count());
 }
 
-/// Cache = false builds the weight operands per tile (Mlp::Workspace::cache_weights off), for comparison.
-template <int W, class Prec = nn::Fp32, bool Cache = true>
+template <int W, class Prec = nn::Fp32>
 void BM_mlp_fused(benchmark::State& st) {
   using Net = PaperNet<W, Prec>;
   const int n = static_cast<int>(st.range(0));
@@ -78,7 +76,7 @@ void BM_mlp_fused(benchmark::State& st) {
   for (auto& v : xe) v = rng.uniformf() * 2 - 1;
   for (auto& v : de) v = rng.uniformf() * 2 - 1;
   nn::ParameterBuffer<float> pb(Net::n_params);
-  for (auto _ : st) run_fused<W, Prec>(params, xe, de, n, pb, static_cast<int>(st.range(1)), Cache);
+  for (auto _ : st) run_fused<W, Prec>(params, xe, de, n, pb, static_cast<int>(st.range(1)));
   st.counters["samples_per_s"] = benchmark::Counter(double(n), benchmark::Counter::kIsIterationInvariantRate);
   st.counters["gflops"] = benchmark::Counter(n * Net::flops_fwdbwd() / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 }
@@ -280,8 +278,6 @@ BENCHMARK(BM_mlp_fused<64>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->
 BENCHMARK(BM_mlp_fused<256, nn::Bf16>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_fused<64, nn::Bf16>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<64>)->Args({65536})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_mlp_fused<256, nn::Fp32, false>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_mlp_fused<256, nn::Bf16, false>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_parse_events_fast)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_parse_events_naive)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_event_cache_load)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -159,17 +159,13 @@ class EvNerf {
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.evaluated = w.backward_samples = 0;
-      for (auto& ws : w.ws) {
-        ws.defer_encoding_grad = true;  // the thread's table gradients in one batch (bit-identical)
-        ws.cache_weights(true);         // weight operands prepared once per step
-        ws.weights_changed();
-      }
+      w.ws.defer_encoding_grad = true;  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
         loss_ev[th] += train_tile(data, counts, slice, pose0, pose1, pixels.data() + p0, p1 - p0, P, ray_key,
                                   params_.per_thread[th].data(), w);
       }
-      for (auto& ws : w.ws) FieldT::flush_encoding_grad(ws);
+      FieldT::flush_encoding_grad(w.ws);
       evaluated[th] = w.evaluated;
       backward[th] = w.backward_samples;
     });
@@ -202,7 +198,6 @@ class EvNerf {
     const int H = cam.height(), W = cam.width();
     parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
       TileWork w;
-      for (auto& ws : w.ws) ws.cache_weights(true);  // parameters are constant while rendering
       std::vector<std::uint32_t> pix(W);
       for (std::size_t y = b; y < e; ++y) {
         for (int x = 0; x < W; ++x) pix[x] = static_cast<std::uint32_t>(y * W + x);
@@ -354,7 +349,7 @@ class EvNerf {
   }
 
   struct TileWork {
-    std::array<typename FieldT::template Workspace<float>, n_fields> ws;  ///< one per network
+    typename FieldT::template Workspace<float> ws;
     std::vector<float> pts, dirs, t, noise, dsigma, draw;
     std::vector<render::RayComposite<float>> coarse, fine;
     std::vector<std::vector<float>> fine_t;
@@ -410,7 +405,7 @@ class EvNerf {
         w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
         w.evaluated += static_cast<std::size_t>(m);
         if (m > 0) {
-          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws[net], &sigma, &raw);
+          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sigma, &raw);
           for (int j = 0; j < m; ++j) {
             const std::size_t i = static_cast<std::size_t>(w.active[j]);
             w.sig_full[i] = sigma[static_cast<std::size_t>(j) * stride];
@@ -423,7 +418,7 @@ class EvNerf {
       }
     }
     if (!sigma) {
-      FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws[net], &sigma, &raw);
+      FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
       w.evaluated += static_cast<std::size_t>(R) * S;
     }
     comp.resize(R);
@@ -492,13 +487,13 @@ class EvNerf {
         }
         if (m < static_cast<int>(w.active.size())) {
           const float *sg = nullptr, *rw = nullptr;
-          FieldT::keep_only(w.ws[net], keep.data(), m, &sg, &rw);
+          FieldT::keep_only(w.ws, keep.data(), m, &sg, &rw);
         }
-        FieldT::backward(params, w.ws[net], w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
+        FieldT::backward(params, w.ws, w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
         return;
       }
     }
-    FieldT::backward(params, w.ws[net], w.dsigma.data(), w.draw.data(), grads + net * field_params);
+    FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
   }
 
   /// Fine depths of R rays (R × (Nc+Nf)): coarse depths merged with Nf drawn from the coarse weights;

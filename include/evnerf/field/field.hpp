@@ -88,13 +88,6 @@ struct Field {
     /// once for many tiles instead of once per tile, while every table entry still receives the same
     /// additions in the same order (the result is bit-identical).
     bool defer_encoding_grad = false;
-    /// Both networks' weight caches (nn::Mlp's Workspace::cache_weights): for callers that run many
-    /// tiles between parameter updates; weights_changed() after every update.
-    void cache_weights(bool on) { dens.cache_weights = col.cache_weights = on; }
-    void weights_changed() {
-      dens.weights_changed();
-      col.weights_changed();
-    }
     std::vector<T> deferred_points, deferred_denc;
     const T* deferred_params = nullptr;
     T* deferred_to = nullptr;

@@ -283,7 +283,10 @@ struct HashGrid {
         __m512 acc = _mm512_setzero_ps();
         for (int c = 0; c < 8; ++c) {
           const __m512d entry = _mm512_mask_i32gather_pd(_mm512_setzero_pd(), k, cell.idx[c], table, 8);
-          acc = _mm512_fmadd_ps(_mm512_permutexvar_ps(twice, _mm512_castps256_ps512(cell.w[c])), _mm512_castpd_ps(entry), acc);
+          // Both weights of a pair from lane c of w (zero-extended and maskz forms: GCC 12's plain intrinsics
+          // pass an undefined vector and warn).
+          const __m512 w16 = _mm512_castpd_ps(_mm512_maskz_insertf64x4(0xFF, _mm512_setzero_pd(), _mm256_castps_pd(cell.w[c]), 0));
+          acc = _mm512_fmadd_ps(_mm512_maskz_permutexvar_ps(0xFFFF, twice, w16), _mm512_castpd_ps(entry), acc);
         }
         const __m256i row = _mm256_mullo_epi32(_mm256_add_epi32(lane, _mm256_set1_epi32(j0)), _mm256_set1_epi32(out_dims / 2));
         _mm512_mask_i32scatter_pd(y + l * F, k, row, _mm512_castps_pd(acc), 8);

@@ -105,17 +105,6 @@ struct Mlp {
     std::vector<std::uint32_t> pack_a, pack_b;   ///< bf16 pairs of both factors (Bf16 only)
     const T* x = nullptr;                        ///< the tile's input (In × n), owned by the caller
 
-    /// Opt-in weight cache for callers that run many tiles between parameter updates (a training step,
-    /// a render): with cache_weights set, the weight operands each layer needs (Fp32: Wᵀ for the input
-    /// gradient; Bf16: W's bf16 pairs, both ways) are built on first use and reused until
-    /// weights_changed() is called or other parameters are passed. Without it they are built per call.
-    bool cache_weights = false;
-    void weights_changed() { cached_for = nullptr; }
-    const T* cached_for = nullptr;
-    std::array<bool, n_layers> fwd_ready{}, bwd_ready{};
-    std::array<std::vector<T>, n_layers> wt_cache;                         // Fp32
-    std::array<std::vector<std::uint32_t>, n_layers> fwd_cache, bwd_cache;  // Bf16
-
     void resize(int samples) {
       if (samples <= n && !output.empty()) {
         n = samples;
@@ -148,69 +137,11 @@ struct Mlp {
     return false;
   }
 
-  /// Whether ws's weight cache serves `params` (see Workspace::cache_weights); resets it for new params.
-  template <class T>
-  static bool cached(const T* params, Workspace<T>& ws) {
-    if (!ws.cache_weights) return false;
-    if (ws.cached_for != params) {
-      ws.cached_for = params;
-      ws.fwd_ready.fill(false);
-      ws.bwd_ready.fill(false);
-    }
-    return true;
-  }
-  /// Layer l's forward weight operand for Bf16: W's pairs across its columns ((in+1)/2 × out pairs).
-  template <class T>
-  static const std::uint32_t* forward_weights(const T* params, Workspace<T>& ws, int l, bool cache) {
-    const int in = layer_in(l), out = layer_out(l);
-    std::uint32_t* dst = ws.pack_a.data();
-    if (cache) {
-      if (ws.fwd_ready[l]) return ws.fwd_cache[l].data();
-      ws.fwd_cache[l].resize(static_cast<std::size_t>((in + 1) / 2) * out);
-      dst = ws.fwd_cache[l].data();
-      ws.fwd_ready[l] = true;
-    }
-    bf16::pack_across(params + weight_offset(l), out, in, out, dst, out);
-    return dst;
-  }
-  /// Layer l's weight operand for the input gradient: Fp32 Wᵀ (in × out, column-major, so the product
-  /// reads its A operand contiguously); Bf16 W's pairs down each column ((out+1)/2 × in pairs).
-  template <class T>
-  static const void* backward_weights(const T* params, Workspace<T>& ws, int l, bool cache) {
-    const int in = layer_in(l), out = layer_out(l);
-    const T* w = params + weight_offset(l);
-    if (cache && ws.bwd_ready[l]) {
-      if constexpr (bf16_products<T>()) return ws.bwd_cache[l].data();
-      else return ws.wt_cache[l].data();
-    }
-    if (cache) ws.bwd_ready[l] = true;
-    if constexpr (bf16_products<T>()) {
-      std::uint32_t* dst = ws.pack_a.data();
-      if (cache) {
-        ws.bwd_cache[l].resize(static_cast<std::size_t>((out + 1) / 2) * in);
-        dst = ws.bwd_cache[l].data();
-      }
-      bf16::pack_along(w, out, in, out, dst, in, 1);
-      return dst;
-    } else {
-      T* wt = ws.wt.data();
-      if (cache) {
-        ws.wt_cache[l].resize(static_cast<std::size_t>(in) * out);
-        wt = ws.wt_cache[l].data();
-      }
-      for (int i0 = 0; i0 < in; i0 += 16)
-        for (int o = 0; o < out; ++o)
-          for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
-      return wt;
-    }
-  }
-
   /// Forward pass of n samples: x is In × n (column-major), the result is ws.output (Out × n).
   template <class T>
   static const T* forward(const T* params, const T* x, int n, Workspace<T>& ws) {
     ws.resize(n);
     ws.x = x;
-    const bool cache = cached(params, ws);
     for (int l = 0; l < n_layers; ++l) {
       const int in = layer_in(l), out = layer_out(l);
       const T* src = l == 0 ? x : ws.input[l].data();
@@ -222,9 +153,9 @@ struct Mlp {
       auto multiply = [&](const auto&... epi) {
         if constexpr (bf16_products<T>()) {  // W's pairs across its columns, X's down each sample
           const int kp = (in + 1) / 2;
-          const std::uint32_t* wp = forward_weights(params, ws, l, cache);
+          bf16::pack_across(params + weight_offset(l), out, in, out, ws.pack_a.data(), out);
           bf16::pack_along(src, in, n, in, ws.pack_b.data(), 1, kp);
-          bf16::product<false>(bf16::Operands{out, n, kp, wp, out, ws.pack_b.data(), 1, kp, dst, dst_rows}, epi...);
+          bf16::product<false>(bf16::Operands{out, n, kp, ws.pack_a.data(), out, ws.pack_b.data(), 1, kp, dst, dst_rows}, epi...);
         } else {
           gemm::product<false>(op, epi...);
         }
@@ -275,7 +206,6 @@ struct Mlp {
   template <class T>
   static void backward(const T* params, Workspace<T>& ws, const T* dy, T* dparams, T* dx, int dx_rows = In) {
     const int n = ws.n;
-    const bool cache = cached(params, ws);
     // dz of the output layer: dy ⊙ OutAct'(y), in grad_a; the previous layer's dz goes to the other buffer.
     T* dz = ws.grad_a.data();
     T* dz_prev = ws.grad_b.data();
@@ -303,16 +233,23 @@ struct Mlp {
       }
       if (l == 0 && !dx) break;
       // Products with Wᵀ (rows `row0` on, `rows` of them) as A and DZ as B.
-      const void* wop = backward_weights(params, ws, l, cache);
+      const T* w = params + weight_offset(l);
+      T* wt = ws.wt.data();
       const int kp = (out + 1) / 2;
-      if constexpr (bf16_products<T>()) bf16::pack_along(dz, out, n, out, ws.pack_b.data(), 1, kp);  // DZ's pairs down each sample
+      if constexpr (bf16_products<T>()) {  // W's pairs down each column (Wᵀ's rows), DZ's down each sample
+        bf16::pack_along(w, out, in, out, ws.pack_a.data(), in, 1);
+        bf16::pack_along(dz, out, n, out, ws.pack_b.data(), 1, kp);
+      } else {  // Wᵀ (in × out, column-major) so the product reads its A operand contiguously
+        for (int i0 = 0; i0 < in; i0 += 16)
+          for (int o = 0; o < out; ++o)
+            for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
+      }
       auto multiply = [&](auto accumulate, int row0, int rows, T* c, int ldc, const auto&... epi) {
         if constexpr (bf16_products<T>())
           bf16::product<decltype(accumulate)::value>(
-              bf16::Operands{rows, n, kp, static_cast<const std::uint32_t*>(wop) + row0, in, ws.pack_b.data(), 1, kp, c, ldc}, epi...);
+              bf16::Operands{rows, n, kp, ws.pack_a.data() + row0, in, ws.pack_b.data(), 1, kp, c, ldc}, epi...);
         else
-          gemm::product<decltype(accumulate)::value>(
-              gemm::Operands<T>{rows, n, out, static_cast<const T*>(wop) + row0, in, dz, 1, out, c, ldc}, epi...);
+          gemm::product<decltype(accumulate)::value>(gemm::Operands<T>{rows, n, out, wt + row0, in, dz, 1, out, c, ldc}, epi...);
       };
       if (l == 0) {
         multiply(std::true_type{}, 0, std::min(in, dx_rows), dx, in);
