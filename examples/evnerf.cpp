@@ -268,6 +268,7 @@ int cmd_train(const std::vector<std::string>& raw) {
     Model model(td.slices.size(), train::scene_box(td, cfg), cfg.seed, ac);
     if (a.has("resume") && fs::exists(out / "model.ckpt")) {
       train::load_checkpoint(out / "model.ckpt", model, name);
+      if (!model.load_note().empty()) std::fprintf(stderr, "warning: %s\n", model.load_note().c_str());
       model.optimizer().set_config(ac);
       std::fprintf(stderr, "resuming %s at step %ld\n", name.c_str(), model.step());
     }

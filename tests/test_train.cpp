@@ -251,7 +251,7 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   fs::remove_all(dir);
 }
 
-TEST_CASE("checkpoints: version 3 keeps the density length; version 2 files load with density per world unit") {
+TEST_CASE("checkpoints: version 4 records the loss; versions 3 and 2 load (density length, a note on the loss)") {
   Fixture f;
   f.cfg.density_per_box = true;
   const auto box = train::scene_box(f.td, f.cfg);
@@ -259,15 +259,38 @@ TEST_CASE("checkpoints: version 3 keeps the density length; version 2 files load
   CHECK(box.density_length == box.scale);
   Tiny a(f.td.slices.size(), box, 7);
   for (int s = 0; s < 4; ++s) a.train_step(f.td, 128, 3);
-  const std::string v3 = a.serialize("tiny", "meta");
-  // Rewrite as version 2: no density length after the box, checksum over the rest.
-  const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
+  const std::string v4 = a.serialize("tiny", "meta");
   auto with_sum = [](std::string b) {
     const std::uint64_t sum = fnv1a64(b);
     b.append(reinterpret_cast<const char*>(&sum), 8);
     return b;
   };
-  std::string v2 = v3.substr(0, v3.size() - 8);
+  // The same model type loads it with no note; one trained with other bounds or without noise refuses it.
+  Tiny same;
+  CHECK(same.deserialize(v4, "tiny", "m.ckpt") == "meta");
+  CHECK(same.load_note().empty());
+  CHECK(Tiny::loss_description() == "bounds split 1, thresholds joint, noise 50 per mille");
+  using TinyHalfSlack = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
+  TinyHalfSlack other;
+  CHECK_THROWS_WITH(other.deserialize(v4, "tiny", "m.ckpt"),
+                    doctest::Contains("m.ckpt:0: corrupt or mismatched checkpoint: trained with the loss 'bounds split 1, "
+                                      "thresholds joint, noise 50 per mille', this model's is 'bounds half-slack, thresholds joint, noise 50 per mille'"));
+  // Rewrite as version 3: no loss description after the density length.
+  const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
+  std::string v3 = v4.substr(0, v4.size() - 8);
+  std::uint64_t loss_len = 0;
+  std::memcpy(&loss_len, v3.data() + at + 8, 8);
+  REQUIRE(loss_len == Tiny::loss_description().size());
+  v3.erase(at + 8, 8 + loss_len);
+  const std::uint64_t three = 3;
+  std::memcpy(v3.data() + 8, &three, 8);
+  CHECK(same.deserialize(with_sum(v3), "tiny", "old.ckpt") == "meta");
+  CHECK(same.params().values == a.params().values);
+  CHECK(same.box().density_length == box.scale);
+  CHECK(same.load_note() == "old.ckpt: checkpoint version 3 does not record the loss it was trained with; continuing with "
+                            "'bounds split 1, thresholds joint, noise 50 per mille'");
+  // Rewrite as version 2: no density length after the box either.
+  std::string v2 = v3;
   double length = 0;
   std::memcpy(&length, v2.data() + at, 8);
   REQUIRE(length == box.scale);
@@ -281,15 +304,15 @@ TEST_CASE("checkpoints: version 3 keeps the density length; version 2 files load
   const auto dirs = render::pixel_directions(f.td.camera);
   CHECK(a.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data !=
         b.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data);
-  // A version 3 file with a nonsensical length is refused.
-  std::string bad = v3.substr(0, v3.size() - 8);
+  // A file with a nonsensical length is refused.
+  std::string bad = v4.substr(0, v4.size() - 8);
   const double zero = 0.0;
   std::memcpy(bad.data() + at, &zero, 8);
   CHECK_THROWS_WITH(b.deserialize(with_sum(bad), "tiny", "x.ckpt"), doctest::Contains("density length is not a positive number"));
-  std::string future = v3.substr(0, v3.size() - 8);
-  const std::uint64_t four = 4;
-  std::memcpy(future.data() + 8, &four, 8);
-  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 4"));
+  std::string future = v4.substr(0, v4.size() - 8);
+  const std::uint64_t five = 5;
+  std::memcpy(future.data() + 8, &five, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 5"));
 }
 
 TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {

@@ -262,6 +262,7 @@ class EvNerf {
     const double boxv[6] = {box_.center.x(), box_.center.y(), box_.center.z(), box_.scale, box_.near, box_.far};
     put(boxv, sizeof boxv);
     put(&box_.density_length, 8);
+    put_str(loss_description());
     put(params_.values.data(), params_.size() * 4);
     put(adam_.m().data(), params_.size() * 4);
     put(adam_.v().data(), params_.size() * 4);
@@ -317,6 +318,15 @@ class EvNerf {
       if (!(box_.density_length > 0) || !std::isfinite(box_.density_length))
         fail("density length is not a positive number");
     }
+    load_note_.clear();
+    if (version >= 4) {
+      const std::string loss = get_str();
+      if (loss != loss_description())
+        fail("trained with the loss '" + loss + "', this model's is '" + loss_description() + "'");
+    } else {
+      load_note_ = file + ": checkpoint version " + std::to_string(version) +
+                   " does not record the loss it was trained with; continuing with '" + loss_description() + "'";
+    }
     params_ = nn::ParameterBuffer<float>(n);
     adam_ = nn::Adam<float>(n, adam_.config());
     get(params_.values.data(), n * 4);
@@ -336,8 +346,21 @@ class EvNerf {
     }
     return get_str();
   }
-  /// 2 added the occupancy grid, 3 the box's density length.
-  static constexpr std::uint64_t checkpoint_version = 3;
+  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description.
+  static constexpr std::uint64_t checkpoint_version = 4;
+  /// The loss this model trains with, as checkpoints record it: interval policy, threshold policy, noise.
+  /// A checkpoint written under another one is refused (resuming would silently change the objective).
+  static std::string loss_description() {
+    std::string d = "bounds ";  // appended piece by piece: GCC 12's -Wrestrict misfires on chains of operator+
+    d.append(BoundP::name);
+    if constexpr (requires { BoundP::slack; }) d.append(" ").append(std::to_string(BoundP::slack));
+    d.append(", thresholds ").append(ThresholdP::name).append(", noise ");
+    d.append(std::to_string(static_cast<int>(NoiseP::ratio * 1000 + 0.5))).append(" per mille");
+    return d;
+  }
+  /// Set by deserialize(): empty, or a warning the caller should show (a checkpoint older than version 4
+  /// cannot be checked against the loss).
+  const std::string& load_note() const { return load_note_; }
   /// Backward early termination (occupancy samplers): samples behind this transmittance get no gradient.
   static constexpr float kMinTransmittance = 1e-4f;
 
@@ -573,6 +596,7 @@ class EvNerf {
   nn::ParameterBuffer<float> params_;
   nn::Adam<float> adam_;
   std::vector<TileWork> work_;  ///< train_step's per-thread scratch (no state: any content gives the same step)
+  std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
 };
 
 // ---- named presets -------------------------------------------------------------------------------------

@@ -36,7 +36,8 @@ struct EventBounds {
 template <int K = 1>
 struct SplitCounts {
   static_assert(K >= 0, "SplitCounts: the slack K must not be negative.");
-  static constexpr const char* name = K == 1 ? "split" : "split-k";
+  static constexpr const char* name = "split";
+  static constexpr int slack = K;
   static EventBounds make(int n_pos, int n_neg) { return {double(n_pos), double(n_neg), double(K), double(K)}; }
 };
 /// The signed count n = n⁺ − n⁻ only (the spec's `signed` switch): n > 0 → [nB⁺, (n+1)B⁺], n < 0 →

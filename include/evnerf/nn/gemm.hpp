@@ -1,7 +1,8 @@
 // nn/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
 // in place through strides (no packing), so a layer's weights, their transpose or a tile's gradients go
 // straight into the kernel. On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
-// which the gradient checks use) Eigen does the work. Depends on Eigen and nn/activation.hpp only.
+// which the gradient checks use) Eigen does the work. Also the 16×16-block transpose that gives the
+// backward pass Wᵀ. Depends on Eigen and nn/activation.hpp only.
 //
 // Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
 // call and reaches about 58 % of the FP32 FMA peak on one core of this project's machine; the kernel below
@@ -184,6 +185,63 @@ inline void column_blocks(int n, Block&& block) {
 
 }  // namespace detail
 #endif
+
+#if defined(__AVX512F__)
+namespace detail {
+/// Transposes a 16×16 block held as 16 row vectors, in registers (4 rounds of 16 shuffles).
+inline void transpose16(__m512 (&r)[16]) {
+  __m512 t[16];
+  for (int k = 0; k < 8; ++k) {  // per 128-bit lane: pairs of rows interleaved
+    t[2 * k] = _mm512_unpacklo_ps(r[2 * k], r[2 * k + 1]);
+    t[2 * k + 1] = _mm512_unpackhi_ps(r[2 * k], r[2 * k + 1]);
+  }
+  for (int g = 0; g < 4; ++g) {  // per lane: column 4L + c of rows 4g..4g+3, c = 0..3
+    const __m512d a = _mm512_castps_pd(t[4 * g]), b = _mm512_castps_pd(t[4 * g + 1]);
+    const __m512d c = _mm512_castps_pd(t[4 * g + 2]), d = _mm512_castps_pd(t[4 * g + 3]);
+    r[4 * g + 0] = _mm512_castpd_ps(_mm512_unpacklo_pd(a, c));
+    r[4 * g + 1] = _mm512_castpd_ps(_mm512_unpackhi_pd(a, c));
+    r[4 * g + 2] = _mm512_castpd_ps(_mm512_unpacklo_pd(b, d));
+    r[4 * g + 3] = _mm512_castpd_ps(_mm512_unpackhi_pd(b, d));
+  }
+  for (int c = 0; c < 4; ++c) {  // gather the four row groups' lanes: columns c, c + 4, c + 8, c + 12
+    const __m512 v0 = _mm512_shuffle_f32x4(r[c], r[4 + c], 0x88), v1 = _mm512_shuffle_f32x4(r[c], r[4 + c], 0xDD);
+    const __m512 w0 = _mm512_shuffle_f32x4(r[8 + c], r[12 + c], 0x88), w1 = _mm512_shuffle_f32x4(r[8 + c], r[12 + c], 0xDD);
+    t[c] = _mm512_shuffle_f32x4(v0, w0, 0x88);
+    t[c + 8] = _mm512_shuffle_f32x4(v0, w0, 0xDD);
+    t[c + 4] = _mm512_shuffle_f32x4(v1, w1, 0x88);
+    t[c + 12] = _mm512_shuffle_f32x4(v1, w1, 0xDD);
+  }
+  for (int k = 0; k < 16; ++k) r[k] = t[k];
+}
+}  // namespace detail
+#endif
+
+/// dst = srcᵀ: src is rows × cols, column-major with leading dimension ld (element (i, j) at
+/// src[i + j·ld]); dst is cols × rows, column-major with leading dimension ldd. On AVX-512 (float) in
+/// 16×16 blocks in registers, with masked edges; elsewhere element by element.
+template <class T>
+void transpose(const T* src, int rows, int cols, std::ptrdiff_t ld, T* dst, std::ptrdiff_t ldd) {
+#if defined(__AVX512F__)
+  if constexpr (std::is_same_v<T, float>) {
+    for (int j0 = 0; j0 < cols; j0 += 16) {
+      const int nj = cols - j0 < 16 ? cols - j0 : 16;
+      const __mmask16 jmask = static_cast<__mmask16>((1u << nj) - 1);
+      for (int i0 = 0; i0 < rows; i0 += 16) {
+        const int ni = rows - i0 < 16 ? rows - i0 : 16;
+        const __mmask16 imask = static_cast<__mmask16>((1u << ni) - 1);
+        __m512 r[16];  // r[c] = src column j0 + c, rows i0..i0+15
+        for (int c = 0; c < 16; ++c)
+          r[c] = c < nj ? _mm512_maskz_loadu_ps(imask, src + i0 + (j0 + c) * ld) : _mm512_setzero_ps();
+        detail::transpose16(r);  // r[k] = src row i0 + k, columns j0..j0+15
+        for (int k = 0; k < ni; ++k) _mm512_mask_storeu_ps(dst + j0 + (i0 + k) * ldd, jmask, r[k]);
+      }
+    }
+    return;
+  }
+#endif
+  for (int j = 0; j < cols; ++j)
+    for (int i = 0; i < rows; ++i) dst[j + i * ldd] = src[i + j * ld];
+}
 
 /// Whether product() can apply epilogue `Epi` for element type T (else the caller runs it as a pass).
 template <class T>

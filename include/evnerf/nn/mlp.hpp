@@ -240,9 +240,7 @@ struct Mlp {
         bf16::pack_along(w, out, in, out, ws.pack_a.data(), in, 1);
         bf16::pack_along(dz, out, n, out, ws.pack_b.data(), 1, kp);
       } else {  // Wᵀ (in × out, column-major) so the product reads its A operand contiguously
-        for (int i0 = 0; i0 < in; i0 += 16)
-          for (int o = 0; o < out; ++o)
-            for (int i = i0; i < std::min(in, i0 + 16); ++i) wt[i + static_cast<std::size_t>(o) * in] = w[o + static_cast<std::size_t>(i) * out];
+        gemm::transpose(w, out, in, out, wt, in);
       }
       auto multiply = [&](auto accumulate, int row0, int rows, T* c, int ldc, const auto&... epi) {
         if constexpr (bf16_products<T>())

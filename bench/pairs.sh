@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The network ratios under a noisy machine: each of our MLP benchmarks runs right next to the PyTorch
+# peer's same network (best configuration), pair after pair, the order flipping every pair; each pair
+# gives a ratio, and the script prints their median and range. Usage: bench/pairs.sh [pairs]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PAIRS=${1:-8}
+PEER=../shared/peers/peer_torch.py
+if [ ! -f "$PEER" ] || ! /usr/bin/python3 -c "import torch" 2>/dev/null; then
+  echo "bench/pairs.sh: needs $PEER and Debian's python3-torch (see ../shared/peers/README.md)" >&2
+  exit 1
+fi
+scripts/deps.sh libbenchmark-dev
+cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
+  -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
+cmake --build build-bench -j"$(nproc)" >/dev/null
+OUT=build-bench/pairs; rm -rf "$OUT"; mkdir -p "$OUT"
+BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
+ours() {  # width, pair
+  OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench --benchmark_filter="BM_fma_peak|BM_mlp_fused<$1>/" \
+    --benchmark_format=json --benchmark_out="$OUT/ours_$1_$2.json" --benchmark_out_format=json >/dev/null
+}
+peer() {  # width, samples, pair
+  /usr/bin/python3 "$PEER" --mode mlp --width "$1" --n-samples "$2" $BEST > "$OUT/peer_$1_$3.json"
+}
+for p in $(seq "$PAIRS"); do
+  if [ $((p % 2)) = 1 ]; then
+    ours 256 "$p"; peer 256 16384 "$p"; ours 64 "$p"; peer 64 65536 "$p"
+  else
+    peer 256 16384 "$p"; ours 256 "$p"; peer 64 65536 "$p"; ours 64 "$p"
+  fi
+done
+python3 bench/pairs.py "$OUT" "$PAIRS"
