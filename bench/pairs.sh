@@ -4,7 +4,7 @@
 # gives a ratio, and the script prints their median and range. Usage: bench/pairs.sh [pairs]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PAIRS=${1:-8}
+PAIRS=${1:-10}
 PEER=../shared/peers/peer_torch.py
 if [ ! -f "$PEER" ] || ! /usr/bin/python3 -c "import torch" 2>/dev/null; then
   echo "bench/pairs.sh: needs $PEER and Debian's python3-torch (see ../shared/peers/README.md)" >&2
