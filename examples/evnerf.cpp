@@ -1,5 +1,6 @@
 // evnerf — the command-line tool: inspect, simulate, baselines, train, render, eval.
 #include <evnerf/evnerf.hpp>
+#include <evnerf/eval/report.hpp>
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
 
@@ -23,7 +24,7 @@ const char* kUsage =
     "                                            simulate events (scenes: planes, object, room); R: background\n"
     "                                            events per pixel per second; F: uniform random events added\n"
     "                                            as a fraction of the signal events\n"
-    "  baselines <folder> [--out DIR] [--align min-max|log-affine|none] [--contrast C]\n"
+    "  baselines <folder> [--out DIR] [--align global-log-affine|log-affine|min-max|none] [--contrast C]\n"
     "                                            direct integration and high-pass filter vs the frames\n"
     "  train <folder> --out DIR [--preset P] [--iters N] [--pixels N] [--seed N] [--threads N]\n"
     "        [--near M] [--far M] [--lr X] [--lr-decay-steps S] [--checkpoint-every N] [--resume]\n"
@@ -33,7 +34,7 @@ const char* kUsage =
     "                                            paper-bf16 (mixed-precision networks); defaults: 3000\n"
     "                                            steps, lr 5e-3 decaying 0.1^(s/S), S = 250000 (spec)\n"
     "  render <checkpoint> --out DIR [--novel N]  intensity + depth at the slice boundaries and a novel path\n"
-    "  eval <checkpoint> <folder> --out DIR [--align min-max|log-affine|none] [--holdout K]\n"
+    "  eval <checkpoint> <folder> --out DIR [--align global-log-affine|log-affine|min-max|none] [--holdout K]\n"
     "                                            metrics JSON + montage (ground truth | ours | baselines)\n";
 
 int usage() {
@@ -84,13 +85,6 @@ struct Args {
   }
 };
 
-std::string json_num(double v) {
-  if (!std::isfinite(v)) return "null";
-  char b[64];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
-}
-
 int cmd_inspect(const std::vector<std::string>& a) {
   if (a.size() != 1) return usage();
   auto d = io::load_ijrr(a[0]);
@@ -136,78 +130,64 @@ std::vector<std::size_t> frames_inside(const io::Dataset& d, double lo, double h
   return ids;
 }
 
-struct MethodScores {
-  std::string name;
-  std::vector<eval::Scores> per_frame;
-  eval::Scores mean() const {
-    eval::Scores m;
-    for (auto& s : per_frame) {
-      m.mse += s.mse / per_frame.size();
-      m.psnr += s.psnr / per_frame.size();
-      m.ssim += s.ssim / per_frame.size();
+void print_table(const eval::AlignedScores& a, const std::vector<std::size_t>& subset = {}) {
+  std::printf("%-22s %10s %10s %10s   (alignment: %s)\n", "method", "MSE", "PSNR", "SSIM", eval::to_string(a.alignment));
+  for (std::size_t m = 0; m < a.names.size(); ++m) {
+    std::vector<eval::Scores> s;
+    if (subset.empty()) {
+      s = a.per_frame[m];
+    } else {
+      for (auto q : subset) s.push_back(a.per_frame[m][q]);
     }
-    return m;
-  }
-};
-
-std::string scores_json(const std::vector<MethodScores>& methods, const std::vector<std::size_t>& frames, eval::Alignment al,
-                        const std::string& extra) {
-  std::string j = "{\n  \"alignment\": \"" + std::string(eval::to_string(al)) + "\",\n  \"frames\": [";
-  for (std::size_t i = 0; i < frames.size(); ++i) j += (i ? "," : "") + std::to_string(frames[i]);
-  j += "],\n" + extra + "  \"methods\": {\n";
-  for (std::size_t m = 0; m < methods.size(); ++m) {
-    const auto mean = methods[m].mean();
-    j += "    \"" + methods[m].name + "\": {\"mse\": " + json_num(mean.mse) + ", \"psnr\": " + json_num(mean.psnr) +
-         ", \"ssim\": " + json_num(mean.ssim) + ", \"per_frame\": [";
-    for (std::size_t i = 0; i < methods[m].per_frame.size(); ++i) {
-      const auto& s = methods[m].per_frame[i];
-      j += std::string(i ? ", " : "") + "{\"mse\": " + json_num(s.mse) + ", \"psnr\": " + json_num(s.psnr) + ", \"ssim\": " + json_num(s.ssim) + "}";
-    }
-    j += "]}" + std::string(m + 1 < methods.size() ? "," : "") + "\n";
-  }
-  return j + "  }\n}\n";
-}
-
-void print_table(const std::vector<MethodScores>& methods, eval::Alignment al) {
-  std::printf("%-22s %10s %10s %10s   (alignment: %s)\n", "method", "MSE", "PSNR", "SSIM", eval::to_string(al));
-  for (auto& m : methods) {
-    const auto s = m.mean();
-    std::printf("%-22s %10.5f %10.3f %10.4f\n", m.name.c_str(), s.mse, s.psnr, s.ssim);
+    const auto mean = eval::mean(s);
+    std::printf("%-22s %10.5f %10.3f %10.4f\n", a.names[m].c_str(), mean.mse, mean.psnr, mean.ssim);
   }
 }
 
-/// Baseline reconstructions at the given frames, scored against them.
-std::vector<MethodScores> score_baselines(const io::Dataset& d, const std::vector<std::size_t>& ids, eval::Alignment al,
-                                          double contrast, std::vector<Image>* di_out, std::vector<Image>* hp_out) {
+/// The requested alignment first, then the others of global-log-affine, log-affine and min-max.
+std::vector<eval::Alignment> alignments_from(const std::string& flag) {
+  const auto first = eval::parse_alignment(flag);
+  std::vector<eval::Alignment> all{first};
+  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax})
+    if (al != first) all.push_back(al);
+  return all;
+}
+
+/// The baselines' reconstructions at the given frames.
+std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast) {
   std::vector<double> times;
   for (auto i : ids) times.push_back(d.frames.t[i]);
-  auto di = eval::direct_integration(d.events, times, contrast);
-  auto hp = eval::high_pass_filter(d.events, times, contrast);
-  MethodScores a{"direct_integration", {}}, b{"high_pass_filter", {}};
-  for (std::size_t k = 0; k < ids.size(); ++k) {
-    const Image gt = eval::to_grey(io::read_png(d.frames.paths[ids[k]]));
-    a.per_frame.push_back(eval::score(di[k], gt, al));
-    b.per_frame.push_back(eval::score(hp[k], gt, al));
-    if (di_out) di_out->push_back(eval::align(di[k], gt, al).first);
-    if (hp_out) hp_out->push_back(eval::align(hp[k], gt, al).first);
-  }
-  return {a, b};
+  return {{"direct_integration", eval::direct_integration(d.events, times, contrast)},
+          {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
+}
+
+/// Scores under every alignment (the first is the primary), prints the tables and returns metrics.json.
+nlohmann::json score_and_report(const std::vector<eval::Method>& methods, const std::vector<Image>& gts,
+                                const std::vector<eval::Alignment>& als, const std::vector<std::size_t>& ids,
+                                eval::AlignedScores& primary) {
+  primary = eval::score_methods(methods, gts, als.front(), true);
+  std::vector<eval::AlignedScores> others;
+  for (std::size_t k = 1; k < als.size(); ++k) others.push_back(eval::score_methods(methods, gts, als[k]));
+  print_table(primary);
+  for (const auto& o : others) print_table(o);
+  return eval::metrics_json(primary, others, ids);
 }
 
 int cmd_baselines(const std::vector<std::string>& raw) {
   Args a(raw, {}, {"out", "align", "contrast"});
   if (a.positional.size() != 1) return usage();
   const auto d = io::load_ijrr(a.positional[0]);
-  const auto al = eval::parse_alignment(a.str("align", "min-max"));
+  const auto als = alignments_from(a.str("align", "global-log-affine"));
   const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
   require(!ids.empty(), a.positional[0] + ": no frames inside the events' time span");
-  std::vector<Image> di, hp;
-  auto methods = score_baselines(d, ids, al, a.num("contrast", 0.2), &di, &hp);
-  print_table(methods, al);
+  std::vector<Image> gts;
+  for (auto i : ids) gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+  eval::AlignedScores primary;
+  const auto j = score_and_report(baseline_methods(d, ids, a.num("contrast", 0.2)), gts, als, ids, primary);
   const fs::path out = a.str("out", (fs::path(a.positional[0]) / "baselines").string());
-  write_file_atomic(out / "baselines.json", scores_json(methods, ids, al, ""));
+  write_file_atomic(out / "baselines.json", j.dump(2) + "\n");
   const std::size_t mid = ids.size() / 2;
-  io::write_png(out / "montage.png", io::montage({eval::to_grey(io::read_png(d.frames.paths[ids[mid]])), di[mid], hp[mid]}));
+  io::write_png(out / "montage.png", io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid]}));
   std::printf("wrote %s/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", out.c_str());
   return 0;
 }
@@ -221,6 +201,10 @@ int with_preset(const std::string& preset, Fn&& fn) {
   if (preset == "no-joint") return fn.template operator()<FastNoJointThresholds>("no-joint");
   if (preset == "no-noise") return fn.template operator()<FastNoNoiseInjection>("no-noise");
   if (preset == "colour") return fn.template operator()<FastColour>("colour");
+  if (preset == "fast-w8") return fn.template operator()<FastWindow<8>>("fast-w8");
+  if (preset == "fast-w24") return fn.template operator()<FastWindow<24>>("fast-w24");
+  if (preset == "fast-w24-ev") return fn.template operator()<FastWindow<24, events::EventPixels<100>>>("fast-w24-ev");
+  if (preset == "fast-w48") return fn.template operator()<FastWindow<48>>("fast-w48");
   if (preset == "paper") return fn.template operator()<Paper>("paper");
   if (preset == "paper-bf16") return fn.template operator()<PaperBf16>("paper-bf16");
   if (preset == "paper-no-joint") return fn.template operator()<PaperNoJointThresholds>("paper-no-joint");
@@ -325,10 +309,9 @@ int cmd_eval(const std::vector<std::string>& raw) {
   if (a.positional.size() != 2 || !a.has("out")) return usage();
   const fs::path ckpt = a.positional[0], out = a.str("out", "");
   const auto d = io::load_ijrr(a.positional[1]);
-  // Spec §9 (#9): per-image min–max is the primary normalisation, log-affine a secondary one; both are
-  // reported (the other one of the pair as "secondary" when --align picks one).
-  const auto al = eval::parse_alignment(a.str("align", "min-max"));
-  const auto al2 = al == eval::Alignment::MinMax ? eval::Alignment::LogAffine : eval::Alignment::MinMax;
+  // Primary: one log-affine map over the whole sequence (eval::Alignment::GlobalLogAffine); per-image
+  // log-affine and min-max follow as secondary scores.
+  const auto als = alignments_from(a.str("align", "global-log-affine"));
   return with_preset(checkpoint_preset(ckpt), [&]<class Model>(const std::string& name) {
     Model model;
     const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, name), ckpt.string());
@@ -340,90 +323,52 @@ int cmd_eval(const std::vector<std::string>& raw) {
       if (d.frames.t[i] > desc.times.front() + 1e-9 && d.frames.t[i] <= desc.times.back() + 1e-9) ids.push_back(i);
     require(!ids.empty(), "eval: no frames inside the trained time range");
     const auto dirs = render::pixel_directions(d.camera);
-    MethodScores ours{"evnerf_" + name, {}}, ours2{"evnerf_" + name, {}};
-    std::vector<Image> mine, gts;
-    std::vector<Image> depths;
+    eval::Method ours{"evnerf_" + name, {}};
+    std::vector<Image> gts, depths;
     const auto t0 = std::chrono::steady_clock::now();
     for (auto i : ids) {
       const double t = d.frames.t[i];
       const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
       const auto r = model.render(d.camera, dirs, pose);
-      const Image gt = eval::to_grey(io::read_png(d.frames.paths[i]));
-      const Image pred = eval::to_grey(r.luminance);
-      ours.per_frame.push_back(eval::score(pred, gt, al));
-      ours2.per_frame.push_back(eval::score(pred, gt, al2));
-      mine.push_back(eval::align(pred, gt, al).first);
-      gts.push_back(gt);
+      ours.images.push_back(eval::to_grey(r.luminance));
+      gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
       depths.push_back(r.depth);
       char stem[64];
       std::snprintf(stem, sizeof stem, "frame_%08zu", i);
       write_rendering<Model>(out / "renders", stem, r, float(model.box().near), float(model.box().far * 0.6));
     }
     const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / ids.size();
-    std::vector<Image> di, hp;
-    auto methods = score_baselines(d, ids, al, 0.2, &di, &hp);
+    auto methods = baseline_methods(d, ids, 0.2);
     methods.insert(methods.begin(), ours);
-    auto methods2 = score_baselines(d, ids, al2, 0.2, nullptr, nullptr);
-    methods2.insert(methods2.begin(), ours2);
+    eval::AlignedScores primary;
+    nlohmann::json j = score_and_report(methods, gts, als, ids, primary);
+    j["seconds_per_render"] = render_s;
     // Depth against simulated ground truth, where the recording has it (median scale alignment).
-    std::string extra = "  \"seconds_per_render\": " + json_num(render_s) + ",\n";
-    extra += "  \"secondary\": {\"alignment\": \"" + std::string(eval::to_string(al2)) + "\", \"methods\": {";
-    for (std::size_t m = 0; m < methods2.size(); ++m) {
-      const auto sc = methods2[m].mean();
-      extra += (m ? ", " : "") + ("\"" + methods2[m].name + "\": {\"mse\": " + json_num(sc.mse) + ", \"psnr\": " +
-                                   json_num(sc.psnr) + ", \"ssim\": " + json_num(sc.ssim) + "}");
-    }
-    extra += "}},\n";
     if (d.depth.size() == d.frames.size()) {
-      double absrel = 0;
-      std::size_t n = 0;
-      for (std::size_t k = 0; k < ids.size(); ++k) {
-        const auto gtd = io::load_npy<float>(d.depth[ids[k]]).data;
-        std::vector<double> ratio;
-        for (std::size_t p = 0; p < gtd.size(); ++p)
-          if (std::isfinite(gtd[p]) && gtd[p] < model.box().far && depths[k].data[p] > 0) ratio.push_back(gtd[p] / depths[k].data[p]);
-        if (ratio.empty()) continue;
-        std::nth_element(ratio.begin(), ratio.begin() + ratio.size() / 2, ratio.end());
-        const double sc = ratio[ratio.size() / 2];
-        for (std::size_t p = 0; p < gtd.size(); ++p)
-          if (std::isfinite(gtd[p]) && gtd[p] < model.box().far) {
-            absrel += std::abs(depths[k].data[p] * sc - gtd[p]) / gtd[p];
-            ++n;
-          }
-      }
-      if (n) extra += "  \"depth_absrel_median_scaled\": " + json_num(absrel / n) + ",\n";
+      std::vector<std::vector<float>> gtd;
+      for (auto i : ids) gtd.push_back(io::load_npy<float>(d.depth[i]).data);
+      const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.box().far);
+      if (std::isfinite(absrel)) j["depth_absrel_median_scaled"] = absrel;
     }
     // Novel views: with --holdout K (as given to train), the frames at every K-th boundary were never
     // trained on (both slices touching them were held out); their scores are reported on their own.
     const int holdout = static_cast<int>(a.num("holdout", 0));
-    std::vector<MethodScores> held;
+    std::vector<std::size_t> pick;  // positions in ids
     if (holdout > 0) {
-      std::vector<std::size_t> pick;  // positions in ids
       for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))
         for (std::size_t q = 0; q < ids.size(); ++q)
           if (std::abs(d.frames.t[ids[q]] - desc.times[k]) < 1e-9) pick.push_back(q);
       require(!pick.empty(), "eval: --holdout " + std::to_string(holdout) + " selects no frame of this recording");
-      std::string j = "  \"heldout\": {\"every\": " + std::to_string(holdout) + ", \"frames\": [";
-      for (std::size_t q = 0; q < pick.size(); ++q) j += (q ? "," : "") + std::to_string(ids[pick[q]]);
-      j += "], \"methods\": {";
-      for (std::size_t m = 0; m < methods.size(); ++m) {
-        MethodScores h{methods[m].name, {}};
-        for (auto q : pick) h.per_frame.push_back(methods[m].per_frame[q]);
-        const auto sc = h.mean();
-        j += (m ? ", " : "") + ("\"" + h.name + "\": {\"mse\": " + json_num(sc.mse) + ", \"psnr\": " + json_num(sc.psnr) +
-                                 ", \"ssim\": " + json_num(sc.ssim) + "}");
-        held.push_back(std::move(h));
-      }
-      extra += j + "}},\n";
+      std::vector<std::size_t> frames;
+      for (auto q : pick) frames.push_back(ids[q]);
+      j["heldout"] = {{"every", holdout}, {"frames", frames}, {"methods", eval::methods_json(primary, false, pick)}};
     }
-    write_file_atomic(out / "metrics.json", scores_json(methods, ids, al, extra));
+    write_file_atomic(out / "metrics.json", j.dump(2) + "\n");
     const std::size_t mid = ids.size() / 2;
-    io::write_png(out / "montage.png", io::montage({gts[mid], mine[mid], di[mid], hp[mid]}));
-    print_table(methods, al);
-    print_table(methods2, al2);
-    if (!held.empty()) {
-      std::printf("held-out frames only (%zu, novel views):\n", held.front().per_frame.size());
-      print_table(held, al);
+    io::write_png(out / "montage.png", io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}));
+    if (!pick.empty()) {
+      std::printf("held-out frames only (%zu, novel views):\n", pick.size());
+      print_table(primary, pick);
     }
     std::printf("%.2f s per %dx%d render; wrote %s/metrics.json, montage.png (ground truth | ours | direct integration | "
                 "high-pass filter), renders/\n",

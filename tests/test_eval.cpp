@@ -62,3 +62,35 @@ TEST_CASE("baselines: direct integration sums polarity × contrast; the high-pas
   CHECK(std::log(hp[0].at(0, 0)) == doctest::Approx(0.25 * std::exp(-5 * 0.1) + 0.25).epsilon(1e-6));
   CHECK(std::log(hp[1].at(0, 0)) < 1e-6);  // decayed after ~10 s
 }
+
+TEST_CASE("alignment: the sequence-level log-affine fit recovers one known map per channel exactly") {
+  // Three frames of a 2-channel sequence; the prediction is the ground truth under a known log-affine map
+  // per channel (a = 0.5, b = −0.7 and a = 1.6, b = 0.2 in log(x + ε)). The fit over the sequence finds both maps.
+  std::vector<Image> gts, preds;
+  const double A[2] = {0.5, 1.6}, B[2] = {-0.7, 0.2};
+  for (int f = 0; f < 3; ++f) {
+    const Image g1 = det(30, 20, 0.2 + 0.05 * f, 0.3), g2 = det(30, 20, 0.1, 0.25 + 0.07 * f);
+    Image gt(30, 20, 2), pred(30, 20, 2);
+    for (std::size_t i = 0; i < g1.pixels(); ++i) {
+      gt.data[2 * i] = 0.3f * g1.data[i];  // dim channel: stays within [0, 1] under the inverse map
+      gt.data[2 * i + 1] = 0.2f * g2.data[i];
+      for (int c = 0; c < 2; ++c) {
+        const double y = std::log(gt.data[2 * i + c] + 1e-3);
+        pred.data[2 * i + c] = static_cast<float>(std::exp((y - B[c]) / A[c]) - 1e-3);
+      }
+    }
+    gts.push_back(gt);
+    preds.push_back(pred);
+  }
+  const auto fit = eval::fit_log_affine(preds, gts);
+  REQUIRE(fit.size() == 2);
+  for (int c = 0; c < 2; ++c) {
+    CHECK(fit[c].a == doctest::Approx(A[c]).epsilon(1e-5));
+    CHECK(fit[c].b == doctest::Approx(B[c]).epsilon(1e-5));
+  }
+  for (const auto& s : eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)) CHECK(s.mse < 1e-9);
+  // One map for the whole sequence: a frame whose brightness differs from the rest is not refitted alone.
+  for (auto& v : preds[1].data) v = static_cast<float>(std::min(1.0, v * 1.5));
+  CHECK(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)[1].mse > 1e-6);
+  CHECK(eval::parse_alignment("global-log-affine") == eval::Alignment::GlobalLogAffine);
+}

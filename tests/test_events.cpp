@@ -87,3 +87,21 @@ TEST_CASE("event stream validation names the offending event") {
   ev.push_back(0.05, 1, 1, 1);
   CHECK_THROWS_WITH(ev.validate("s"), doctest::Contains("s: event 1 goes back in time"));
 }
+
+TEST_CASE("count prefix: every window's counts equal a brute-force sum over its slices") {
+  auto ev = random_stream(30000, 13, 9, 5);
+  auto set = slice_events(ev, uniform_boundaries(ev.t[0], ev.t[29999], 7));
+  const CountPrefix pre(set);
+  REQUIRE(pre.n_slices == 7);
+  for (std::size_t a = 0; a <= 7; ++a)
+    for (std::size_t b = a; b <= 7; ++b)
+      for (std::size_t p = 0; p < 13 * 9; ++p) {
+        int np = 0, nn = 0;
+        for (std::size_t k = a; k < b; ++k) {
+          np += set.slices[k].pos[p];
+          nn += set.slices[k].neg[p];
+        }
+        REQUIRE(pre.window_pos(a, b, p) == np);
+        REQUIRE(pre.window_neg(a, b, p) == nn);
+      }
+}

@@ -1,4 +1,5 @@
 #include <cstring>
+#include <set>
 
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
@@ -47,9 +48,12 @@ using TinyBf16Field = field::Field<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalH
                                    nn::Mlp<12, 16, 1, 5, nn::ReLU, nn::Identity, -1, nn::Bf16>,
                                    nn::Mlp<4 + 4, 16, 1, 1, nn::ReLU, nn::Identity, -1, nn::Bf16>>;
 using TinyBf16 = EvNerf<TinyBf16Field, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
+// Windows of 1..4 slices at event pixels (the Fast preset's kind of objective).
+using TinyWindow = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise,
+                          loss::WindowInterval<4, loss::HalfSlackCounts, events::EventPixels<100>>>;
 
 TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned, TinyHalf,
-                   TinyBf16) {
+                   TinyBf16, TinyWindow) {
   Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   double first = 0, last = 0;
@@ -78,7 +82,7 @@ TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants 
 }
 
 TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip",
-                   Model, Tiny, TinyBf16) {
+                   Model, Tiny, TinyBf16, TinyWindow) {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
   Model a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
@@ -329,4 +333,51 @@ TEST_CASE("noise injection inside training draws a fresh noise map per step") {
   Rng r1(1), r2(2);
   const auto& s = f.td.slices.slices[1];
   CHECK(events::inject_noise(s, 0.05, r1).pos != events::inject_noise(s, 0.05, r2).pos);
+}
+
+TEST_CASE("training: windows span 1..W trainable slices, every length occurs, held-out slices are never inside one") {
+  Fixture f;
+  REQUIRE(f.td.slices.size() == 4);
+  TinyWindow m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  std::set<std::size_t> lengths;
+  for (int s = 0; s < 40; ++s) {
+    const auto st = m.train_step(f.td, 64, 3);
+    REQUIRE(st.window >= 1);
+    REQUIRE(st.first_slice + st.window <= 4);
+    lengths.insert(st.window);
+  }
+  CHECK(lengths.size() == 4);
+  TrainingData td = f.td;
+  td.slice_enabled[1] = false;  // a held-out slice splits the recording: windows fit in [0] or [2, 3]
+  for (int s = 0; s < 40; ++s) {
+    const auto st = m.train_step(td, 64, 3);
+    for (std::size_t k = st.first_slice; k < st.first_slice + st.window; ++k) REQUIRE(td.slice_enabled[k]);
+  }
+  // The one-slice objective draws one slice per step.
+  Tiny one(td.slices.size(), train::scene_box(td, f.cfg), 7);
+  CHECK(one.train_step(td, 64, 3).window == 1);
+}
+
+TEST_CASE("training: a model refuses training data with another slicing (a resume with other slices) with a clear error") {
+  Fixture f;
+  Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  m.train_step(f.td, 64, 3);
+  const std::string bytes = m.serialize("tiny", "");
+  // The same recording cut into fewer slices.
+  train::Config cfg = f.cfg;
+  io::Dataset d = f.d;
+  d.frames.t.resize(d.frames.t.size() / 2);
+  d.frames.paths.resize(d.frames.t.size());
+  const auto td2 = train::prepare(d, cfg);
+  REQUIRE(td2.slices.size() != f.td.slices.size());
+  Tiny r;
+  r.deserialize(bytes, "tiny", "mem");
+  try {
+    r.train_step(td2, 64, 3);
+    FAIL("a model trained on other slices was not refused");
+  } catch (const Error& e) {
+    CHECK_CONTAINS(e.what(), "slices");
+    CHECK_CONTAINS(e.what(), std::to_string(f.td.slices.size()));
+    CHECK_CONTAINS(e.what(), std::to_string(td2.slices.size()));
+  }
 }

@@ -18,6 +18,7 @@
 #include "geometry/camera.hpp"
 #include "geometry/pose.hpp"
 #include "loss/event_loss.hpp"
+#include "loss/objective.hpp"
 #include "nn/activation.hpp"
 #include "nn/encoding.hpp"
 #include "nn/mlp.hpp"
@@ -36,6 +37,8 @@ struct TrainingData {
   std::vector<geometry::Pose> boundary_poses;  ///< pose at each slice boundary
   std::vector<Vec3f> pixel_dirs;               ///< render::pixel_directions(camera)
   std::vector<bool> slice_enabled;             ///< held-out slices are false (novel-view evaluation)
+  events::CountPrefix prefix;                  ///< per-pixel running counts (objectives whose pixels look at the
+                                               ///< window's counts need it; train::prepare builds it)
 };
 
 /// One rendered image: luminance (C channels), depth along the optical axis, opacity.
@@ -48,19 +51,25 @@ struct StepStats {
   std::size_t rays = 0;
   std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
+  std::size_t first_slice = 0, window = 1;  ///< the step's window of slices [first, first + window)
 };
 
-/// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and how event
-/// counts become an interval (loss::SplitCounts<K>, loss::SignedCount or loss::HalfSlackCounts).
+/// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and the objective
+/// (loss/objective.hpp: which poses a step compares, at which pixels, with which interval). A bare bound
+/// policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts) as the objective means the
+/// paper's one-slice objective with that bound.
 template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
-          class BoundP = loss::SplitCounts<1>>
+          class ObjectiveP = loss::SplitCounts<1>>
 class EvNerf {
  public:
   using field_type = FieldT;
   using sampler_type = SamplerT;
   using threshold_policy = ThresholdP;
   using noise_policy = NoiseP;
-  using bound_policy = BoundP;
+  using objective = typename loss::as_objective<ObjectiveP>::type;
+  using bound_policy = typename objective::bound;
+  using pixel_policy = typename objective::pixels;
+  static constexpr int max_window = objective::max_window;
   static constexpr int channels = FieldT::channels;
   static constexpr int n_fields = SamplerT::two_networks ? 2 : 1;
   static constexpr std::size_t field_params = FieldT::n_params;
@@ -117,34 +126,64 @@ class EvNerf {
         Rng(seed), threshold);
   }
 
-  /// One training step (Ev-NeRF §4): slice and pixels drawn from (seed, step), noise injected, both
-  /// poses rendered, loss and gradients computed, Adam applied. Deterministic for a seed and thread count.
+  /// One training step (Ev-NeRF §4): a window of slices (one slice for the paper's objective) and pixels
+  /// drawn from (seed, step), noise injected, both end poses rendered, loss and gradients computed, Adam
+  /// applied. Deterministic for a seed and thread count.
   StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
+    if (data.slices.size() != n_slices_)
+      throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
+                  std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
+    require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
     const long s = adam_.step();
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
     if constexpr (has_occupancy)
       if (s >= SamplerT::warmup_steps && (s - SamplerT::warmup_steps) % SamplerT::update_interval == 0)
         update_occupancy(data, rng.split(0xCCu).next_u64());
-    // Slice, uniformly among the enabled ones.
-    std::vector<std::size_t> enabled;
-    for (std::size_t i = 0; i < data.slices.size(); ++i)
-      if (data.slice_enabled.empty() || data.slice_enabled[i]) enabled.push_back(i);
-    require(!enabled.empty(), "train_step: no slice to train on");
-    const std::size_t slice = enabled[rng.below(enabled.size())];
-    const events::SliceCounts counts = NoiseP::ratio > 0 ? events::inject_noise(data.slices.slices[slice], NoiseP::ratio, rng)
-                                                         : data.slices.slices[slice];
-    // Pixels uniformly over the image, without replacement.
-    const std::size_t hw = counts.pixels();
-    const int P = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pixels_per_step), hw));
-    std::vector<std::uint32_t> pixels;
-    pixels.reserve(P);
-    std::vector<bool> taken(hw, false);
-    while (static_cast<int>(pixels.size()) < P) {
-      const auto p = static_cast<std::uint32_t>(rng.below(hw));
-      if (!taken[p]) {
-        taken[p] = true;
-        pixels.push_back(p);
+    StepWindow& sw = window_;
+    draw_window(data, rng, sw);
+    const std::size_t first = sw.first, L = sw.len;
+    const std::size_t hw = data.slices.slices[first].pixels();
+    // Noise events (Ev-NeRF's injection, redrawn at every step): ratio × the window's count, pixels uniform
+    // over the sensor, polarity ±1 with probability ½, each in a uniformly drawn slice of the window. Drawn
+    // before the pixels, in the order events::inject_noise draws them.
+    sw.noise.clear();
+    if constexpr (NoiseP::ratio > 0) {
+      std::size_t total = 0;
+      for (std::size_t k = 0; k < L; ++k) total += data.slices.slices[first + k].total;
+      const auto n = static_cast<std::size_t>(std::llround(NoiseP::ratio * static_cast<double>(total)));
+      sw.noise.reserve(n);
+      for (std::size_t k = 0; k < n; ++k) {
+        NoiseEvent e;
+        e.pixel = static_cast<std::uint32_t>(rng.below(hw));
+        e.positive = (rng.next_u64() & 1) != 0;
+        e.slice = L > 1 ? static_cast<std::uint32_t>(rng.below(L)) : 0u;
+        sw.noise.push_back(e);
       }
+    }
+    // Pixels, by the objective's pixel policy.
+    if (taken_.size() != hw) taken_.assign(hw, 0);
+    pixel_policy::draw(events::PixelWindow{hw, first, first + L, &data.prefix}, pixels_per_step, rng, sw.pixels, taken_);
+    const int P = static_cast<int>(sw.pixels.size());
+    require(P > 0, "train_step: no pixel to train on");
+    // Per pixel and slice of the window: n⁺, n⁻ with the noise added (saturating like inject_noise).
+    sw.npos.resize(static_cast<std::size_t>(P) * L);
+    sw.nneg.resize(static_cast<std::size_t>(P) * L);
+    for (int i = 0; i < P; ++i)
+      for (std::size_t k = 0; k < L; ++k) {
+        const auto& c = data.slices.slices[first + k];
+        sw.npos[static_cast<std::size_t>(i) * L + k] = c.pos[sw.pixels[i]];
+        sw.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[sw.pixels[i]];
+      }
+    if (!sw.noise.empty()) {
+      if (slot_.size() != hw) slot_.assign(hw, -1);
+      for (int i = 0; i < P; ++i) slot_[sw.pixels[i]] = i;
+      for (const auto& e : sw.noise) {
+        const int i = slot_[e.pixel];
+        if (i < 0) continue;
+        int& c = (e.positive ? sw.npos : sw.nneg)[static_cast<std::size_t>(i) * L + e.slice];
+        if (c < INT16_MAX) ++c;
+      }
+      for (int i = 0; i < P; ++i) slot_[sw.pixels[i]] = -1;
     }
     const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
     const int n_tiles = (P + tile - 1) / tile;
@@ -152,8 +191,8 @@ class EvNerf {
     params_.begin_accumulate(threads);
     std::vector<double> loss_ev(threads, 0.0);
     std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
-    const geometry::Pose& pose0 = data.boundary_poses[slice];
-    const geometry::Pose& pose1 = data.boundary_poses[slice + 1];
+    const geometry::Pose& pose0 = data.boundary_poses[first];
+    const geometry::Pose& pose1 = data.boundary_poses[first + L];
     const std::uint64_t ray_key = rng.next_u64();
     if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
@@ -162,8 +201,7 @@ class EvNerf {
       w.ws.defer_encoding_grad = true;  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
-        loss_ev[th] += train_tile(data, counts, slice, pose0, pose1, pixels.data() + p0, p1 - p0, P, ray_key,
-                                  params_.per_thread[th].data(), w);
+        loss_ev[th] += train_tile(data, sw, p0, pose0, pose1, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
       }
       FieldT::flush_encoding_grad(w.ws);
       evaluated[th] = w.evaluated;
@@ -171,18 +209,24 @@ class EvNerf {
     });
     params_.end_accumulate(threads);
     StepStats st;
+    st.first_slice = first;
+    st.window = L;
     for (double l : loss_ev) st.event_loss += l;
     for (std::size_t e : evaluated) st.samples += e;
     for (std::size_t e : backward) st.backward_samples += e;
-    // Threshold floor (λ = 1000 for joint training; fixed thresholds get no gradient at all).
-    const std::size_t to = threshold_offset() + 2 * slice;
-    if constexpr (ThresholdP::learnable) {
-      const auto fl = ad::value_and_grad(loss::ThresholdFloor{}, std::array<double, 2>{params_.values[to], params_.values[to + 1]});
-      st.threshold_loss = ThresholdP::lambda * fl.value;
-      params_.grads[to] += static_cast<float>(ThresholdP::lambda * fl.grad[0]);
-      params_.grads[to + 1] += static_cast<float>(ThresholdP::lambda * fl.grad[1]);
-    } else {
-      params_.grads[to] = params_.grads[to + 1] = 0.f;
+    // Threshold floor on every slice of the window (λ = 1000 for joint training, floor at the policy's
+    // initial value; fixed thresholds get no gradient at all).
+    for (std::size_t k = 0; k < L; ++k) {
+      const std::size_t to = threshold_offset() + 2 * (first + k);
+      if constexpr (ThresholdP::learnable) {
+        const auto fl = ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init},
+                                           std::array<double, 2>{params_.values[to], params_.values[to + 1]});
+        st.threshold_loss += ThresholdP::lambda * fl.value;
+        params_.grads[to] += static_cast<float>(ThresholdP::lambda * fl.grad[0]);
+        params_.grads[to + 1] += static_cast<float>(ThresholdP::lambda * fl.grad[1]);
+      } else {
+        params_.grads[to] = params_.grads[to + 1] = 0.f;
+      }
     }
     st.loss = st.event_loss + st.threshold_loss;
     st.rays = static_cast<std::size_t>(2 * P);
@@ -352,10 +396,11 @@ class EvNerf {
   /// A checkpoint written under another one is refused (resuming would silently change the objective).
   static std::string loss_description() {
     std::string d = "bounds ";  // appended piece by piece: GCC 12's -Wrestrict misfires on chains of operator+
-    d.append(BoundP::name);
-    if constexpr (requires { BoundP::slack; }) d.append(" ").append(std::to_string(BoundP::slack));
+    d.append(bound_policy::name);
+    if constexpr (requires { bound_policy::slack; }) d.append(" ").append(std::to_string(bound_policy::slack));
     d.append(", thresholds ").append(ThresholdP::name).append(", noise ");
     d.append(std::to_string(static_cast<int>(NoiseP::ratio * 1000 + 0.5))).append(" per mille");
+    d.append(objective::description());  // empty for the paper's one-slice objective (older files compare equal)
     return d;
   }
   /// Set by deserialize(): empty, or a warning the caller should show (a checkpoint older than version 4
@@ -371,12 +416,56 @@ class EvNerf {
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
 
+  /// One noise event of a step: pixel, slice within the window, polarity.
+  struct NoiseEvent {
+    std::uint32_t pixel = 0, slice = 0;
+    bool positive = false;
+  };
+  /// A step's window and what its pixels saw there (the per-slice counts, noise included).
+  struct StepWindow {
+    std::size_t first = 0, len = 1;
+    std::vector<std::uint32_t> pixels;
+    std::vector<int> npos, nneg;  ///< P × len
+    std::vector<NoiseEvent> noise;
+    std::vector<std::size_t> starts;
+  };
+
+  /// The step's window. One slice (max_window = 1): uniform among the trainable slices, as the paper.
+  /// Otherwise the length uniform in 1..max_window, then the start uniform among the windows of that length
+  /// whose slices are all trainable (shorter when none is).
+  void draw_window(const TrainingData& data, Rng& rng, StepWindow& sw) const {
+    const std::size_t N = data.slices.size();
+    auto enabled = [&](std::size_t i) { return data.slice_enabled.empty() || data.slice_enabled[i]; };
+    sw.starts.clear();
+    if constexpr (max_window == 1) {
+      for (std::size_t i = 0; i < N; ++i)
+        if (enabled(i)) sw.starts.push_back(i);
+      require(!sw.starts.empty(), "train_step: no slice to train on");
+      sw.first = sw.starts[rng.below(sw.starts.size())];
+      sw.len = 1;
+    } else {
+      // run[i]: trainable slices in a row from i.
+      std::vector<std::size_t> run(N + 1, 0);
+      for (std::size_t i = N; i-- > 0;) run[i] = enabled(i) ? run[i + 1] + 1 : 0;
+      std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(max_window));
+      for (; L >= 1; --L) {
+        for (std::size_t i = 0; i + L <= N; ++i)
+          if (run[i] >= L) sw.starts.push_back(i);
+        if (!sw.starts.empty()) break;
+      }
+      require(!sw.starts.empty(), "train_step: no slice to train on");
+      sw.first = sw.starts[rng.below(sw.starts.size())];
+      sw.len = L;
+    }
+  }
+
   struct TileWork {
     typename FieldT::template Workspace<float> ws;
     std::vector<float> pts, dirs, t, noise, dsigma, draw;
     std::vector<render::RayComposite<float>> coarse, fine;
     std::vector<std::vector<float>> fine_t;
     std::vector<float> dcolor;
+    std::vector<double> bp, bm, gbp, gbm;  // the window's thresholds and one pixel's threshold gradients
     // Occupancy skipping: indices of the evaluated samples, their packed inputs and gradients, and the
     // scattered outputs (skipped samples: density −1e4, luminance 0).
     std::vector<int> active;
@@ -453,26 +542,39 @@ class EvNerf {
     }
   }
 
-  /// Loss over the tile's pixel pairs for one network's composites; fills w.dcolor (2P×C) and adds the
-  /// threshold gradients. Returns the loss contribution (already divided by the batch size).
-  double pair_loss(const events::SliceCounts& counts, std::size_t slice, const std::uint32_t* pix, int P, int batch,
-                   const std::vector<render::RayComposite<float>>& comp, float* grads, TileWork& w) const {
-    const std::size_t to = threshold_offset() + 2 * slice;
-    const double bp = params_.values[to], bm = params_.values[to + 1];
+  /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
+  /// w.dcolor (2P×C) and adds the threshold gradients of the window's slices. Returns the loss contribution
+  /// (already divided by the batch size).
+  double pair_loss(const StepWindow& sw, int p0, int P, int batch, const std::vector<render::RayComposite<float>>& comp,
+                   float* grads, TileWork& w, int width) const {
+    const int L = static_cast<int>(sw.len);
+    const std::size_t to = threshold_offset() + 2 * sw.first;
+    w.bp.resize(static_cast<std::size_t>(L));
+    w.bm.resize(static_cast<std::size_t>(L));
+    w.gbp.resize(static_cast<std::size_t>(L));
+    w.gbm.resize(static_cast<std::size_t>(L));
+    for (int k = 0; k < L; ++k) {
+      w.bp[k] = params_.values[to + 2 * k];
+      w.bm[k] = params_.values[to + 2 * k + 1];
+    }
     w.dcolor.assign(static_cast<std::size_t>(2 * P) * channels, 0.f);
     double total = 0;
-    const int width = counts.width;
     for (int i = 0; i < P; ++i) {
-      const int c = channels == 1 ? 0 : geometry::rggb_channel(static_cast<int>(pix[i] % width), static_cast<int>(pix[i] / width));
-      const loss::EventBounds lb = BoundP::make(counts.pos[pix[i]], counts.neg[pix[i]]);
-      const auto r = lb.evaluate(comp[2 * i].color[c], comp[2 * i + 1].color[c], bp, bm);
-      total += r[0] / batch;
-      w.dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<float>(r[1] / batch);
-      w.dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<float>(r[2] / batch);
-      if constexpr (ThresholdP::learnable) {
-        grads[to] += static_cast<float>(r[3] / batch);
-        grads[to + 1] += static_cast<float>(r[4] / batch);
-      }
+      const std::uint32_t pix = sw.pixels[p0 + i];
+      const int c = channels == 1 ? 0 : geometry::rggb_channel(static_cast<int>(pix % width), static_cast<int>(pix / width));
+      std::fill(w.gbp.begin(), w.gbp.end(), 0.0);
+      std::fill(w.gbm.begin(), w.gbm.end(), 0.0);
+      const std::size_t o = static_cast<std::size_t>(p0 + i) * L;
+      const auto r = loss::window_pixel_loss<bound_policy>(comp[2 * i].color[c], comp[2 * i + 1].color[c], L, &sw.npos[o],
+                                                           &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data());
+      total += r.value / batch;
+      w.dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<float>(r.dl0 / batch);
+      w.dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<float>(r.dl1 / batch);
+      if constexpr (ThresholdP::learnable)
+        for (int k = 0; k < L; ++k) {
+          grads[to + 2 * k] += static_cast<float>(w.gbp[k] / batch);
+          grads[to + 2 * k + 1] += static_cast<float>(w.gbm[k] / batch);
+        }
     }
     return total;
   }
@@ -532,10 +634,10 @@ class EvNerf {
     return tf;
   }
 
-  double train_tile(const TrainingData& data, const events::SliceCounts& counts, std::size_t slice,
-                    const geometry::Pose& pose0, const geometry::Pose& pose1, const std::uint32_t* pix, int P, int batch,
-                    std::uint64_t ray_key, float* grads, TileWork& w) const {
+  double train_tile(const TrainingData& data, const StepWindow& sw, int p0, const geometry::Pose& pose0,
+                    const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, float* grads, TileWork& w) const {
     const int R = 2 * P;
+    const std::uint32_t* pix = sw.pixels.data() + p0;
     std::vector<Vec3> origin(R), dir(R);
     for (int i = 0; i < P; ++i) {
       const Vec3 d = data.pixel_dirs[pix[i]].cast<double>();
@@ -554,9 +656,10 @@ class EvNerf {
       render::stratified_depths<float>(Nc, float(box_.near), float(box_.far), &ray_rng[r], &w.t[static_cast<std::size_t>(r) * Nc]);
       for (int k = 0; k < Nc; ++k) w.noise[static_cast<std::size_t>(r) * Nc + k] = static_cast<float>(ray_rng[r].normal());
     }
+    const int width = data.camera.width();
     make_samples(origin.data(), dir.data(), R, Nc, w.t, w);
     forward_rays(0, dir.data(), R, Nc, w.t, w.noise.data(), w, w.coarse);
-    double loss = pair_loss(counts, slice, pix, P, batch, w.coarse, grads, w);
+    double loss = pair_loss(sw, p0, P, batch, w.coarse, grads, w, width);
     backward_rays(0, R, Nc, w.coarse, grads, w);
     if constexpr (n_fields == 2) {
       constexpr int S = Nc + Nf;
@@ -566,7 +669,7 @@ class EvNerf {
         for (int k = 0; k < S; ++k) nf[static_cast<std::size_t>(r) * S + k] = static_cast<float>(ray_rng[r].normal());
       make_samples(origin.data(), dir.data(), R, S, tf, w);
       forward_rays(1, dir.data(), R, S, tf, nf.data(), w, w.fine);
-      loss += pair_loss(counts, slice, pix, P, batch, w.fine, grads, w);
+      loss += pair_loss(sw, p0, P, batch, w.fine, grads, w, width);
       backward_rays(1, R, S, w.fine, grads, w);
     }
     return loss;
@@ -596,6 +699,9 @@ class EvNerf {
   nn::ParameterBuffer<float> params_;
   nn::Adam<float> adam_;
   std::vector<TileWork> work_;  ///< train_step's per-thread scratch (no state: any content gives the same step)
+  StepWindow window_;           ///< train_step's window scratch (likewise)
+  std::vector<std::uint8_t> taken_;
+  std::vector<int> slot_;
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
 };
 
@@ -619,9 +725,12 @@ template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C
 using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128>, Th, No>;
 /// Fast uses the half-slack interval: with split counts and k = 1 a constant image costs nothing on
 /// pixels with one event, and on sparse or noisy recordings the hash-grid field never leaves it.
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Bound = loss::HalfSlackCounts,
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = loss::HalfSlackCounts,
           class Prec = Fp32>
-using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Bound>;
+using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Obj>;
+/// Fast with windows of 1..W slices (measurement presets).
+template <int W, class Pixels = events::UniformPixels>
+using FastWindow = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
 
 using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;

@@ -85,15 +85,75 @@ inline double ssim(const Image& a, const Image& b) {
   return total / C;
 }
 
-enum class Alignment { LogAffine, MinMax, None };
+/// How a reconstruction is brought to the ground truth's brightness before scoring (events fix brightness
+/// only up to gain and offset in log space).
+///   GlobalLogAffine  one affine map in log intensity per channel, fitted over all frames of the sequence
+///                    (as Robust e-NeRF scores): the primary alignment.
+///   LogAffine        the same fitted per image (all channels together).
+///   MinMax           each image, prediction and ground truth, scaled to [0, 1].
+///   None             as rendered.
+enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None };
 inline const char* to_string(Alignment a) {
-  return a == Alignment::LogAffine ? "log-affine" : a == Alignment::MinMax ? "min-max" : "none";
+  switch (a) {
+    case Alignment::GlobalLogAffine: return "global-log-affine";
+    case Alignment::LogAffine: return "log-affine";
+    case Alignment::MinMax: return "min-max";
+    default: return "none";
+  }
 }
 inline Alignment parse_alignment(const std::string& s) {
+  if (s == "global-log-affine") return Alignment::GlobalLogAffine;
   if (s == "log-affine") return Alignment::LogAffine;
   if (s == "min-max") return Alignment::MinMax;
   if (s == "none") return Alignment::None;
-  throw Error("unknown alignment '" + s + "' (expected log-affine, min-max or none)");
+  throw Error("unknown alignment '" + s + "' (expected global-log-affine, log-affine, min-max or none)");
+}
+
+/// ε of the log-domain alignments (as in the loss).
+inline constexpr double kLogEps = 1e-3;
+
+/// y ≈ a·x + b in log(· + ε), the least-squares map of one channel.
+struct LogAffine {
+  double a = 1, b = 0;
+  float apply(float v) const {
+    return static_cast<float>(std::clamp(std::exp(a * std::log(std::max(0.0, double(v)) + kLogEps) + b) - kLogEps, 0.0, 1.0));
+  }
+};
+
+/// Least-squares log-affine maps, one per channel, over every pixel of every (prediction, ground truth)
+/// pair. A prediction with no variance in a channel gets a = 0 (its best constant).
+inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts) {
+  require(!preds.empty() && preds.size() == gts.size(), "fit_log_affine: need as many predictions as ground-truth images");
+  const int C = preds.front().channels;
+  std::vector<double> n(C, 0), sx(C, 0), sy(C, 0), sxx(C, 0), sxy(C, 0);
+  for (std::size_t f = 0; f < preds.size(); ++f) {
+    require_same_shape(preds[f], gts[f]);
+    require(preds[f].channels == C, "fit_log_affine: frames differ in channels");
+    const auto& p = preds[f].data;
+    const auto& g = gts[f].data;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const int c = static_cast<int>(i % static_cast<std::size_t>(C));
+      const double x = std::log(std::max(0.0, double(p[i])) + kLogEps), y = std::log(std::max(0.0, double(g[i])) + kLogEps);
+      n[c] += 1;
+      sx[c] += x;
+      sy[c] += y;
+      sxx[c] += x * x;
+      sxy[c] += x * y;
+    }
+  }
+  std::vector<LogAffine> fit(C);
+  for (int c = 0; c < C; ++c) {
+    const double var = sxx[c] - sx[c] * sx[c] / n[c];
+    fit[c].a = var > 1e-12 * n[c] ? (sxy[c] - sx[c] * sy[c] / n[c]) / var : 0.0;
+    fit[c].b = (sy[c] - fit[c].a * sx[c]) / n[c];
+  }
+  return fit;
+}
+inline Image apply_log_affine(const Image& pred, const std::vector<LogAffine>& fit) {
+  require(static_cast<int>(fit.size()) == pred.channels, "apply_log_affine: one map per channel");
+  Image o = pred;
+  for (std::size_t i = 0; i < o.data.size(); ++i) o.data[i] = fit[i % fit.size()].apply(o.data[i]);
+  return o;
 }
 
 inline Image min_max(const Image& a) {
@@ -111,6 +171,7 @@ inline std::pair<Image, Image> align(const Image& pred, const Image& gt, Alignme
   require_same_shape(pred, gt);
   if (how == Alignment::None) return {pred, gt};
   if (how == Alignment::MinMax) return {min_max(pred), min_max(gt)};
+  if (how == Alignment::GlobalLogAffine) return {apply_log_affine(pred, fit_log_affine({pred}, {gt})), gt};
   const double eps = 1e-3;
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   const double n = static_cast<double>(pred.data.size());
@@ -135,6 +196,35 @@ struct Scores {
 inline Scores score(const Image& pred, const Image& gt, Alignment how) {
   const auto [p, g] = align(pred, gt, how);
   return {mse(p, g), psnr(p, g), ssim(p, g)};
+}
+
+/// Scores a sequence frame by frame. GlobalLogAffine fits its maps once over all frames; the others align
+/// each frame on its own. `aligned`, when given, receives the aligned predictions.
+inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const std::vector<Image>& gts, Alignment how,
+                                          std::vector<Image>* aligned = nullptr) {
+  require(preds.size() == gts.size(), "score_sequence: need as many predictions as ground-truth images");
+  std::vector<Scores> out;
+  if (aligned) aligned->clear();
+  if (preds.empty()) return out;
+  std::vector<LogAffine> fit;
+  if (how == Alignment::GlobalLogAffine) fit = fit_log_affine(preds, gts);
+  for (std::size_t f = 0; f < preds.size(); ++f) {
+    const auto [p, g] = how == Alignment::GlobalLogAffine ? std::pair<Image, Image>{apply_log_affine(preds[f], fit), gts[f]}
+                                                          : align(preds[f], gts[f], how);
+    out.push_back({mse(p, g), psnr(p, g), ssim(p, g)});
+    if (aligned) aligned->push_back(p);
+  }
+  return out;
+}
+/// The mean of per-frame scores (PSNR averaged in dB, as the field reports it).
+inline Scores mean(const std::vector<Scores>& s) {
+  Scores m;
+  for (const auto& x : s) {
+    m.mse += x.mse / static_cast<double>(s.size());
+    m.psnr += x.psnr / static_cast<double>(s.size());
+    m.ssim += x.ssim / static_cast<double>(s.size());
+  }
+  return m;
 }
 
 /// Converts a colour image to grey luminance (Rec. 601 weights); grey images pass through.

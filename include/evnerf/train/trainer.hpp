@@ -67,6 +67,7 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   for (double t : b) td.boundary_poses.push_back(d.trajectory.pose_at(t, policy));
   td.pixel_dirs = render::pixel_directions(d.camera);
   td.slice_enabled.assign(td.slices.size(), true);
+  td.prefix = events::CountPrefix(td.slices);
   if (cfg.holdout_every > 0)
     for (std::size_t k = cfg.holdout_every; k + 1 < b.size(); k += cfg.holdout_every) {
       td.slice_enabled[k - 1] = false;  // both slices touching boundary k
