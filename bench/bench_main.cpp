@@ -5,7 +5,7 @@
 // bench/run.sh runs this and the PyTorch peer and prints the ratios.
 #include <benchmark/benchmark.h>
 #include <evnerf/evnerf.hpp>
-#include <evnerf/model.hpp>
+#include <evnerf/presets.hpp>
 #include <evnerf/nn/reference.hpp>
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>

@@ -1,8 +1,7 @@
 // The paper's ablation as compile-time variants: full model vs no joint thresholds vs no noise injection,
 // trained on the same recording with the same seed, scored against its frames (MSE / SSIM / PSNR).
 // Usage: ablation <recording folder> [iterations] [--paper]
-#include <evnerf/model.hpp>
-#include <evnerf/train/trainer.hpp>
+#include <evnerf/evnerf.hpp>
 
 #include <array>
 #include <cstdio>

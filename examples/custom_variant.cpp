@@ -1,8 +1,7 @@
 // A user's own Ev-NeRF variant in a page: another encoding (Frequency<6> instead of a hash grid),
 // another activation (Softplus) and widths, trained on a simulated scene and rendered.
 // Usage: custom_variant <recording folder> [iterations]
-#include <evnerf/model.hpp>
-#include <evnerf/train/trainer.hpp>
+#include <evnerf/evnerf.hpp>
 
 #include <cstdio>
 

@@ -1,8 +1,5 @@
 // evnerf — the command-line tool: inspect, simulate, baselines, train, render, eval.
 #include <evnerf/evnerf.hpp>
-#include <evnerf/eval/report.hpp>
-#include <evnerf/sim/simulator.hpp>
-#include <evnerf/train/trainer.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -192,19 +189,22 @@ int cmd_baselines(const std::vector<std::string>& raw) {
   return 0;
 }
 
+constexpr const char* kPresets[] = {"fast", "fast-slice", "fast-bf16", "no-joint", "no-noise", "colour", "paper", "paper-bf16",
+                                    "paper-no-joint", "paper-no-noise", "fast-w8", "fast-w48", "fast-events"};
+
 /// Runs `fn.template operator()<Model>(name)` for a preset name.
 template <class Fn>
 int with_preset(const std::string& preset, Fn&& fn) {
   using namespace presets;
   if (preset == "fast") return fn.template operator()<Fast>("fast");
+  if (preset == "fast-slice") return fn.template operator()<FastOneSlice>("fast-slice");
   if (preset == "fast-bf16") return fn.template operator()<FastBf16>("fast-bf16");
   if (preset == "no-joint") return fn.template operator()<FastNoJointThresholds>("no-joint");
   if (preset == "no-noise") return fn.template operator()<FastNoNoiseInjection>("no-noise");
   if (preset == "colour") return fn.template operator()<FastColour>("colour");
   if (preset == "fast-w8") return fn.template operator()<FastWindow<8>>("fast-w8");
-  if (preset == "fast-w24") return fn.template operator()<FastWindow<24>>("fast-w24");
-  if (preset == "fast-w24-ev") return fn.template operator()<FastWindow<24, events::EventPixels<100>>>("fast-w24-ev");
   if (preset == "fast-w48") return fn.template operator()<FastWindow<48>>("fast-w48");
+  if (preset == "fast-events") return fn.template operator()<FastWindow<24, events::EventPixels<100>>>("fast-events");
   if (preset == "paper") return fn.template operator()<Paper>("paper");
   if (preset == "paper-bf16") return fn.template operator()<PaperBf16>("paper-bf16");
   if (preset == "paper-no-joint") return fn.template operator()<PaperNoJointThresholds>("paper-no-joint");
@@ -212,14 +212,24 @@ int with_preset(const std::string& preset, Fn&& fn) {
   throw Error("unknown preset '" + preset + "' (fast, fast-bf16, paper, paper-bf16, no-joint, no-noise, paper-no-joint, paper-no-noise, colour)");
 }
 
-/// The preset name stored in a checkpoint.
+/// The compiled variant that can load a checkpoint: the one named in the file when its parameter count and
+/// loss match, else the one whose parameter count and loss match (a file written under an older name).
 std::string checkpoint_preset(const fs::path& path) {
-  const std::string b = read_file(path);
-  if (b.size() < 32 || b.compare(0, 8, "EVNERFCK") != 0) throw Error(path.string(), 0, "not an evnerf checkpoint");
-  std::uint64_t n = 0;
-  std::memcpy(&n, b.data() + 16, 8);  // magic (8), version (8), name length (8), name
-  if (n > 64 || 24 + n > b.size()) throw Error(path.string(), 0, "corrupt checkpoint header");
-  return b.substr(24, n);
+  const auto h = io::peek_checkpoint(path);
+  auto fits = [&](const std::string& preset) {
+    return with_preset(preset, [&]<class Model>(const std::string&) {
+      const bool params = h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices;
+      return params && (h.version < 4 || h.loss == Model::loss_description()) ? 1 : 0;
+    }) == 1;
+  };
+  try {
+    if (fits(h.name)) return h.name;
+  } catch (const Error&) {  // a name this program does not know
+  }
+  for (const char* p : kPresets)
+    if (fits(p)) return p;
+  throw Error(path.string(), 0, "written by variant '" + h.name + "' with the loss '" + h.loss +
+                                    "', which no variant of this program matches");
 }
 
 int cmd_train(const std::vector<std::string>& raw) {
@@ -276,9 +286,9 @@ int cmd_render(const std::vector<std::string>& raw) {
   Args a(raw, {}, {"out", "novel"});
   if (a.positional.size() != 1 || !a.has("out")) return usage();
   const fs::path ckpt = a.positional[0], out = a.str("out", "");
-  return with_preset(checkpoint_preset(ckpt), [&]<class Model>(const std::string& name) {
+  return with_preset(checkpoint_preset(ckpt), [&]<class Model>(const std::string&) {
     Model model;
-    const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, name), ckpt.string());
+    const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
     const auto dirs = render::pixel_directions(desc.camera);
     const float dlo = float(model.box().near), dhi = float(model.box().far * 0.6);
     for (std::size_t i = 0; i < desc.poses.size(); ++i) {
@@ -314,7 +324,7 @@ int cmd_eval(const std::vector<std::string>& raw) {
   const auto als = alignments_from(a.str("align", "global-log-affine"));
   return with_preset(checkpoint_preset(ckpt), [&]<class Model>(const std::string& name) {
     Model model;
-    const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, name), ckpt.string());
+    const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
     require(desc.camera.width() == d.camera.width() && desc.camera.height() == d.camera.height(),
             "eval: the checkpoint's camera does not match the recording's sensor size");
     // Frames at the trained slice boundaries (the first boundary has no events before it: skipped).

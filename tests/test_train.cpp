@@ -1,4 +1,5 @@
 #include <cstring>
+#include <fstream>
 #include <set>
 
 #include <evnerf/sim/simulator.hpp>
@@ -379,5 +380,89 @@ TEST_CASE("training: a model refuses training data with another slicing (a resum
     CHECK_CONTAINS(e.what(), "slices");
     CHECK_CONTAINS(e.what(), std::to_string(f.td.slices.size()));
     CHECK_CONTAINS(e.what(), std::to_string(td2.slices.size()));
+  }
+}
+
+TEST_CASE("training loop: a fresh run starts a fresh log of period means; the callback can stop it; the thread count is restored") {
+  Fixture f;
+  const fs::path out = fs::temp_directory_path() / "evnerf_test_run_loop";
+  fs::remove_all(out);
+  fs::create_directories(out);
+  { std::ofstream(out / "log.jsonl") << "a line of an earlier run\n"; }
+  Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  train::Config cfg = f.cfg;
+  cfg.iterations = 60;
+  cfg.pixels_per_step = 64;
+  cfg.progress = false;
+  cfg.threads = 1;
+  const int before = thread_count();
+  std::vector<double> losses;
+  double logged_mean = -1;
+  long seen = 0;
+  auto r = train::run(m, f.td, cfg, out, "tiny", "meta", [&](const train::StepReport& rep) {
+    ++seen;
+    CHECK(thread_count() == 1);
+    losses.push_back(rep.stats.loss);
+    if (rep.logged) logged_mean = rep.mean_loss;
+    return rep.step < 55;  // stop after step 55
+  });
+  CHECK(thread_count() == before);
+  CHECK(r.stopped);
+  CHECK(seen == 55);
+  CHECK(m.step() == 55);
+  CHECK(fs::exists(out / "model.ckpt"));  // written before stopping
+  // One line (step 50), and its loss is the mean of steps 1..50, like its parts.
+  std::ifstream in(out / "log.jsonl");
+  std::string line, all;
+  int lines = 0;
+  while (std::getline(in, line)) {
+    ++lines;
+    all = line;
+  }
+  CHECK(lines == 1);
+  const auto j = nlohmann::json::parse(all);
+  CHECK(j["step"] == 50);
+  CHECK(j["steps_in_mean"] == 50);
+  double mean = 0;
+  for (int s = 0; s < 50; ++s) mean += losses[s] / 50;
+  CHECK(j["loss"].get<double>() == doctest::Approx(mean));
+  CHECK(logged_mean == doctest::Approx(mean));
+  CHECK(j["loss"].get<double>() == doctest::Approx(j["event_loss"].get<double>() + j["threshold_loss"].get<double>()));
+  // A resumed run appends.
+  cfg.iterations = 100;
+  train::run(m, f.td, cfg, out, "tiny", "meta");
+  std::ifstream in2(out / "log.jsonl");
+  lines = 0;
+  while (std::getline(in2, line)) ++lines;
+  CHECK(lines == 2);
+  fs::remove_all(out);
+}
+
+TEST_CASE("lazy Adam: a threshold of a slice no step touched keeps its value and its moments") {
+  Fixture f;
+  TrainingData td = f.td;
+  for (std::size_t i = 1; i < td.slice_enabled.size(); ++i) td.slice_enabled[i] = false;  // train slice 0 only
+  Tiny m(td.slices.size(), train::scene_box(td, f.cfg), 7);
+  for (int s = 0; s < 10; ++s) m.train_step(td, 64, 3);
+  CHECK(m.threshold_pos(0) != 0.3f);
+  for (std::size_t i = 1; i < m.n_slices(); ++i) {
+    CHECK(m.threshold_pos(i) == 0.3f);
+    CHECK(m.threshold_neg(i) == -0.3f);
+    CHECK(m.optimizer().m()[m.threshold_offset() + 2 * i] == 0.f);
+  }
+}
+
+TEST_CASE("projected thresholds: learned, never inside the floor, no floor loss") {
+  Fixture f;
+  using M = EvNerf<TinyField, render::Stratified<16>, loss::ProjectedThresholds, loss::DefaultNoise,
+                   loss::WindowInterval<3, loss::HalfSlackCounts>>;
+  M m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-2, 0.9, 0.999, 1e-7, 0.1, 250000});
+  for (int s = 0; s < 40; ++s) {
+    const auto st = m.train_step(f.td, 64, 3);
+    CHECK(st.threshold_loss == 0.0);
+    for (std::size_t i = 0; i < m.n_slices(); ++i) {
+      REQUIRE(m.threshold_pos(i) >= 0.3f);
+      REQUIRE(m.threshold_neg(i) <= -0.3f);  // on this scene the event loss pushes them inwards (joint ones end below)
+    }
   }
 }

@@ -1,4 +1,5 @@
-// evnerf.hpp — umbrella header: everything public in evnerf.
+// evnerf.hpp — umbrella header: everything public in evnerf, the whole pipeline in reading order
+// (data → slices → objective → field → sampler/renderer → model → presets → training → evaluation).
 // Include the family headers directly to keep compile times down.
 #pragma once
 #include "core/error.hpp"
@@ -19,3 +20,19 @@
 #include "io/image_io.hpp"
 #include "io/inspect.hpp"
 #include "io/npy.hpp"
+#include "eval/baselines.hpp"
+#include "eval/metrics.hpp"
+#include "eval/report.hpp"
+#include "events/pixels.hpp"
+#include "loss/event_loss.hpp"
+#include "loss/objective.hpp"
+#include "field/field.hpp"
+#include "render/compositing.hpp"
+#include "render/occupancy.hpp"
+#include "render/sampler.hpp"
+#include "render/scene.hpp"
+#include "model.hpp"
+#include "presets.hpp"
+#include "train/trainer.hpp"
+#include "sim/scene.hpp"
+#include "sim/simulator.hpp"

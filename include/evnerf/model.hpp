@@ -1,7 +1,7 @@
 // model.hpp — EvNerf<Field, Sampler, Thresholds, Noise>: the Ev-NeRF model as a type, its fused
 // training step (per tile of pixels: encode → MLP forward → compositing → event loss → backward → MLP
-// backward, with per-thread gradients reduced in a fixed order), rendering, checkpoints, and the named
-// presets. Depends on everything below it; nothing includes it but train/ and the tools.
+// backward, with per-thread gradients reduced in a fixed order), rendering, checkpoints. The named variants
+// are in presets.hpp. Depends on everything below it.
 #pragma once
 #include <cstring>
 #include <string>
@@ -17,6 +17,7 @@
 #include "geometry/bayer.hpp"
 #include "geometry/camera.hpp"
 #include "geometry/pose.hpp"
+#include "io/checkpoint.hpp"
 #include "loss/event_loss.hpp"
 #include "loss/objective.hpp"
 #include "nn/activation.hpp"
@@ -218,20 +219,30 @@ class EvNerf {
     // initial value; fixed thresholds get no gradient at all).
     for (std::size_t k = 0; k < L; ++k) {
       const std::size_t to = threshold_offset() + 2 * (first + k);
-      if constexpr (ThresholdP::learnable) {
+      if constexpr (ThresholdP::learnable && ThresholdP::lambda > 0) {
         const auto fl = ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init},
                                            std::array<double, 2>{params_.values[to], params_.values[to + 1]});
         st.threshold_loss += ThresholdP::lambda * fl.value;
         params_.grads[to] += static_cast<float>(ThresholdP::lambda * fl.grad[0]);
         params_.grads[to + 1] += static_cast<float>(ThresholdP::lambda * fl.grad[1]);
-      } else {
+      } else if constexpr (!ThresholdP::learnable) {
         params_.grads[to] = params_.grads[to + 1] = 0.f;
       }
     }
     st.loss = st.event_loss + st.threshold_loss;
     st.rays = static_cast<std::size_t>(2 * P);
     if (!std::isfinite(st.loss)) return st;  // the caller stops; parameters stay as they were
-    adam_.update(params_.values, params_.grads);
+    // The field's parameters all move; of the thresholds only the window's slices' (lazy Adam).
+    sw.touched.clear();
+    for (std::size_t k = 0; k < 2 * L; ++k) sw.touched.push_back(threshold_offset() + 2 * first + k);
+    adam_.update(params_.values, params_.grads, threshold_offset(), sw.touched);
+    if constexpr (requires { ThresholdP::projected; })
+      for (std::size_t k = 0; k < L; ++k) {
+        float& bp = params_.values[threshold_offset() + 2 * (first + k)];
+        float& bm = params_.values[threshold_offset() + 2 * (first + k) + 1];
+        bp = std::max(bp, static_cast<float>(ThresholdP::init));
+        bm = std::min(bm, static_cast<float>(-ThresholdP::init));
+      }
     return st;
   }
 
@@ -315,83 +326,56 @@ class EvNerf {
     put_u64(fnv1a64(b));
     return b;
   }
-  /// Restores from serialize()'s bytes; errors name the file and what does not match.
+  /// Restores from serialize()'s bytes (format: io/checkpoint.hpp); errors name the file and what does not
+  /// match. The model changes only when the whole file has been read and checked. An empty `name` accepts
+  /// any variant name (the parameter count and the loss are still checked).
   std::string deserialize(const std::string& b, const std::string& name, const std::string& file) {
-    std::size_t pos = 0;
-    auto fail = [&](const std::string& why) -> void { throw Error(file, 0, "corrupt or mismatched checkpoint: " + why); };
-    if (b.size() < 16 || std::memcmp(b.data(), "EVNERFCK", 8) != 0) fail("not an evnerf checkpoint");
-    std::uint64_t sum = 0;
-    std::memcpy(&sum, b.data() + b.size() - 8, 8);
-    if (sum != fnv1a64(std::string_view(b).substr(0, b.size() - 8))) fail("checksum mismatch (truncated or damaged)");
-    pos = 8;
-    auto get = [&](void* p, std::size_t n) {
-      if (pos + n > b.size() - 8) fail("truncated");
-      std::memcpy(p, b.data() + pos, n);
-      pos += n;
-    };
-    auto get_u64 = [&] {
-      std::uint64_t v = 0;
-      get(&v, 8);
-      return v;
-    };
-    auto get_str = [&] {
-      const auto n = get_u64();
-      if (n > b.size()) fail("bad string length");
-      std::string s(n, '\0');
-      get(s.data(), n);
-      return s;
-    };
-    const auto version = get_u64();
-    if (version < 1 || version > checkpoint_version) fail("unsupported version " + std::to_string(version));
-    const std::string got = get_str();
-    if (got != name) fail("written by preset '" + got + "', loading as '" + name + "'");
-    const auto n = get_u64();
-    n_slices_ = get_u64();
-    if (n != n_fields * field_params + 2 * n_slices_) fail("parameter count does not match this model");
-    std::int64_t step = 0;
-    get(&step, 8);
-    double boxv[6];
-    get(boxv, sizeof boxv);
-    box_.center = Vec3(boxv[0], boxv[1], boxv[2]);
-    box_.scale = boxv[3];
-    box_.near = boxv[4];
-    box_.far = boxv[5];
-    box_.density_length = 1.0;  // versions 1 and 2 measured density per world unit
-    if (version >= 3) {
-      get(&box_.density_length, 8);
-      if (!(box_.density_length > 0) || !std::isfinite(box_.density_length))
-        fail("density length is not a positive number");
-    }
-    load_note_.clear();
-    if (version >= 4) {
-      const std::string loss = get_str();
-      if (loss != loss_description())
-        fail("trained with the loss '" + loss + "', this model's is '" + loss_description() + "'");
+    io::CheckpointReader r(b, file);
+    const io::CheckpointHeader h = io::read_checkpoint_header(r);
+    if (!name.empty() && h.name != name) r.fail("written by preset '" + h.name + "', loading as '" + name + "'");
+    const std::uint64_t n = h.n_params;
+    if (h.n_slices > n || n != n_fields * field_params + 2 * h.n_slices)
+      r.fail("parameter count does not match this model (" + std::to_string(n) + " in the file, " +
+             std::to_string(n_fields * field_params) + " + 2 per slice here)");
+    std::string note;
+    if (h.version >= 4) {
+      if (h.loss != loss_description())
+        r.fail("trained with the loss '" + h.loss + "', this model's is '" + loss_description() + "'");
     } else {
-      load_note_ = file + ": checkpoint version " + std::to_string(version) +
-                   " does not record the loss it was trained with; continuing with '" + loss_description() + "'";
+      note = file + ": checkpoint version " + std::to_string(h.version) +
+             " does not record the loss it was trained with; continuing with '" + loss_description() + "'";
     }
-    params_ = nn::ParameterBuffer<float>(n);
-    adam_ = nn::Adam<float>(n, adam_.config());
-    get(params_.values.data(), n * 4);
-    get(adam_.m().data(), n * 4);
-    get(adam_.v().data(), n * 4);
-    adam_.set_step(step);
-    if (version >= 2) {  // version 2 added the occupancy grid
-      const std::string g = get_str();
+    nn::ParameterBuffer<float> params(n);
+    nn::Adam<float> adam(n, adam_.config());
+    r.get(params.values.data(), n * 4);
+    r.get(adam.m().data(), n * 4);
+    r.get(adam.v().data(), n * 4);
+    adam.set_step(h.step);
+    render::OccupancyGrid grid;
+    if constexpr (has_occupancy) grid = render::OccupancyGrid(SamplerT::grid_res);
+    if (h.version >= 2) {  // version 2 added the occupancy grid
+      const std::string g = r.str();
       if constexpr (has_occupancy) {
-        grid_ = render::OccupancyGrid(SamplerT::grid_res);
-        if (!grid_.deserialize(g)) fail("occupancy grid does not match this model");
+        if (!grid.deserialize(g)) r.fail("occupancy grid does not match this model");
       } else if (!g.empty()) {
-        fail("has an occupancy grid this model does not use");
+        r.fail("has an occupancy grid this model does not use");
       }
-    } else if constexpr (has_occupancy) {
-      grid_ = render::OccupancyGrid(SamplerT::grid_res);
     }
-    return get_str();
+    std::string extra = r.str();
+    box_.center = Vec3(h.box[0], h.box[1], h.box[2]);
+    box_.scale = h.box[3];
+    box_.near = h.box[4];
+    box_.far = h.box[5];
+    box_.density_length = h.density_length;
+    n_slices_ = h.n_slices;
+    params_ = std::move(params);
+    adam_ = std::move(adam);
+    grid_ = std::move(grid);
+    load_note_ = std::move(note);
+    return extra;
   }
-  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description.
-  static constexpr std::uint64_t checkpoint_version = 4;
+  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description (io/checkpoint.hpp).
+  static constexpr std::uint64_t checkpoint_version = io::kCheckpointVersion;
   /// The loss this model trains with, as checkpoints record it: interval policy, threshold policy, noise.
   /// A checkpoint written under another one is refused (resuming would silently change the objective).
   static std::string loss_description() {
@@ -427,7 +411,7 @@ class EvNerf {
     std::vector<std::uint32_t> pixels;
     std::vector<int> npos, nneg;  ///< P × len
     std::vector<NoiseEvent> noise;
-    std::vector<std::size_t> starts;
+    std::vector<std::size_t> starts, touched;
   };
 
   /// The step's window. One slice (max_window = 1): uniform among the trainable slices, as the paper.
@@ -704,45 +688,5 @@ class EvNerf {
   std::vector<int> slot_;
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
 };
-
-// ---- named presets -------------------------------------------------------------------------------------
-namespace presets {
-using namespace nn;
-
-/// The paper's field: Frequency 10/4, 8×256 ReLU trunk with the skip before layer 5, a linear head giving
-/// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs. `Prec` is the networks'
-/// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/bf16.hpp).
-template <int C = 1, int W = 256, class Prec = Fp32>
-using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4, Prec>,
-                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity, -1, Prec>>;
-/// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
-/// spherical harmonics into two 64-wide networks.
-template <int C = 1, class Prec = Fp32>
-using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity, -1, Prec>,
-                               Mlp<15 + 16, 64, 2, C, ReLU, Identity, -1, Prec>>;
-
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Prec = Fp32>
-using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128>, Th, No>;
-/// Fast uses the half-slack interval: with split counts and k = 1 a constant image costs nothing on
-/// pixels with one event, and on sparse or noisy recordings the hash-grid field never leaves it.
-template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = loss::HalfSlackCounts,
-          class Prec = Fp32>
-using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Obj>;
-/// Fast with windows of 1..W slices (measurement presets).
-template <int W, class Pixels = events::UniformPixels>
-using FastWindow = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
-
-using Paper = PaperModel<>;
-using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
-using PaperNoNoiseInjection = PaperModel<loss::JointThresholds, loss::NoNoise>;
-using Fast = FastModel<>;
-using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
-using FastNoNoiseInjection = FastModel<loss::JointThresholds, loss::NoNoise>;
-using FastColour = FastModel<loss::JointThresholds, loss::DefaultNoise, 3>;
-/// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
-/// gradients); checkpoints are interchangeable with the FP32 presets'.
-using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;
-using FastBf16 = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts, Bf16>;
-}  // namespace presets
 
 }  // namespace evnerf

@@ -14,6 +14,19 @@ inline int& thread_count_ref() {
 }
 inline int thread_count() { return thread_count_ref(); }
 inline void set_thread_count(int n) { thread_count_ref() = std::max(1, n); }
+/// Sets the thread count for a scope and restores the caller's on exit (n ≤ 0 leaves it as it is).
+class ScopedThreadCount {
+ public:
+  explicit ScopedThreadCount(int n) : saved_(thread_count()) {
+    if (n > 0) set_thread_count(n);
+  }
+  ~ScopedThreadCount() { set_thread_count(saved_); }
+  ScopedThreadCount(const ScopedThreadCount&) = delete;
+  ScopedThreadCount& operator=(const ScopedThreadCount&) = delete;
+
+ private:
+  int saved_;
+};
 
 /// Calls fn(begin, end, thread) for contiguous blocks of [0, n). The split depends only on n, the thread
 /// count and `min_per_thread`, so per-thread partial results reduce in a fixed order. Below

@@ -75,6 +75,31 @@ class Adam {
       }
     });
   }
+  /// Like update(), but of the entries from `dense_end` on only those listed in `sparse` move, and only
+  /// their moments decay (lazy Adam for parameters a step does not touch: a per-slice threshold that was not
+  /// drawn keeps its value and state instead of coasting on its old momentum).
+  void update(std::vector<T>& values, const std::vector<T>& grads, std::size_t dense_end, const std::vector<std::size_t>& sparse) {
+    require(values.size() == m_.size() && grads.size() == m_.size() && dense_end <= m_.size(), "Adam: parameter count changed");
+    ++step_;
+    const double lr = cfg_.lr * std::pow(cfg_.decay, static_cast<double>(step_ - 1) / cfg_.decay_steps);
+    const double bc1 = 1 - std::pow(cfg_.beta1, static_cast<double>(step_));
+    const double bc2 = 1 - std::pow(cfg_.beta2, static_cast<double>(step_));
+    const T a = static_cast<T>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<T>(cfg_.beta1),
+            b2 = static_cast<T>(cfg_.beta2), eps = static_cast<T>(cfg_.eps * std::sqrt(bc2));
+    auto one = [&](std::size_t i) {
+      const T g = grads[i];
+      m_[i] = b1 * m_[i] + (T(1) - b1) * g;
+      v_[i] = b2 * v_[i] + (T(1) - b2) * g * g;
+      values[i] -= a * m_[i] / (std::sqrt(v_[i]) + eps);
+    };
+    parallel_blocks(dense_end, 1 << 16, [&](std::size_t b, std::size_t e, int) {
+      for (std::size_t i = b; i < e; ++i) one(i);
+    });
+    for (std::size_t i : sparse) {
+      require(i >= dense_end && i < m_.size(), "Adam: sparse index out of range");
+      one(i);
+    }
+  }
   // State access for checkpoints.
   std::vector<T>& m() { return m_; }
   std::vector<T>& v() { return v_; }

@@ -16,6 +16,8 @@
 #include "../io/image_io.hpp"
 #include "../model.hpp"
 
+#include <nlohmann/json.hpp>
+
 namespace evnerf::train {
 
 namespace fs = std::filesystem;
@@ -142,22 +144,37 @@ std::string load_checkpoint(const fs::path& path, Model& m, const std::string& n
 struct RunResult {
   long steps = 0;
   double final_loss = 0, seconds = 0, rays_per_second = 0;
-  bool diverged = false;
+  bool diverged = false, stopped = false;  ///< stopped: the callback asked to stop
+};
+
+/// What the per-step callback sees: the step just taken, its statistics, the period's means (over the
+/// steps since the last log line) when `logged` is true, and the wall time so far.
+struct StepReport {
+  long step = 0;
+  StepStats stats;
+  bool logged = false;
+  double mean_loss = 0, mean_event_loss = 0, mean_threshold_loss = 0;
+  double seconds = 0;
 };
 
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
-/// `out/log.jsonl` and `out/model.ckpt` every checkpoint_every steps and at the end. On a NaN/Inf loss it
-/// stops with a message and leaves the last good checkpoint in place.
-template <class Model>
+/// `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
+/// `log_every` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
+/// every checkpoint_every steps and at the end. On a NaN/Inf loss it stops with a message and leaves the
+/// last good checkpoint in place. `on_step`, when given, is called after every step and may return false
+/// to stop the run (a checkpoint is written first). The caller's thread count is restored on return.
+template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
-              const std::string& meta) {
+              const std::string& meta, OnStep&& on_step = nullptr) {
+  constexpr long log_every = 50;
   fs::create_directories(out);
-  if (cfg.threads > 0) set_thread_count(cfg.threads);
-  std::ofstream log(out / "log.jsonl", std::ios::app);
+  const ScopedThreadCount threads(cfg.threads);
+  std::ofstream log(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
+  if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
   Progress bar(cfg.iterations, "train", cfg.progress);
   RunResult r;
   const double t_start = bar.elapsed();
-  double window_loss = 0;
+  double sum_loss = 0, sum_event = 0, sum_threshold = 0;
   long window = 0;
   std::size_t rays = 0;
   while (model.step() < cfg.iterations) {
@@ -169,27 +186,46 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       break;
     }
     rays += st.rays;
-    window_loss += st.loss;
+    sum_loss += st.loss;
+    sum_event += st.event_loss;
+    sum_threshold += st.threshold_loss;
     ++window;
     r.final_loss = st.loss;
     const long s = model.step();
     const double el = bar.elapsed() - t_start;
     char extra[160];
-    std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", window_loss / window, rays / std::max(el, 1e-9));
+    std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", sum_loss / window, rays / std::max(el, 1e-9));
     bar.update(s, extra);
-    if (s % 50 == 0 || s == cfg.iterations) {
-      log << "{\"step\":" << s << ",\"loss\":" << window_loss / window << ",\"event_loss\":" << st.event_loss
-          << ",\"threshold_loss\":" << st.threshold_loss << ",\"lr\":" << model.optimizer().learning_rate()
-          << ",\"rays_per_s\":" << rays / std::max(el, 1e-9) << ",\"seconds\":" << el;
-      if constexpr (Model::has_occupancy) log << ",\"occupied\":" << model.occupancy().occupied_fraction();
-      log << "}\n";
+    StepReport rep{s, st, false, sum_loss / window, sum_event / window, sum_threshold / window, el};
+    if (s % log_every == 0 || s == cfg.iterations) {
+      rep.logged = true;
+      nlohmann::json j = {{"step", s},
+                          {"loss", rep.mean_loss},
+                          {"event_loss", rep.mean_event_loss},
+                          {"threshold_loss", rep.mean_threshold_loss},
+                          {"steps_in_mean", window},
+                          {"lr", model.optimizer().learning_rate()},
+                          {"rays_per_s", rays / std::max(el, 1e-9)},
+                          {"seconds", el}};
+      if constexpr (Model::has_occupancy) j["occupied"] = model.occupancy().occupied_fraction();
+      log << j.dump() << "\n";
       log.flush();
-      window_loss = 0;
+      sum_loss = sum_event = sum_threshold = 0;
       window = 0;
     }
-    if ((cfg.checkpoint_every > 0 && s % cfg.checkpoint_every == 0) || s == cfg.iterations)
-      save_checkpoint(out / "model.ckpt", model, name, meta);
+    bool go_on = true;
+    if constexpr (!std::is_same_v<std::decay_t<OnStep>, bool (*)(const StepReport&)>) {
+      go_on = on_step(rep);
+    } else {
+      if (on_step) go_on = on_step(rep);
+    }
     ++r.steps;
+    if ((cfg.checkpoint_every > 0 && s % cfg.checkpoint_every == 0) || s == cfg.iterations || !go_on)
+      save_checkpoint(out / "model.ckpt", model, name, meta);
+    if (!go_on) {
+      r.stopped = true;
+      break;
+    }
   }
   r.seconds = bar.elapsed() - t_start;
   r.rays_per_second = rays / std::max(r.seconds, 1e-9);

@@ -1,0 +1,55 @@
+// presets.hpp — the named variants: the paper's model (Paper), the fast hash-grid model (Fast), their
+// ablations and their mixed-precision twins. Each is a type; a variant of your own is another alias of
+// EvNerf in your own code (examples/custom_variant.cpp). Depends on model.hpp.
+#pragma once
+#include "model.hpp"
+
+namespace evnerf {
+
+namespace presets {
+using namespace nn;
+
+/// The paper's field: Frequency 10/4, 8×256 ReLU trunk with the skip before layer 5, a linear head giving
+/// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs. `Prec` is the networks'
+/// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/bf16.hpp).
+template <int C = 1, int W = 256, class Prec = Fp32>
+using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4, Prec>,
+                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity, -1, Prec>>;
+/// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
+/// spherical harmonics into two 64-wide networks.
+template <int C = 1, class Prec = Fp32>
+using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity, -1, Prec>,
+                               Mlp<15 + 16, 64, 2, C, ReLU, Identity, -1, Prec>>;
+
+template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Prec = Fp32>
+using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128>, Th, No>;
+/// The Fast presets' objective: poses 1..24 slices apart (loss::WindowInterval), the half-slack interval
+/// (with split counts and k = 1 a constant image costs nothing on pixels with one event, and on sparse or
+/// noisy recordings the hash-grid field never leaves it), pixels uniform over the sensor. Chosen by
+/// measurement (bench/README.md).
+using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
+/// Fast learns its thresholds jointly, kept beyond the floor by projection (loss::ProjectedThresholds): the
+/// λ = 1000 floor loss fought the event loss for the first few hundred steps of every run.
+template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
+          class Prec = Fp32>
+using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Obj>;
+/// Fast with windows of 1..W slices (measurement presets).
+template <int W, class Pixels = events::UniformPixels, class Th = loss::ProjectedThresholds>
+using FastWindow = FastModel<Th, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
+
+using Paper = PaperModel<>;
+using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
+using PaperNoNoiseInjection = PaperModel<loss::JointThresholds, loss::NoNoise>;
+using Fast = FastModel<>;
+/// Fast with the paper's one-slice objective (the Fast preset before windows; an ablation).
+using FastOneSlice = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts>;
+using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
+using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>;
+using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3>;
+/// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
+/// gradients); checkpoints are interchangeable with the FP32 presets'.
+using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;
+using FastBf16 = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Bf16>;
+}  // namespace presets
+
+}  // namespace evnerf
