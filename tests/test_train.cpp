@@ -466,3 +466,20 @@ TEST_CASE("projected thresholds: learned, never inside the floor, no floor loss"
     }
   }
 }
+
+TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the transmittance where rays stop", Model, Tiny,
+                   TinyWindow) {
+  Fixture f;
+  Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+  for (int s = 0; s < 80; ++s) m.train_step(f.td, 128, 3);
+  const auto dirs = render::pixel_directions(f.td.camera);
+  const auto a = m.render(f.td.camera, dirs, f.td.boundary_poses[1], true);
+  const auto b = m.render(f.td.camera, dirs, f.td.boundary_poses[1], false);
+  double worst = 0, worst_depth = 0;
+  for (std::size_t i = 0; i < a.luminance.data.size(); ++i) worst = std::max(worst, double(std::abs(a.luminance.data[i] - b.luminance.data[i])));
+  for (std::size_t i = 0; i < a.depth.data.size(); ++i) worst_depth = std::max(worst_depth, double(std::abs(a.depth.data[i] - b.depth.data[i])));
+  CAPTURE(worst);
+  CAPTURE(worst_depth);
+  CHECK(worst <= 1.5e-4);
+  CHECK(worst_depth <= 1.5e-4 * f.cfg.far * 1.5);
+}

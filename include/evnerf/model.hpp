@@ -247,12 +247,16 @@ class EvNerf {
   }
 
   /// Renders the full image at `pose` (the fine network where there is one). Parallel over rows.
-  Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose) const {
+  /// With `early_termination` (the default) a ray stops being evaluated once its transmittance falls below
+  /// kEvalTransmittance (checked every kEvalChunk samples): what lies behind changes a pixel by less than that.
+  Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
+                   bool early_termination = true) const {
     Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
                   Image(cam.width(), cam.height(), 1)};
     const int H = cam.height(), W = cam.width();
     parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
       TileWork w;
+      w.early_termination = early_termination;
       std::vector<std::uint32_t> pix(W);
       for (std::size_t y = b; y < e; ++y) {
         for (int x = 0; x < W; ++x) pix[x] = static_cast<std::uint32_t>(y * W + x);
@@ -392,6 +396,12 @@ class EvNerf {
   const std::string& load_note() const { return load_note_; }
   /// Backward early termination (occupancy samplers): samples behind this transmittance get no gradient.
   static constexpr float kMinTransmittance = 1e-4f;
+  /// Forward early termination of evaluation rays (render()): a ray stops behind this transmittance,
+  /// checked every kEvalChunk samples.
+  static constexpr float kEvalTransmittance = 1e-4f;
+  static constexpr int kEvalChunk = 8;
+  /// Raw density given to samples that were not evaluated (skipped cells, terminated rays): α = 0.
+  static constexpr float kSkippedDensity = -1e4f;
 
  private:
   static constexpr int default_tile_pixels() {
@@ -455,6 +465,8 @@ class EvNerf {
     std::vector<int> active;
     std::vector<int> keep;
     std::size_t evaluated = 0;         ///< field evaluations so far
+    bool early_termination = false;    ///< evaluation rays: stop a ray behind transmittance kEvalTransmittance
+    std::vector<float> ray_trans;      ///< evaluation rays: transmittance so far
     std::size_t backward_samples = 0;  ///< samples run backward so far
     std::vector<float> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw;
   };
@@ -477,14 +489,78 @@ class EvNerf {
     }
   }
 
-  /// Forward of one network over R rays × S samples, compositing each ray into comp[r].
+  /// Evaluation forward with early termination: fills w.sig_full (raw density, −1e4 where not evaluated) and
+  /// w.raw_full (R×S×C) chunk by chunk along the rays.
+  void forward_rays_terminating(const float* params, const Vec3* dir, int R, int S, const std::vector<float>& t,
+                                TileWork& w) const {
+    const std::size_t n = static_cast<std::size_t>(R) * S;
+    w.sig_full.assign(n, kSkippedDensity);
+    w.raw_full.assign(n * channels, 0.f);
+    w.ray_trans.assign(static_cast<std::size_t>(R), 1.f);
+    const int stride = FieldT::density_net::out_dims;
+    for (int k0 = 0; k0 < S; k0 += kEvalChunk) {
+      const int k1 = std::min(S, k0 + kEvalChunk);
+      w.active.clear();
+      for (int r = 0; r < R; ++r) {
+        if (w.ray_trans[r] <= kEvalTransmittance) continue;
+        for (int k = k0; k < k1; ++k) {
+          const int i = r * S + k;
+          bool keep = true;
+          if constexpr (has_occupancy) keep = !grid_.active() || grid_.occupied(&w.pts[3 * static_cast<std::size_t>(i)]);
+          if (keep) w.active.push_back(i);
+        }
+      }
+      const int m = static_cast<int>(w.active.size());
+      if (m > 0) {
+        w.cpts.resize(3 * static_cast<std::size_t>(m));
+        w.cdirs.resize(3 * static_cast<std::size_t>(m));
+        for (int j = 0; j < m; ++j)
+          for (int d = 0; d < 3; ++d) {
+            w.cpts[3 * static_cast<std::size_t>(j) + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
+            w.cdirs[3 * static_cast<std::size_t>(j) + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
+          }
+        const float *sg = nullptr, *rw = nullptr;
+        FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sg, &rw);
+        w.evaluated += static_cast<std::size_t>(m);
+        for (int j = 0; j < m; ++j) {
+          const std::size_t i = static_cast<std::size_t>(w.active[j]);
+          w.sig_full[i] = sg[static_cast<std::size_t>(j) * stride];
+          for (int c = 0; c < channels; ++c) w.raw_full[i * channels + c] = rw[static_cast<std::size_t>(j) * channels + c];
+        }
+      }
+      // Transmittance after this chunk (as composite_forward computes it).
+      bool alive = false;
+      for (int r = 0; r < R; ++r) {
+        if (w.ray_trans[r] <= kEvalTransmittance) continue;
+        const double dn = dir[r].norm() / box_.density_length;
+        for (int k = k0; k < k1; ++k) {
+          const std::size_t i = static_cast<std::size_t>(r) * S + k;
+          const double delta = k + 1 < S ? double(t[i + 1] - t[i]) * dn : 1e10;
+          const double alpha = 1.0 - std::exp(-(FieldT::density_activation::f(w.sig_full[i]) * delta));
+          w.ray_trans[r] *= static_cast<float>(1.0 - alpha + 1e-10);
+        }
+        alive = alive || w.ray_trans[r] > kEvalTransmittance;
+      }
+      if (!alive) break;
+    }
+  }
+
+  /// Forward of one network over R rays × S samples, compositing each ray into comp[r]. Training rays
+  /// (noise given) evaluate every sample the sampler keeps; evaluation rays with w.early_termination go
+  /// kEvalChunk samples at a time and stop where the transmittance has fallen below kEvalTransmittance.
   void forward_rays(int net, const Vec3* dir, int R, int S, const std::vector<float>& t, const float* noise,
                     TileWork& w, std::vector<render::RayComposite<float>>& comp) const {
     const float* params = params_.values.data() + net * field_params;
     const float *sigma = nullptr, *raw = nullptr;
     int stride = FieldT::density_net::out_dims;
+    if (!noise && w.early_termination) {
+      forward_rays_terminating(params, dir, R, S, t, w);
+      sigma = w.sig_full.data();
+      raw = w.raw_full.data();
+      stride = 1;
+    }
     if constexpr (has_occupancy) {
-      if (grid_.active()) {
+      if (!sigma && grid_.active()) {
         const int n = R * S;
         w.active.clear();
         for (int i = 0; i < n; ++i)
@@ -497,7 +573,7 @@ class EvNerf {
             w.cpts[3 * static_cast<std::size_t>(j) + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
             w.cdirs[3 * static_cast<std::size_t>(j) + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
           }
-        w.sig_full.assign(static_cast<std::size_t>(n), -1e4f);
+        w.sig_full.assign(static_cast<std::size_t>(n), kSkippedDensity);
         w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
         w.evaluated += static_cast<std::size_t>(m);
         if (m > 0) {
