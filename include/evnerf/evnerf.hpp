@@ -28,6 +28,7 @@
 #include "loss/objective.hpp"
 #include "field/field.hpp"
 #include "render/compositing.hpp"
+#include "render/novel.hpp"
 #include "render/occupancy.hpp"
 #include "render/sampler.hpp"
 #include "render/scene.hpp"

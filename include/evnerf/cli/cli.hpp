@@ -1,0 +1,409 @@
+// cli/cli.hpp — the whole command line (inspect, simulate, baselines, train, render, eval) for any list of
+// variants, so that a researcher's own variant gets it from a program of a few lines:
+//
+//   #include <evnerf/cli/cli.hpp>
+//   using Mine = evnerf::EvNerf<...>;
+//   int main(int argc, char** argv) {
+//     return evnerf::cli::main<evnerf::cli::Variant<Mine, "mine">, evnerf::cli::Variant<evnerf::presets::Fast, "fast">>(argc, argv);
+//   }
+//
+// The first variant is `train`'s default. Built on CLI11 (flags, --help, number validation), nlohmann::json
+// (metrics) and fmt (messages). Not included by the umbrella header: only programs that want the command
+// line pay for CLI11. Depends on everything.
+#pragma once
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include "../evnerf.hpp"
+
+namespace evnerf::cli {
+
+namespace fs = std::filesystem;
+
+/// A string usable as a template argument (a variant's name).
+template <std::size_t N>
+struct Name {
+  char s[N]{};
+  constexpr Name(const char (&a)[N]) { std::copy_n(a, N, s); }
+};
+
+/// A model type and the name the command line knows it by.
+template <class Model, Name N>
+struct Variant {
+  using model = Model;
+  static constexpr const char* name = N.s;
+};
+
+/// Calls fn.template operator()<Model>(name) for the variant called `name`.
+template <class... V, class Fn>
+int with_variant(const std::string& name, Fn&& fn) {
+  int result = 0;
+  const bool found = ((name == V::name ? (result = fn.template operator()<typename V::model>(std::string(V::name)), true) : false) || ...);
+  if (!found) {
+    std::string known;
+    ((known += (known.empty() ? "" : ", ") + std::string(V::name)), ...);
+    throw Error("unknown variant '" + name + "' (this program has: " + known + ")");
+  }
+  return result;
+}
+
+/// The variant that can load a checkpoint: the one named in the file when its parameter count and loss
+/// match, else the first whose parameter count and loss match (a file written under an older name).
+template <class... V>
+std::string checkpoint_variant(const fs::path& path) {
+  const auto h = io::peek_checkpoint(path);
+  auto fits = [&]<class Model>() {
+    const bool params = h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices;
+    return params && (h.version < 4 || h.loss == Model::loss_description());
+  };
+  std::string pick;
+  ((pick.empty() && h.name == V::name && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
+  ((pick.empty() && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
+  if (pick.empty())
+    throw Error(path.string(), 0, "written by variant '" + h.name + "' with the loss '" + h.loss +
+                                      "', which no variant of this program matches");
+  return pick;
+}
+
+namespace detail {
+
+/// Frames of a recording that lie strictly inside (lo, hi] (where event methods can work).
+inline std::vector<std::size_t> frames_inside(const io::Dataset& d, double lo, double hi) {
+  std::vector<std::size_t> ids;
+  for (std::size_t i = 0; i < d.frames.size(); ++i)
+    if (d.frames.t[i] > lo + 1e-9 && d.frames.t[i] <= hi + 1e-9) ids.push_back(i);
+  return ids;
+}
+
+inline void print_table(const eval::AlignedScores& a, const std::vector<std::size_t>& subset = {}) {
+  fmt::print("{:<22} {:>10} {:>10} {:>10}   (alignment: {})\n", "method", "MSE", "PSNR", "SSIM", eval::to_string(a.alignment));
+  for (std::size_t m = 0; m < a.names.size(); ++m) {
+    std::vector<eval::Scores> s;
+    if (subset.empty()) {
+      s = a.per_frame[m];
+    } else {
+      for (auto q : subset) s.push_back(a.per_frame[m][q]);
+    }
+    const auto mean = eval::mean(s);
+    fmt::print("{:<22} {:>10.5f} {:>10.3f} {:>10.4f}\n", a.names[m], mean.mse, mean.psnr, mean.ssim);
+  }
+}
+
+/// The requested alignment first, then the others of global-log-affine, log-affine and min-max.
+inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
+  const auto first = eval::parse_alignment(flag);
+  std::vector<eval::Alignment> all{first};
+  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax})
+    if (al != first) all.push_back(al);
+  return all;
+}
+
+/// The baselines' reconstructions at the given frames.
+inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast) {
+  std::vector<double> times;
+  for (auto i : ids) times.push_back(d.frames.t[i]);
+  return {{"direct_integration", eval::direct_integration(d.events, times, contrast)},
+          {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
+}
+
+/// Scores under every alignment (the first is the primary), prints the tables and returns metrics.json.
+inline nlohmann::json score_and_report(const std::vector<eval::Method>& methods, const std::vector<Image>& gts,
+                                       const std::vector<eval::Alignment>& als, const std::vector<std::size_t>& ids,
+                                       eval::AlignedScores& primary) {
+  primary = eval::score_methods(methods, gts, als.front(), true);
+  std::vector<eval::AlignedScores> others;
+  for (std::size_t k = 1; k < als.size(); ++k) others.push_back(eval::score_methods(methods, gts, als[k]));
+  print_table(primary);
+  for (const auto& o : others) print_table(o);
+  return eval::metrics_json(primary, others, ids);
+}
+
+inline void write_rendering(const fs::path& out, const std::string& stem, const Rendering& r, float dlo, float dhi) {
+  io::write_png(out / (stem + ".png"), r.luminance);
+  io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
+  io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
+               {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
+}
+
+const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
+                               "sequence), log-affine (per image), min-max, none";
+
+}  // namespace detail
+
+/// The command line over the variants V... (the first is train's default). Returns the process exit code:
+/// 0 success, 1 an error (printed), 2 a usage error (printed with the command's flags), 3 training diverged.
+template <class... V>
+int main(int argc, char** argv, const std::string& description = "evnerf: neural radiance fields from event cameras") {
+  static_assert(sizeof...(V) >= 1, "cli::main needs at least one variant");
+  using namespace detail;
+  std::string variant_list;
+  ((variant_list += (variant_list.empty() ? "" : ", ") + std::string(V::name)), ...);
+  const std::string default_variant = std::get<0>(std::tuple<V...>{}).name;
+
+  CLI::App app{description};
+  app.require_subcommand(1);
+  app.fallthrough(false);
+
+  // inspect
+  std::string folder;
+  auto* inspect = app.add_subcommand("inspect", "summary of a recording (IJRR layout): sensor, events, frames, poses, warnings");
+  inspect->add_option("folder", folder, "recording folder")->required();
+
+  // simulate
+  std::string scene;
+  fs::path out;
+  sim::SensorConfig sc;
+  bool realistic = false, bayer = false, hdr = false;
+  std::uint64_t sim_seed = 1;
+  int width = sc.width, height = sc.height;
+  double focal = 0;
+  auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
+  simulate->add_option("scene", scene, "built-in scene (planes, object, room) or a scene description file")->required();
+  simulate->add_option("--out", out, "output folder")->required();
+  simulate->add_flag("--realistic", realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
+  simulate->add_flag("--bayer", bayer, "colour sensor: RGGB mosaic in front of the event pixels");
+  simulate->add_flag("--hdr", hdr, "high dynamic range lighting (exposure ×3)");
+  simulate->add_option("--seed", sim_seed, "random seed")->capture_default_str();
+  simulate->add_option("--noise-rate", sc.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
+  simulate->add_option("--noise-ratio", sc.noise_ratio, "uniform random events added, as a fraction of the signal events")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  simulate->add_option("--width", width, "sensor width (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--height", height, "sensor height (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--focal", focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
+
+  // baselines
+  std::string align = "global-log-affine";
+  double contrast = 0.2;
+  fs::path baselines_out;
+  auto* baselines = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
+  baselines->add_option("folder", folder, "recording folder")->required();
+  baselines->add_option("--out", baselines_out, "output folder (default: <folder>/baselines)");
+  baselines->add_option("--align", align, kAlignHelp)->capture_default_str();
+  baselines->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+
+  // train
+  train::Config cfg;
+  std::string variant = default_variant;
+  bool resume = false, quiet = false;
+  auto* trainc = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
+  trainc->add_option("folder", folder, "recording folder")->required();
+  trainc->add_option("--out", out, "output folder")->required();
+  trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
+  trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
+  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at both poses)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1 << 22));
+  trainc->add_option("--seed", cfg.seed, "random seed")->capture_default_str();
+  trainc->add_option("--threads", cfg.threads, "threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 4096));
+  trainc->add_option("--near", cfg.near, "nearest sample depth (world units)")->capture_default_str()->check(CLI::PositiveNumber);
+  trainc->add_option("--far", cfg.far, "farthest sample depth (world units)")->capture_default_str()->check(CLI::PositiveNumber);
+  trainc->add_option("--lr", cfg.lr, "Adam learning rate")->capture_default_str()->check(CLI::PositiveNumber);
+  trainc->add_option("--lr-decay-steps", cfg.lr_decay_steps, "steps over which the learning rate decays by 10×")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  trainc->add_option("--holdout", cfg.holdout_every, "hold out every K-th slice boundary (novel views; 0 = none)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  trainc->add_flag("--clamp-poses", cfg.clamp_poses, "slice boundaries outside the poses take the nearest pose");
+  trainc->add_flag("--density-per-box", cfg.density_per_box, "density per unit of the normalised scene box, not per world unit");
+  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
+  trainc->add_flag("--quiet", quiet, "no progress bar");
+
+  // render
+  fs::path ckpt;
+  int novel = 8;
+  auto* renderc = app.add_subcommand("render", "intensity and depth at every slice boundary and along a novel path");
+  renderc->add_option("checkpoint", ckpt, "model.ckpt")->required();
+  renderc->add_option("--out", out, "output folder")->required();
+  renderc->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
+
+  // eval
+  int holdout = 0;
+  auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
+  evalc->add_option("checkpoint", ckpt, "model.ckpt")->required();
+  evalc->add_option("folder", folder, "recording folder")->required();
+  evalc->add_option("--out", out, "output folder")->required();
+  evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
+  evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints the help, or the message and a pointer to --help
+    return code == 0 ? 0 : 2;
+  }
+  const std::string cmd = app.get_subcommands().front()->get_name();
+  try {
+    if (*inspect) {
+      auto d = io::load_ijrr(folder);
+      fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
+      std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
+      return 0;
+    }
+    if (*simulate) {
+      auto spec = sim::load_scene(scene);
+      sim::SensorConfig cfg_s = realistic ? sim::SensorConfig::realistic() : sim::SensorConfig{};
+      cfg_s.noise_rate = sc.noise_rate;
+      cfg_s.noise_ratio = sc.noise_ratio;
+      cfg_s.bayer = bayer;
+      if (hdr) {
+        cfg_s.hdr = true;
+        cfg_s.exposure = 3.0;
+      }
+      cfg_s.seed = sim_seed;
+      cfg_s.fx = cfg_s.fy = focal > 0 ? focal : cfg_s.fx * width / 240.0;
+      cfg_s.width = width;
+      cfg_s.height = height;
+      cfg_s.cx = cfg_s.cy = -1;
+      const auto t0 = std::chrono::steady_clock::now();
+      auto rec = sim::Simulator(spec, cfg_s).run(true);
+      sim::write_recording(out, rec);
+      const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", spec.scene.name,
+                 rec.events.size(), rec.events.count_positive(), spec.path.duration, rec.frames.size(), rec.renders, secs,
+                 out.string());
+      return 0;
+    }
+    if (*baselines) {
+      const auto d = io::load_ijrr(folder);
+      const auto als = alignments_from(align);
+      const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
+      require(!ids.empty(), folder + ": no frames inside the events' time span");
+      std::vector<Image> gts;
+      for (auto i : ids) gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+      eval::AlignedScores primary;
+      const auto j = score_and_report(baseline_methods(d, ids, contrast), gts, als, ids, primary);
+      const fs::path bo = baselines_out.empty() ? fs::path(folder) / "baselines" : baselines_out;
+      write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
+      const std::size_t mid = ids.size() / 2;
+      io::write_png(bo / "montage.png", io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid]}));
+      fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
+      return 0;
+    }
+    if (*trainc) {
+      cfg.progress = !quiet;
+      require(cfg.far > cfg.near, "train: --far must be greater than --near");
+      const auto d = io::load_ijrr(folder);
+      const auto td = train::prepare(d, cfg);
+      const std::string meta = train::describe(td, fs::absolute(folder).string());
+      return with_variant<V...>(variant, [&]<class Model>(const std::string& name) {
+        const nn::AdamConfig ac = train::adam_config(cfg);
+        Model model(td.slices.size(), train::scene_box(td, cfg), cfg.seed, ac);
+        if (resume && fs::exists(out / "model.ckpt")) {
+          train::load_checkpoint(out / "model.ckpt", model, name);
+          if (!model.load_note().empty()) fmt::print(stderr, "warning: {}\n", model.load_note());
+          model.optimizer().set_config(ac);
+          fmt::print(stderr, "resuming {} at step {}\n", name, model.step());
+        }
+        fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), d.events.size(),
+                   cfg.threads > 0 ? cfg.threads : thread_count());
+        const auto r = train::run(model, td, cfg, out, name, meta);
+        fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
+                   r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (out / "model.ckpt").string());
+        return r.diverged ? 3 : 0;
+      });
+    }
+    if (*renderc) {
+      return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string&) {
+        Model model;
+        const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
+        const auto dirs = render::pixel_directions(desc.camera);
+        const float dlo = float(model.box().near), dhi = float(model.box().far * 0.6);
+        for (std::size_t i = 0; i < desc.poses.size(); ++i)
+          write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.camera, dirs, desc.poses[i]), dlo, dhi);
+        for (int k = 0; k < novel; ++k)
+          write_rendering(out, fmt::format("novel_{:04d}", k),
+                          model.render(desc.camera, dirs, render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)), dlo, dhi);
+        fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
+                   out.string());
+        return 0;
+      });
+    }
+    if (*evalc) {
+      const auto d = io::load_ijrr(folder);
+      const auto als = alignments_from(align);
+      return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
+        Model model;
+        const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
+        require(desc.camera.width() == d.camera.width() && desc.camera.height() == d.camera.height(),
+                "eval: the checkpoint's camera does not match the recording's sensor size");
+        // Frames at the trained slice boundaries (the first boundary has no events before it: skipped).
+        const auto ids = frames_inside(d, desc.times.front(), desc.times.back());
+        require(!ids.empty(), "eval: no frames inside the trained time range");
+        const auto dirs = render::pixel_directions(d.camera);
+        eval::Method ours{"evnerf_" + name, {}};
+        std::vector<Image> gts, depths;
+        const auto t0 = std::chrono::steady_clock::now();
+        for (auto i : ids) {
+          const double t = d.frames.t[i];
+          const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
+          const auto r = model.render(d.camera, dirs, pose);
+          ours.images.push_back(eval::to_grey(r.luminance));
+          gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+          depths.push_back(r.depth);
+          write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.box().near), float(model.box().far * 0.6));
+        }
+        const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / ids.size();
+        auto methods = baseline_methods(d, ids, 0.2);
+        methods.insert(methods.begin(), ours);
+        eval::AlignedScores primary;
+        nlohmann::json j = score_and_report(methods, gts, als, ids, primary);
+        j["seconds_per_render"] = render_s;
+        // Depth against simulated ground truth, where the recording has it (median scale alignment).
+        if (d.depth.size() == d.frames.size()) {
+          std::vector<std::vector<float>> gtd;
+          for (auto i : ids) gtd.push_back(io::load_npy<float>(d.depth[i]).data);
+          const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.box().far);
+          if (std::isfinite(absrel)) j["depth_absrel_median_scaled"] = absrel;
+        }
+        // Novel views: with --holdout K (as given to train), the frames at every K-th boundary were never
+        // trained on (both slices touching them were held out); their scores are reported on their own.
+        std::vector<std::size_t> pick;  // positions in ids
+        if (holdout > 0) {
+          for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))
+            for (std::size_t q = 0; q < ids.size(); ++q)
+              if (std::abs(d.frames.t[ids[q]] - desc.times[k]) < 1e-9) pick.push_back(q);
+          require(!pick.empty(), "eval: --holdout " + std::to_string(holdout) + " selects no frame of this recording");
+          std::vector<std::size_t> frames;
+          for (auto q : pick) frames.push_back(ids[q]);
+          j["heldout"] = {{"every", holdout}, {"frames", frames}, {"methods", eval::methods_json(primary, false, pick)}};
+        }
+        write_file_atomic(out / "metrics.json", j.dump(2) + "\n");
+        const std::size_t mid = ids.size() / 2;
+        io::write_png(out / "montage.png",
+                      io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}));
+        if (!pick.empty()) {
+          fmt::print("held-out frames only ({}, novel views):\n", pick.size());
+          print_table(primary, pick);
+        }
+        fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
+                   "high-pass filter), renders/\n",
+                   render_s, d.camera.width(), d.camera.height(), out.string());
+        return 0;
+      });
+    }
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "evnerf {}: error: {}\n", cmd, e.what());
+    return 1;
+  }
+  return 2;
+}
+
+}  // namespace evnerf::cli
