@@ -489,6 +489,18 @@ class EvNerf {
     }
   }
 
+  /// Packs the points and directions of the samples listed in w.active into w.cpts / w.cdirs.
+  static void gather_active(TileWork& w) {
+    const std::size_t m = w.active.size();
+    w.cpts.resize(3 * m);
+    w.cdirs.resize(3 * m);
+    for (std::size_t j = 0; j < m; ++j)
+      for (int d = 0; d < 3; ++d) {
+        w.cpts[3 * j + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
+        w.cdirs[3 * j + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
+      }
+  }
+
   /// Evaluation forward with early termination: fills w.sig_full (raw density, −1e4 where not evaluated) and
   /// w.raw_full (R×S×C) chunk by chunk along the rays.
   void forward_rays_terminating(const float* params, const Vec3* dir, int R, int S, const std::vector<float>& t,
@@ -512,13 +524,7 @@ class EvNerf {
       }
       const int m = static_cast<int>(w.active.size());
       if (m > 0) {
-        w.cpts.resize(3 * static_cast<std::size_t>(m));
-        w.cdirs.resize(3 * static_cast<std::size_t>(m));
-        for (int j = 0; j < m; ++j)
-          for (int d = 0; d < 3; ++d) {
-            w.cpts[3 * static_cast<std::size_t>(j) + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
-            w.cdirs[3 * static_cast<std::size_t>(j) + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
-          }
+        gather_active(w);
         const float *sg = nullptr, *rw = nullptr;
         FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sg, &rw);
         w.evaluated += static_cast<std::size_t>(m);
@@ -566,13 +572,7 @@ class EvNerf {
         for (int i = 0; i < n; ++i)
           if (grid_.occupied(&w.pts[3 * static_cast<std::size_t>(i)])) w.active.push_back(i);
         const int m = static_cast<int>(w.active.size());
-        w.cpts.resize(3 * static_cast<std::size_t>(m));
-        w.cdirs.resize(3 * static_cast<std::size_t>(m));
-        for (int j = 0; j < m; ++j)
-          for (int d = 0; d < 3; ++d) {
-            w.cpts[3 * static_cast<std::size_t>(j) + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
-            w.cdirs[3 * static_cast<std::size_t>(j) + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
-          }
+        gather_active(w);
         w.sig_full.assign(static_cast<std::size_t>(n), kSkippedDensity);
         w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
         w.evaluated += static_cast<std::size_t>(m);

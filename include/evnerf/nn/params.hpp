@@ -58,23 +58,7 @@ class Adam {
   void set_config(const AdamConfig& c) { cfg_ = c; }
 
   /// One update of `values` from `grads` (bias-corrected moments).
-  void update(std::vector<T>& values, const std::vector<T>& grads) {
-    require(values.size() == m_.size() && grads.size() == m_.size(), "Adam: parameter count changed");
-    ++step_;
-    const double lr = cfg_.lr * std::pow(cfg_.decay, static_cast<double>(step_ - 1) / cfg_.decay_steps);
-    const double bc1 = 1 - std::pow(cfg_.beta1, static_cast<double>(step_));
-    const double bc2 = 1 - std::pow(cfg_.beta2, static_cast<double>(step_));
-    const T a = static_cast<T>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<T>(cfg_.beta1),
-            b2 = static_cast<T>(cfg_.beta2), eps = static_cast<T>(cfg_.eps * std::sqrt(bc2));
-    parallel_blocks(values.size(), 1 << 16, [&](std::size_t b, std::size_t e, int) {
-      for (std::size_t i = b; i < e; ++i) {
-        const T g = grads[i];
-        m_[i] = b1 * m_[i] + (T(1) - b1) * g;
-        v_[i] = b2 * v_[i] + (T(1) - b2) * g * g;
-        values[i] -= a * m_[i] / (std::sqrt(v_[i]) + eps);
-      }
-    });
-  }
+  void update(std::vector<T>& values, const std::vector<T>& grads) { update(values, grads, values.size(), {}); }
   /// Like update(), but of the entries from `dense_end` on only those listed in `sparse` move, and only
   /// their moments decay (lazy Adam for parameters a step does not touch: a per-slice threshold that was not
   /// drawn keeps its value and state instead of coasting on its old momentum).
