@@ -4,6 +4,7 @@
 // applied by the compositor). Depends on nn/ only.
 #pragma once
 #include <algorithm>
+#include <type_traits>
 #include <vector>
 
 #include "../nn/encoding.hpp"
@@ -55,6 +56,11 @@ struct Field {
   static_assert(DensityNet::out_dims >= 2, "Field: DensityNet must output a density and at least one feature.");
   static_assert(ColorNet::in_dims == DensityNet::out_dims - 1 + DirEnc::out_dims,
                 "Field: ColorNet's input width must equal DensityNet's features plus the direction encoding.");
+  static_assert(std::is_same_v<typename ColorNet::output_activation, nn::Identity>,
+                "Field: ColorNet must end in nn::Identity: the compositor applies the sigmoid to its raw output "
+                "(another output activation would apply one twice).");
+  static_assert(std::is_same_v<typename DensityNet::output_activation, nn::Identity>,
+                "Field: DensityNet must end in nn::Identity: the density activation is the Field's DensityAct parameter.");
 
   using pos_encoding = PosEnc;
   using dir_encoding = DirEnc;
