@@ -678,6 +678,7 @@ class EvNerf {
         return;
       }
     }
+    w.backward_samples += static_cast<std::size_t>(R) * S;
     FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
   }
 

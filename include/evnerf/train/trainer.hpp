@@ -220,7 +220,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     StepReport rep{s, st, false, sum_loss / window, sum_event / window, sum_threshold / window, el};
     if (s % log_every == 0 || s == cfg.iterations) {
       rep.logged = true;
-      nlohmann::json j = {{"step", s},
+      nlohmann::ordered_json j = {{"step", s},
                           {"loss", rep.mean_loss},
                           {"event_loss", rep.mean_event_loss},
                           {"threshold_loss", rep.mean_threshold_loss},
