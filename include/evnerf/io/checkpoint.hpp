@@ -7,6 +7,7 @@
 // occupancy grid, 3 the density length, 4 the loss. EvNerf::serialize writes it; EvNerf::deserialize and
 // the command line (which variant wrote this file?) read it through this header. Depends on core/ only.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>

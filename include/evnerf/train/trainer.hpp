@@ -89,10 +89,6 @@ inline nn::AdamConfig adam_config(const Config& cfg) {
   ac.decay_steps = cfg.lr_decay_steps;
   return ac;
 }
-/// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
-template <class Model>
-Model make_model(const TrainingData& td, const Config& cfg);
-
 /// Scene box from the boundary poses and near/far.
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
@@ -102,6 +98,7 @@ inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   return box;
 }
 
+/// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
   return Model(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
