@@ -3,7 +3,6 @@
 // backward, with per-thread gradients reduced in a fixed order), rendering, checkpoints. The named variants
 // are in presets.hpp. Depends on everything below it.
 #pragma once
-#include <cstring>
 #include <string>
 #include <vector>
 
@@ -144,22 +143,13 @@ class EvNerf {
     draw_window(data, rng, sw);
     const std::size_t first = sw.first, L = sw.len;
     const std::size_t hw = data.slices.slices[first].pixels();
-    // Noise events (Ev-NeRF's injection, redrawn at every step): ratio × the window's count, pixels uniform
-    // over the sensor, polarity ±1 with probability ½, each in a uniformly drawn slice of the window. Drawn
-    // before the pixels, in the order events::inject_noise draws them.
+    // Noise events (Ev-NeRF's injection, redrawn at every step): ratio × the window's count, each in a
+    // random slice of the window. Drawn before the pixels, so a one-slice step draws as inject_noise does.
     sw.noise.clear();
     if constexpr (NoiseP::ratio > 0) {
       std::size_t total = 0;
       for (std::size_t k = 0; k < L; ++k) total += data.slices.slices[first + k].total;
-      const auto n = static_cast<std::size_t>(std::llround(NoiseP::ratio * static_cast<double>(total)));
-      sw.noise.reserve(n);
-      for (std::size_t k = 0; k < n; ++k) {
-        NoiseEvent e;
-        e.pixel = static_cast<std::uint32_t>(rng.below(hw));
-        e.positive = (rng.next_u64() & 1) != 0;
-        e.slice = L > 1 ? static_cast<std::uint32_t>(rng.below(L)) : 0u;
-        sw.noise.push_back(e);
-      }
+      events::draw_noise(total, NoiseP::ratio, hw, L, rng, sw.noise);
     }
     // Pixels, by the objective's pixel policy.
     if (taken_.size() != hw) taken_.assign(hw, 0);
@@ -410,17 +400,12 @@ class EvNerf {
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
 
-  /// One noise event of a step: pixel, slice within the window, polarity.
-  struct NoiseEvent {
-    std::uint32_t pixel = 0, slice = 0;
-    bool positive = false;
-  };
   /// A step's window and what its pixels saw there (the per-slice counts, noise included).
   struct StepWindow {
     std::size_t first = 0, len = 1;
     std::vector<std::uint32_t> pixels;
     std::vector<int> npos, nneg;  ///< P × len
-    std::vector<NoiseEvent> noise;
+    std::vector<events::NoiseEvent> noise;
     std::vector<std::size_t> starts, touched;
   };
 

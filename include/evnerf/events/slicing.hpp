@@ -99,21 +99,42 @@ struct CountPrefix {
   std::int32_t window_neg(std::size_t a, std::size_t b, std::size_t p) const { return neg[b * hw + p] - neg[a * hw + p]; }
 };
 
-/// Adds round(ratio × slice.total) random events: pixels uniform over the sensor, polarity ±1 with
-/// probability ½ each (Ev-NeRF's noise injection; ratio 0.05 in training). Returns the noisy copy.
-inline SliceCounts inject_noise(const SliceCounts& s, double ratio, Rng& rng) {
+/// One injected noise event: pixel, slice within the window it was drawn for, polarity.
+struct NoiseEvent {
+  std::uint32_t pixel = 0, slice = 0;
+  bool positive = false;
+};
+
+/// Ev-NeRF's noise injection, drawn: round(ratio × count) events, pixels uniform over `hw` pixels,
+/// polarity ±1 with probability ½, each in a uniformly drawn slice of a window of `window` slices (no draw
+/// when the window is one slice). `out` is cleared first.
+inline void draw_noise(std::size_t count, double ratio, std::size_t hw, std::size_t window, Rng& rng, std::vector<NoiseEvent>& out) {
   require(ratio >= 0 && std::isfinite(ratio), "inject_noise: ratio must be finite and non-negative");
-  SliceCounts out = s;
-  const auto n = static_cast<std::size_t>(std::llround(ratio * static_cast<double>(s.total)));
-  const std::size_t hw = s.pixels();
+  out.clear();
+  const auto n = static_cast<std::size_t>(std::llround(ratio * static_cast<double>(count)));
+  out.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
-    const auto pix = static_cast<std::size_t>(rng.below(hw));
-    auto& c = (rng.next_u64() & 1) ? out.pos[pix] : out.neg[pix];
+    NoiseEvent e;
+    e.pixel = static_cast<std::uint32_t>(rng.below(hw));
+    e.positive = (rng.next_u64() & 1) != 0;
+    e.slice = window > 1 ? static_cast<std::uint32_t>(rng.below(window)) : 0u;
+    out.push_back(e);
+  }
+}
+
+/// Adds round(ratio × slice.total) random events (draw_noise; ratio 0.05 in training). Returns the noisy
+/// copy; counts saturate at int16 max.
+inline SliceCounts inject_noise(const SliceCounts& s, double ratio, Rng& rng) {
+  std::vector<NoiseEvent> noise;
+  draw_noise(s.total, ratio, s.pixels(), 1, rng, noise);
+  SliceCounts out = s;
+  for (const auto& e : noise) {
+    auto& c = e.positive ? out.pos[e.pixel] : out.neg[e.pixel];
     if (c < INT16_MAX) ++c;
   }
-  out.total += n;
+  out.total += noise.size();
   out.active.clear();
-  for (std::size_t p = 0; p < hw; ++p)
+  for (std::size_t p = 0; p < s.pixels(); ++p)
     if (out.pos[p] || out.neg[p]) out.active.push_back(static_cast<std::uint32_t>(p));
   return out;
 }
