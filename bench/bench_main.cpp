@@ -228,7 +228,7 @@ const Model& warmed_model() {
     const auto& td = bench_data();
     train::Config cfg;
     Model w(td.slices.size(), train::scene_box(td, cfg), 1, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
-    if constexpr (render::has_occupancy<typename Model::sampler_type>())
+    if constexpr (Model::sampler_type::skips_samples)
       for (int s = 0; s < Model::sampler_type::warmup_steps + 2 * Model::sampler_type::update_interval; ++s)
         w.train_step(td, 1024, 1);
     return w;
@@ -248,8 +248,8 @@ void BM_train_step(benchmark::State& st) {
   st.counters["rays_per_s"] = benchmark::Counter(2048, benchmark::Counter::kIsIterationInvariantRate);
   st.counters["samples_per_ray"] = samples / static_cast<double>(st.iterations()) / 2048;
   st.counters["backward_per_ray"] = backward / static_cast<double>(st.iterations()) / 2048;
-  if constexpr (render::has_occupancy<typename Model::sampler_type>())
-    st.counters["occupied"] = m.occupancy().occupied_fraction();
+  if constexpr (Model::sampler_type::skips_samples)
+    st.counters["occupied"] = m.sampler().occupied_fraction();
 }
 /// The same step with every sample evaluated (a fresh model: the grid is not active yet).
 template <class Model>

@@ -207,8 +207,8 @@ TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, 
   const auto box = train::scene_box(f.td, f.cfg);
   TinyOcc a(f.td.slices.size(), box, 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   for (int s = 0; s < 60; ++s) REQUIRE(std::isfinite(a.train_step(f.td, 256, 3).loss));
-  REQUIRE(a.occupancy().active());
-  const double frac = a.occupancy().occupied_fraction();
+  REQUIRE(a.sampler().skipping());
+  const double frac = a.sampler().occupied_fraction();
   MESSAGE("occupied fraction after 60 steps: ", frac);
   CHECK(frac < 0.9);
   // The same parameters without a grid (fresh model: grid inactive) render almost the same image.
@@ -230,7 +230,7 @@ TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, 
     c.train_step(f.td, 128, 3);
   }
   CHECK(a.params().values == c.params().values);
-  CHECK(a.occupancy().serialize() == c.occupancy().serialize());
+  CHECK(a.sampler().serialize() == c.sampler().serialize());
   // A grid-less model refuses a checkpoint with a grid.
   Tiny t;
   CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", ""), "tiny", "x.ckpt"), doctest::Contains("occupancy grid"));

@@ -1,9 +1,12 @@
-// model.hpp — EvNerf<Field, Sampler, Thresholds, Noise>: the Ev-NeRF model as a type, its fused
-// training step (per tile of pixels: encode → MLP forward → compositing → event loss → backward → MLP
-// backward, with per-thread gradients reduced in a fixed order), rendering, checkpoints. The named variants
-// are in presets.hpp. Depends on everything below it.
+// model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
+// composition of its parts. The renderer (render/renderer.hpp: rays → samples → field → compositing, and
+// the sampler's state) turns rays into luminance; this class draws a step's window of slices, its pixels
+// and noise, asks the objective (loss/objective.hpp) for the loss and its gradients, runs the renderer's
+// backward per tile of pixels with per-thread gradients reduced in a fixed order, applies Adam, and reads
+// and writes checkpoints (io/checkpoint.hpp). The named variants are in presets.hpp.
 #pragma once
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.hpp"
@@ -19,12 +22,9 @@
 #include "io/checkpoint.hpp"
 #include "loss/event_loss.hpp"
 #include "loss/objective.hpp"
-#include "nn/activation.hpp"
-#include "nn/encoding.hpp"
-#include "nn/mlp.hpp"
 #include "nn/params.hpp"
-#include "render/compositing.hpp"
 #include "render/occupancy.hpp"
+#include "render/renderer.hpp"
 #include "render/sampler.hpp"
 #include "render/scene.hpp"
 
@@ -41,10 +41,7 @@ struct TrainingData {
                                                ///< window's counts need it; train::prepare builds it)
 };
 
-/// One rendered image: luminance (C channels), depth along the optical axis, opacity.
-struct Rendering {
-  Image luminance, depth, opacity;
-};
+using render::Rendering;
 
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
@@ -57,88 +54,115 @@ struct StepStats {
 /// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and the objective
 /// (loss/objective.hpp: which poses a step compares, at which pixels, with which interval). A bare bound
 /// policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts) as the objective means the
-/// paper's one-slice objective with that bound.
-template <class FieldT, class SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
-          class ObjectiveP = loss::SplitCounts<1>>
+/// paper's one-slice objective with that bound. `Scalar` is the precision of parameters and arithmetic:
+/// float for training; double for gradient checks (checkpoints are float models only).
+template <class FieldT, render::Sampler SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
+          class ObjectiveP = loss::SplitCounts<1>, class Scalar = float>
 class EvNerf {
  public:
   using field_type = FieldT;
   using sampler_type = SamplerT;
+  using renderer_type = render::Renderer<FieldT, SamplerT, Scalar>;
   using threshold_policy = ThresholdP;
   using noise_policy = NoiseP;
   using objective = typename loss::as_objective<ObjectiveP>::type;
   using bound_policy = typename objective::bound;
   using pixel_policy = typename objective::pixels;
+  using scalar = Scalar;
   static constexpr int max_window = objective::max_window;
   static constexpr int channels = FieldT::channels;
-  static constexpr int n_fields = SamplerT::two_networks ? 2 : 1;
+  static constexpr int n_fields = renderer_type::networks;
   static constexpr std::size_t field_params = FieldT::n_params;
-  static constexpr int Nc = SamplerT::n_coarse, Nf = SamplerT::n_fine;
-  static constexpr bool has_occupancy = render::has_occupancy<SamplerT>();
+  static constexpr int Nc = renderer_type::n_coarse, Nf = renderer_type::n_fine;
   static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
+  static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "EvNerf: Scalar must be float or double.");
 
   EvNerf() = default;
   /// A fresh model for `n_slices` slices, seeded initialisation.
   EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
-      : box_(box), n_slices_(n_slices), params_(n_fields * field_params + 2 * n_slices),
+      : renderer_(box), n_slices_(n_slices), params_(n_fields * field_params + 2 * n_slices),
         adam_(n_fields * field_params + 2 * n_slices, adam) {
-    if constexpr (has_occupancy) grid_ = render::OccupancyGrid(SamplerT::grid_res);
     Rng rng(seed);
     for (int f = 0; f < n_fields; ++f) {
       Rng r = rng.split(static_cast<std::uint64_t>(f));
       FieldT::init(params_.values.data() + f * field_params, r);
     }
     for (std::size_t i = 0; i < n_slices; ++i) {
-      params_.values[threshold_offset() + 2 * i] = static_cast<float>(ThresholdP::init);
-      params_.values[threshold_offset() + 2 * i + 1] = static_cast<float>(-ThresholdP::init);
+      params_.values[threshold_offset() + 2 * i] = static_cast<Scalar>(ThresholdP::init);
+      params_.values[threshold_offset() + 2 * i + 1] = static_cast<Scalar>(-ThresholdP::init);
     }
   }
 
   std::size_t threshold_offset() const { return n_fields * field_params; }
   std::size_t n_slices() const { return n_slices_; }
-  float threshold_pos(std::size_t i) const { return params_.values[threshold_offset() + 2 * i]; }
-  float threshold_neg(std::size_t i) const { return params_.values[threshold_offset() + 2 * i + 1]; }
-  const render::SceneBox& box() const { return box_; }
-  nn::ParameterBuffer<float>& params() { return params_; }
-  const nn::ParameterBuffer<float>& params() const { return params_; }
-  nn::Adam<float>& optimizer() { return adam_; }
+  Scalar threshold_pos(std::size_t i) const { return params_.values[threshold_offset() + 2 * i]; }
+  Scalar threshold_neg(std::size_t i) const { return params_.values[threshold_offset() + 2 * i + 1]; }
+  const render::SceneBox& box() const { return renderer_.box(); }
+  const renderer_type& renderer() const { return renderer_; }
+  const SamplerT& sampler() const { return renderer_.sampler(); }
+  nn::ParameterBuffer<Scalar>& params() { return params_; }
+  const nn::ParameterBuffer<Scalar>& params() const { return params_; }
+  nn::Adam<Scalar>& optimizer() { return adam_; }
   long step() const { return adam_.step(); }
-  const render::OccupancyGrid& occupancy() const { return grid_; }
 
-  /// Refreshes the occupancy grid from the current density (samplers with a grid only). A cell is
-  /// occupied when its density can give a sample an alpha of 1 % at the stratified spacing.
-  void update_occupancy(const TrainingData& data, std::uint64_t seed) {
-    static_assert(has_occupancy, "update_occupancy: this model's sampler has no occupancy grid");
-    if (!grid_.has_visibility()) grid_.set_visible(visible_cells(data));
-    const float threshold = static_cast<float>(0.01 * Nc * box_.density_length / (box_.far - box_.near));
-    const float* params = params_.values.data();
-    grid_.update(
-        [&](const float* pts, std::size_t n, float* out) {
-          parallel_blocks(n, 8192, [&](std::size_t b, std::size_t e, int) {
-            typename FieldT::template Workspace<float> ws;
-            for (std::size_t c = b; c < e; c += 4096) {
-              const int m = static_cast<int>(std::min<std::size_t>(4096, e - c));
-              FieldT::density(params, pts + 3 * c, m, ws, out + c);
-              for (int j = 0; j < m; ++j) out[c + j] = FieldT::density_activation::f(out[c + j]);  // σ as α sees it
-            }
-          });
-        },
-        Rng(seed), threshold);
+  /// Lets the sampler refresh its state (an occupancy grid, say) as it would before training step `step`;
+  /// train_step() calls this itself. `seen` comes from the training data's cameras: a world ball is seen
+  /// when its centre projects (Camera::project) into the image of one of up to 64 boundary poses spread over
+  /// the recording, within the ball's projected radius, between near and far.
+  void update_sampler(const TrainingData& data, long step, std::uint64_t seed) {
+    render::SamplerUpdate u;
+    u.step = step;
+    u.seed = seed;
+    const std::size_t np = data.boundary_poses.size(), every = std::max<std::size_t>(1, np / 64);
+    std::vector<const geometry::Pose*> poses;
+    for (std::size_t i = 0; i < np; i += every) poses.push_back(&data.boundary_poses[i]);
+    if (np > 0) poses.push_back(&data.boundary_poses.back());
+    const auto& cam = data.camera;
+    const double near = box().near, far = box().far;
+    u.seen = [&cam, poses, near, far](const Vec3& world, double radius) {
+      for (const auto* pose : poses) {
+        const Vec3 q = pose->q.conjugate() * (world - pose->t);
+        if (q.z() < near - radius || q.z() > far + radius || q.z() <= 1e-6) continue;
+        const double mx = cam.fx() * radius / q.z(), my = cam.fy() * radius / q.z();
+        const Vec2 uv = cam.project(q);
+        if (uv.x() >= -mx && uv.x() <= cam.width() + mx && uv.y() >= -my && uv.y() <= cam.height() + my) return true;
+      }
+      return false;
+    };
+    renderer_.update_sampler(params_.values.data(), std::move(u));
   }
 
-  /// One training step (Ev-NeRF §4): a window of slices (one slice for the paper's objective) and pixels
-  /// drawn from (seed, step), noise injected, both end poses rendered, loss and gradients computed, Adam
-  /// applied. Deterministic for a seed and thread count.
+  /// One training step (Ev-NeRF §4): the sampler refreshed (update_sampler), then gradients(), then Adam
+  /// applied to the field and to the window's thresholds. Deterministic for a seed and thread count. A
+  /// non-finite loss leaves the parameters as they were (the caller stops).
   StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
-    if (data.slices.size() != n_slices_)
-      throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
-                  std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
-    require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
+    check_data(data);
+    const long s = adam_.step();
+    update_sampler(data, s, Rng(seed).split(static_cast<std::uint64_t>(s)).split(0xCCu).next_u64());
+    StepStats st = gradients(data, pixels_per_step, seed, pixels_per_tile);
+    if (!std::isfinite(st.loss)) return st;
+    // The field's parameters all move; of the thresholds only the window's slices' (lazy Adam).
+    const StepWindow& sw = window_;
+    adam_.update(params_.values, params_.grads, threshold_offset(), sw.touched);
+    if constexpr (requires { ThresholdP::projected; })
+      for (std::size_t k = 0; k < sw.len; ++k) {
+        Scalar& bp = params_.values[threshold_offset() + 2 * (sw.first + k)];
+        Scalar& bm = params_.values[threshold_offset() + 2 * (sw.first + k) + 1];
+        bp = std::max(bp, static_cast<Scalar>(ThresholdP::init));
+        bm = std::min(bm, static_cast<Scalar>(-ThresholdP::init));
+      }
+    return st;
+  }
+
+  /// The loss of the step the model would take next and its gradient for every parameter and threshold
+  /// (in params().grads), without taking it: a window of slices (one for the paper's objective) and pixels
+  /// drawn from (seed, step), noise injected, both end poses rendered, the objective applied per pixel, the
+  /// threshold floor on every slice of the window. Calling it twice gives the same result; finite-difference
+  /// checks perturb params() between calls.
+  StepStats gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
+    check_data(data);
     const long s = adam_.step();
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
-    if constexpr (has_occupancy)
-      if (s >= SamplerT::warmup_steps && (s - SamplerT::warmup_steps) % SamplerT::update_interval == 0)
-        update_occupancy(data, rng.split(0xCCu).next_u64());
     StepWindow& sw = window_;
     draw_window(data, rng, sw);
     const std::size_t first = sw.first, L = sw.len;
@@ -188,15 +212,15 @@ class EvNerf {
     if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
-      w.evaluated = w.backward_samples = 0;
-      w.ws.defer_encoding_grad = true;  // the thread's table gradients in one batch (bit-identical)
+      w.rw.evaluated = w.rw.backward_samples = 0;
+      renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
         loss_ev[th] += train_tile(data, sw, p0, pose0, pose1, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
       }
-      FieldT::flush_encoding_grad(w.ws);
-      evaluated[th] = w.evaluated;
-      backward[th] = w.backward_samples;
+      renderer_type::flush(w.rw);
+      evaluated[th] = w.rw.evaluated;
+      backward[th] = w.rw.backward_samples;
     });
     params_.end_accumulate(threads);
     StepStats st;
@@ -213,87 +237,29 @@ class EvNerf {
         const auto fl = ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init},
                                            std::array<double, 2>{params_.values[to], params_.values[to + 1]});
         st.threshold_loss += ThresholdP::lambda * fl.value;
-        params_.grads[to] += static_cast<float>(ThresholdP::lambda * fl.grad[0]);
-        params_.grads[to + 1] += static_cast<float>(ThresholdP::lambda * fl.grad[1]);
+        params_.grads[to] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[0]);
+        params_.grads[to + 1] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[1]);
       } else if constexpr (!ThresholdP::learnable) {
-        params_.grads[to] = params_.grads[to + 1] = 0.f;
+        params_.grads[to] = params_.grads[to + 1] = Scalar(0);
       }
     }
     st.loss = st.event_loss + st.threshold_loss;
     st.rays = static_cast<std::size_t>(2 * P);
-    if (!std::isfinite(st.loss)) return st;  // the caller stops; parameters stay as they were
-    // The field's parameters all move; of the thresholds only the window's slices' (lazy Adam).
     sw.touched.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) sw.touched.push_back(threshold_offset() + 2 * first + k);
-    adam_.update(params_.values, params_.grads, threshold_offset(), sw.touched);
-    if constexpr (requires { ThresholdP::projected; })
-      for (std::size_t k = 0; k < L; ++k) {
-        float& bp = params_.values[threshold_offset() + 2 * (first + k)];
-        float& bm = params_.values[threshold_offset() + 2 * (first + k) + 1];
-        bp = std::max(bp, static_cast<float>(ThresholdP::init));
-        bm = std::min(bm, static_cast<float>(-ThresholdP::init));
-      }
     return st;
   }
 
-  /// Renders the full image at `pose` (the fine network where there is one). Parallel over rows.
-  /// With `early_termination` (the default) a ray stops being evaluated once its transmittance falls below
-  /// kEvalTransmittance (checked every kEvalChunk samples): what lies behind changes a pixel by less than that.
+  /// Renders the full image at `pose` (the fine network where there is one); see Renderer::render.
   Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
                    bool early_termination = true) const {
-    Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
-                  Image(cam.width(), cam.height(), 1)};
-    const int H = cam.height(), W = cam.width();
-    parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
-      TileWork w;
-      w.early_termination = early_termination;
-      std::vector<std::uint32_t> pix(W);
-      for (std::size_t y = b; y < e; ++y) {
-        for (int x = 0; x < W; ++x) pix[x] = static_cast<std::uint32_t>(y * W + x);
-        eval_rays(pixel_dirs, pose, pix.data(), W, w);
-        for (int x = 0; x < W; ++x) {
-          const auto& r = n_fields == 2 ? w.fine[x] : w.coarse[x];
-          for (int c = 0; c < channels; ++c) out.luminance.at(x, int(y), c) = r.color[c];
-          out.depth.at(x, int(y)) = r.depth;
-          out.opacity.at(x, int(y)) = r.opacity;
-        }
-      }
-    });
-    return out;
-  }
-
-  /// Cells of the occupancy grid inside the view of some slice-boundary camera between near and far
-  /// (pinhole projection of the cell centre, with a margin of the cell's radius; up to 64 poses spread
-  /// over the recording). Depends only on the data and the box, so a resumed run gets the same mask.
-  std::vector<std::uint8_t> visible_cells(const TrainingData& data) const {
-    std::vector<std::uint8_t> vis(grid_.cells(), 0);
-    const auto& cam = data.camera;
-    const std::size_t np = data.boundary_poses.size(), step = std::max<std::size_t>(1, np / 64);
-    std::vector<const geometry::Pose*> poses;
-    for (std::size_t i = 0; i < np; i += step) poses.push_back(&data.boundary_poses[i]);
-    if (np > 0) poses.push_back(&data.boundary_poses.back());
-    const double radius = std::sqrt(3.0) * box_.scale / grid_.resolution();
-    parallel_for(grid_.cells(), 4096, [&](std::size_t c) {
-      float p[3];
-      grid_.cell_centre(c, p);
-      const Vec3 world = box_.center + box_.scale * Vec3(p[0], p[1], p[2]);
-      for (const auto* pose : poses) {
-        const Vec3 q = pose->q.conjugate() * (world - pose->t);
-        if (q.z() < box_.near - radius || q.z() > box_.far + radius || q.z() <= 1e-6) continue;
-        const double mx = cam.fx() * radius / q.z(), my = cam.fy() * radius / q.z();
-        const double u = cam.fx() * q.x() / q.z() + cam.cx(), v = cam.fy() * q.y() / q.z() + cam.cy();
-        if (u >= -mx && u <= cam.width() + mx && v >= -my && v <= cam.height() + my) {
-          vis[c] = 1;
-          break;
-        }
-      }
-    });
-    return vis;
+    return renderer_.render(params_.values.data(), cam, pixel_dirs, pose, early_termination);
   }
 
   // ---- checkpoints -----------------------------------------------------------------------------------
   /// Serialises the model and optimiser state; `extra` carries the caller's metadata (camera, poses…).
   std::string serialize(const std::string& name, const std::string& extra) const {
+    static_assert(std::is_same_v<Scalar, float>, "EvNerf::serialize: checkpoints hold float models");
     std::string b;
     auto put = [&](const void* p, std::size_t n) { b.append(static_cast<const char*>(p), n); };
     auto put_u64 = [&](std::uint64_t v) { put(&v, 8); };
@@ -308,14 +274,15 @@ class EvNerf {
     put_u64(n_slices_);
     const std::int64_t step = adam_.step();
     put(&step, 8);
-    const double boxv[6] = {box_.center.x(), box_.center.y(), box_.center.z(), box_.scale, box_.near, box_.far};
+    const auto& bx = box();
+    const double boxv[6] = {bx.center.x(), bx.center.y(), bx.center.z(), bx.scale, bx.near, bx.far};
     put(boxv, sizeof boxv);
-    put(&box_.density_length, 8);
+    put(&bx.density_length, 8);
     put_str(loss_description());
     put(params_.values.data(), params_.size() * 4);
     put(adam_.m().data(), params_.size() * 4);
     put(adam_.v().data(), params_.size() * 4);
-    put_str(has_occupancy ? grid_.serialize() : std::string());
+    put_str(sampler().serialize());
     put_str(extra);
     put_u64(fnv1a64(b));
     return b;
@@ -324,6 +291,7 @@ class EvNerf {
   /// match. The model changes only when the whole file has been read and checked. An empty `name` accepts
   /// any variant name (the parameter count and the loss are still checked).
   std::string deserialize(const std::string& b, const std::string& name, const std::string& file) {
+    static_assert(std::is_same_v<Scalar, float>, "EvNerf::deserialize: checkpoints hold float models");
     io::CheckpointReader r(b, file);
     const io::CheckpointHeader h = io::read_checkpoint_header(r);
     if (!name.empty() && h.name != name) r.fail("written by preset '" + h.name + "', loading as '" + name + "'");
@@ -339,32 +307,28 @@ class EvNerf {
       note = file + ": checkpoint version " + std::to_string(h.version) +
              " does not record the loss it was trained with; continuing with '" + loss_description() + "'";
     }
-    nn::ParameterBuffer<float> params(n);
-    nn::Adam<float> adam(n, adam_.config());
+    nn::ParameterBuffer<Scalar> params(n);
+    nn::Adam<Scalar> adam(n, adam_.config());
     r.get(params.values.data(), n * 4);
     r.get(adam.m().data(), n * 4);
     r.get(adam.v().data(), n * 4);
     adam.set_step(h.step);
-    render::OccupancyGrid grid;
-    if constexpr (has_occupancy) grid = render::OccupancyGrid(SamplerT::grid_res);
-    if (h.version >= 2) {  // version 2 added the occupancy grid
-      const std::string g = r.str();
-      if constexpr (has_occupancy) {
-        if (!grid.deserialize(g)) r.fail("occupancy grid does not match this model");
-      } else if (!g.empty()) {
-        r.fail("has an occupancy grid this model does not use");
-      }
+    SamplerT sampler;
+    if (h.version >= 2) {  // version 2 added the sampler's state (the occupancy grid)
+      if (!sampler.deserialize(r.str()))
+        r.fail("the sampler's state (occupancy grid) does not match this model's sampler (" + SamplerT::name() + ")");
     }
     std::string extra = r.str();
-    box_.center = Vec3(h.box[0], h.box[1], h.box[2]);
-    box_.scale = h.box[3];
-    box_.near = h.box[4];
-    box_.far = h.box[5];
-    box_.density_length = h.density_length;
+    render::SceneBox bx;
+    bx.center = Vec3(h.box[0], h.box[1], h.box[2]);
+    bx.scale = h.box[3];
+    bx.near = h.box[4];
+    bx.far = h.box[5];
+    bx.density_length = h.density_length;
+    renderer_ = renderer_type(bx, std::move(sampler));
     n_slices_ = h.n_slices;
     params_ = std::move(params);
     adam_ = std::move(adam);
-    grid_ = std::move(grid);
     load_note_ = std::move(note);
     return extra;
   }
@@ -384,16 +348,13 @@ class EvNerf {
   /// Set by deserialize(): empty, or a warning the caller should show (a checkpoint older than version 4
   /// cannot be checked against the loss).
   const std::string& load_note() const { return load_note_; }
-  /// Backward early termination (occupancy samplers): samples behind this transmittance get no gradient.
-  static constexpr float kMinTransmittance = 1e-4f;
-  /// Forward early termination of evaluation rays (render()): a ray stops behind this transmittance,
-  /// checked every kEvalChunk samples.
-  static constexpr float kEvalTransmittance = 1e-4f;
-  static constexpr int kEvalChunk = 8;
-  /// Raw density given to samples that were not evaluated (skipped cells, terminated rays): α = 0.
-  static constexpr float kSkippedDensity = -1e4f;
-
  private:
+  void check_data(const TrainingData& data) const {
+    if (data.slices.size() != n_slices_)
+      throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
+                  std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
+    require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
+  }
   static constexpr int default_tile_pixels() {
     // About 1–4 k samples per tile: the activations of the widest layer stay within L2.
     constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
@@ -438,160 +399,21 @@ class EvNerf {
     }
   }
 
+  /// A thread's scratch: the renderer's workspace, the tile's rays and their random streams, the window's
+  /// thresholds and one pixel's threshold gradients.
   struct TileWork {
-    typename FieldT::template Workspace<float> ws;
-    std::vector<float> pts, dirs, t, noise, dsigma, draw;
-    std::vector<render::RayComposite<float>> coarse, fine;
-    std::vector<std::vector<float>> fine_t;
-    std::vector<float> dcolor;
-    std::vector<double> bp, bm, gbp, gbm;  // the window's thresholds and one pixel's threshold gradients
-    // Occupancy skipping: indices of the evaluated samples, their packed inputs and gradients, and the
-    // scattered outputs (skipped samples: density −1e4, luminance 0).
-    std::vector<int> active;
-    std::vector<int> keep;
-    std::size_t evaluated = 0;         ///< field evaluations so far
-    bool early_termination = false;    ///< evaluation rays: stop a ray behind transmittance kEvalTransmittance
-    std::vector<float> ray_trans;      ///< evaluation rays: transmittance so far
-    std::size_t backward_samples = 0;  ///< samples run backward so far
-    std::vector<float> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw;
+    typename renderer_type::Workspace rw;
+    std::vector<Vec3> origin, dir;
+    std::vector<Rng> rng;
+    std::vector<double> bp, bm, gbp, gbm;
   };
 
-  /// Builds points and directions for R rays with S depths each (depths in w.t, R×S) into w.pts/w.dirs.
-  void make_samples(const Vec3* origin, const Vec3* dir, int R, int S, const std::vector<float>& t, TileWork& w) const {
-    w.pts.resize(3 * static_cast<std::size_t>(R) * S);
-    w.dirs.resize(3 * static_cast<std::size_t>(R) * S);
-    const double inv = 1.0 / box_.scale;
-    for (int r = 0; r < R; ++r) {
-      const Vec3 u = dir[r].normalized();
-      for (int k = 0; k < S; ++k) {
-        const std::size_t i = static_cast<std::size_t>(r) * S + k;
-        const Vec3 p = (origin[r] + static_cast<double>(t[i]) * dir[r] - box_.center) * inv;
-        for (int d = 0; d < 3; ++d) {
-          w.pts[3 * i + d] = static_cast<float>(p[d]);
-          w.dirs[3 * i + d] = static_cast<float>(u[d]);
-        }
-      }
-    }
-  }
-
-  /// Packs the points and directions of the samples listed in w.active into w.cpts / w.cdirs.
-  static void gather_active(TileWork& w) {
-    const std::size_t m = w.active.size();
-    w.cpts.resize(3 * m);
-    w.cdirs.resize(3 * m);
-    for (std::size_t j = 0; j < m; ++j)
-      for (int d = 0; d < 3; ++d) {
-        w.cpts[3 * j + d] = w.pts[3 * static_cast<std::size_t>(w.active[j]) + d];
-        w.cdirs[3 * j + d] = w.dirs[3 * static_cast<std::size_t>(w.active[j]) + d];
-      }
-  }
-
-  /// Evaluation forward with early termination: fills w.sig_full (raw density, −1e4 where not evaluated) and
-  /// w.raw_full (R×S×C) chunk by chunk along the rays.
-  void forward_rays_terminating(const float* params, const Vec3* dir, int R, int S, const std::vector<float>& t,
-                                TileWork& w) const {
-    const std::size_t n = static_cast<std::size_t>(R) * S;
-    w.sig_full.assign(n, kSkippedDensity);
-    w.raw_full.assign(n * channels, 0.f);
-    w.ray_trans.assign(static_cast<std::size_t>(R), 1.f);
-    const int stride = FieldT::density_net::out_dims;
-    for (int k0 = 0; k0 < S; k0 += kEvalChunk) {
-      const int k1 = std::min(S, k0 + kEvalChunk);
-      w.active.clear();
-      for (int r = 0; r < R; ++r) {
-        if (w.ray_trans[r] <= kEvalTransmittance) continue;
-        for (int k = k0; k < k1; ++k) {
-          const int i = r * S + k;
-          bool keep = true;
-          if constexpr (has_occupancy) keep = !grid_.active() || grid_.occupied(&w.pts[3 * static_cast<std::size_t>(i)]);
-          if (keep) w.active.push_back(i);
-        }
-      }
-      const int m = static_cast<int>(w.active.size());
-      if (m > 0) {
-        gather_active(w);
-        const float *sg = nullptr, *rw = nullptr;
-        FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sg, &rw);
-        w.evaluated += static_cast<std::size_t>(m);
-        for (int j = 0; j < m; ++j) {
-          const std::size_t i = static_cast<std::size_t>(w.active[j]);
-          w.sig_full[i] = sg[static_cast<std::size_t>(j) * stride];
-          for (int c = 0; c < channels; ++c) w.raw_full[i * channels + c] = rw[static_cast<std::size_t>(j) * channels + c];
-        }
-      }
-      // Transmittance after this chunk (as composite_forward computes it).
-      bool alive = false;
-      for (int r = 0; r < R; ++r) {
-        if (w.ray_trans[r] <= kEvalTransmittance) continue;
-        const double dn = dir[r].norm() / box_.density_length;
-        for (int k = k0; k < k1; ++k) {
-          const std::size_t i = static_cast<std::size_t>(r) * S + k;
-          const double delta = k + 1 < S ? double(t[i + 1] - t[i]) * dn : 1e10;
-          const double alpha = 1.0 - std::exp(-(FieldT::density_activation::f(w.sig_full[i]) * delta));
-          w.ray_trans[r] *= static_cast<float>(1.0 - alpha + 1e-10);
-        }
-        alive = alive || w.ray_trans[r] > kEvalTransmittance;
-      }
-      if (!alive) break;
-    }
-  }
-
-  /// Forward of one network over R rays × S samples, compositing each ray into comp[r]. Training rays
-  /// (noise given) evaluate every sample the sampler keeps; evaluation rays with w.early_termination go
-  /// kEvalChunk samples at a time and stop where the transmittance has fallen below kEvalTransmittance.
-  void forward_rays(int net, const Vec3* dir, int R, int S, const std::vector<float>& t, const float* noise,
-                    TileWork& w, std::vector<render::RayComposite<float>>& comp) const {
-    const float* params = params_.values.data() + net * field_params;
-    const float *sigma = nullptr, *raw = nullptr;
-    int stride = FieldT::density_net::out_dims;
-    if (!noise && w.early_termination) {
-      forward_rays_terminating(params, dir, R, S, t, w);
-      sigma = w.sig_full.data();
-      raw = w.raw_full.data();
-      stride = 1;
-    }
-    if constexpr (has_occupancy) {
-      if (!sigma && grid_.active()) {
-        const int n = R * S;
-        w.active.clear();
-        for (int i = 0; i < n; ++i)
-          if (grid_.occupied(&w.pts[3 * static_cast<std::size_t>(i)])) w.active.push_back(i);
-        const int m = static_cast<int>(w.active.size());
-        gather_active(w);
-        w.sig_full.assign(static_cast<std::size_t>(n), kSkippedDensity);
-        w.raw_full.assign(static_cast<std::size_t>(n) * channels, 0.f);
-        w.evaluated += static_cast<std::size_t>(m);
-        if (m > 0) {
-          FieldT::forward(params, w.cpts.data(), w.cdirs.data(), m, w.ws, &sigma, &raw);
-          for (int j = 0; j < m; ++j) {
-            const std::size_t i = static_cast<std::size_t>(w.active[j]);
-            w.sig_full[i] = sigma[static_cast<std::size_t>(j) * stride];
-            for (int c = 0; c < channels; ++c) w.raw_full[i * channels + c] = raw[static_cast<std::size_t>(j) * channels + c];
-          }
-        }
-        sigma = w.sig_full.data();
-        raw = w.raw_full.data();
-        stride = 1;
-      }
-    }
-    if (!sigma) {
-      FieldT::forward(params, w.pts.data(), w.dirs.data(), R * S, w.ws, &sigma, &raw);
-      w.evaluated += static_cast<std::size_t>(R) * S;
-    }
-    comp.resize(R);
-    for (int r = 0; r < R; ++r) {
-      const std::size_t o = static_cast<std::size_t>(r) * S;
-      render::composite_forward<float, typename FieldT::density_activation>(
-          S, channels, sigma + o * stride, stride, raw + o * channels, t.data() + o,
-          static_cast<float>(dir[r].norm() / box_.density_length), noise ? noise + o : nullptr, comp[r]);
-    }
-  }
-
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
-  /// w.dcolor (2P×C) and adds the threshold gradients of the window's slices. Returns the loss contribution
-  /// (already divided by the batch size).
-  double pair_loss(const StepWindow& sw, int p0, int P, int batch, const std::vector<render::RayComposite<float>>& comp,
-                   float* grads, TileWork& w, int width) const {
+  /// that pass's dcolor (2P×C) and adds the threshold gradients of the window's slices. Returns the loss
+  /// contribution (already divided by the batch size).
+  double pair_loss(const StepWindow& sw, int p0, int P, int batch, int net, Scalar* grads, TileWork& w, int width) const {
+    const auto& comp = renderer_type::composites(w.rw, net);
+    auto& dcolor = w.rw.pass[net].dcolor;  // zeroed by the forward
     const int L = static_cast<int>(sw.len);
     const std::size_t to = threshold_offset() + 2 * sw.first;
     w.bp.resize(static_cast<std::size_t>(L));
@@ -602,7 +424,6 @@ class EvNerf {
       w.bp[k] = params_.values[to + 2 * k];
       w.bm[k] = params_.values[to + 2 * k + 1];
     }
-    w.dcolor.assign(static_cast<std::size_t>(2 * P) * channels, 0.f);
     double total = 0;
     for (int i = 0; i < P; ++i) {
       const std::uint32_t pix = sw.pixels[p0 + i];
@@ -613,139 +434,51 @@ class EvNerf {
       const auto r = loss::window_pixel_loss<bound_policy>(comp[2 * i].color[c], comp[2 * i + 1].color[c], L, &sw.npos[o],
                                                            &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data());
       total += r.value / batch;
-      w.dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<float>(r.dl0 / batch);
-      w.dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<float>(r.dl1 / batch);
+      dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<Scalar>(r.dl0 / batch);
+      dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<Scalar>(r.dl1 / batch);
       if constexpr (ThresholdP::learnable)
         for (int k = 0; k < L; ++k) {
-          grads[to + 2 * k] += static_cast<float>(w.gbp[k] / batch);
-          grads[to + 2 * k + 1] += static_cast<float>(w.gbm[k] / batch);
+          grads[to + 2 * k] += static_cast<Scalar>(w.gbp[k] / batch);
+          grads[to + 2 * k + 1] += static_cast<Scalar>(w.gbm[k] / batch);
         }
     }
     return total;
   }
 
-  void backward_rays(int net, int R, int S, const std::vector<render::RayComposite<float>>& comp, float* grads,
-                     TileWork& w) const {
-    w.dsigma.resize(static_cast<std::size_t>(R) * S);
-    w.draw.resize(static_cast<std::size_t>(R) * S * channels);
-    for (int r = 0; r < R; ++r) {
-      const std::size_t o = static_cast<std::size_t>(r) * S;
-      render::composite_backward<float>(S, channels, comp[r], w.dcolor.data() + static_cast<std::size_t>(r) * channels,
-                                        w.dsigma.data() + o, 1, w.draw.data() + o * channels);
-    }
-    const float* params = params_.values.data() + net * field_params;
-    if constexpr (has_occupancy) {
-      if (grid_.active()) {  // only the evaluated samples carry gradient
-        // Early termination for the backward pass: a sample behind transmittance < 1e-4 has weight and
-        // gradients below 1e-4 of the ray's, so it is dropped: the forward's workspace is compacted to
-        // the kept samples (Field::keep_only) and only they go backward.
-        std::vector<int>& keep = w.keep;
-        keep.clear();
-        for (int j = 0; j < static_cast<int>(w.active.size()); ++j) {
-          const int i = w.active[j];
-          if (comp[i / S].trans[i % S] > kMinTransmittance) keep.push_back(j);
-        }
-        const int m = static_cast<int>(keep.size());
-        w.backward_samples += static_cast<std::size_t>(m);
-        if (m == 0) return;
-        w.cdsigma.resize(static_cast<std::size_t>(m));
-        w.cdraw.resize(static_cast<std::size_t>(m) * channels);
-        for (int j = 0; j < m; ++j) {
-          const std::size_t i = static_cast<std::size_t>(w.active[keep[j]]);
-          w.cdsigma[j] = w.dsigma[i];
-          for (int c = 0; c < channels; ++c) w.cdraw[static_cast<std::size_t>(j) * channels + c] = w.draw[i * channels + c];
-        }
-        if (m < static_cast<int>(w.active.size())) {
-          const float *sg = nullptr, *rw = nullptr;
-          FieldT::keep_only(w.ws, keep.data(), m, &sg, &rw);
-        }
-        FieldT::backward(params, w.ws, w.cdsigma.data(), w.cdraw.data(), grads + net * field_params);
-        return;
-      }
-    }
-    w.backward_samples += static_cast<std::size_t>(R) * S;
-    FieldT::backward(params, w.ws, w.dsigma.data(), w.draw.data(), grads + net * field_params);
-  }
-
-  /// Fine depths of R rays (R × (Nc+Nf)): coarse depths merged with Nf drawn from the coarse weights;
-  /// `rngs` (one per ray) jitters the draws in training, null gives deterministic evaluation depths.
-  std::vector<float> fine_depths(int R, Rng* rngs, const TileWork& w) const {
-    constexpr int S = Nc + Nf;
-    std::vector<float> tf(static_cast<std::size_t>(R) * S), one;
-    for (int r = 0; r < R; ++r) {
-      render::importance_depths<float>(Nc, &w.t[static_cast<std::size_t>(r) * Nc], w.coarse[r].weight.data(), Nf,
-                                       rngs ? &rngs[r] : nullptr, one);
-      std::copy(one.begin(), one.end(), tf.begin() + static_cast<std::ptrdiff_t>(r) * S);
-    }
-    return tf;
-  }
-
+  /// One tile of the step: pixel i's rays at the window's two end poses (Camera::ray_along of its cached
+  /// direction), each with a random stream keyed by (pixel, end) so that the result depends on neither the
+  /// tiling nor the thread count; forward through every pass, the objective, backward.
   double train_tile(const TrainingData& data, const StepWindow& sw, int p0, const geometry::Pose& pose0,
-                    const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, float* grads, TileWork& w) const {
+                    const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
     const int R = 2 * P;
     const std::uint32_t* pix = sw.pixels.data() + p0;
-    std::vector<Vec3> origin(R), dir(R);
+    w.origin.resize(R);
+    w.dir.resize(R);
+    w.rng.clear();
     for (int i = 0; i < P; ++i) {
       const Vec3 d = data.pixel_dirs[pix[i]].cast<double>();
-      origin[2 * i] = pose0.t;
-      dir[2 * i] = pose0.q * d;
-      origin[2 * i + 1] = pose1.t;
-      dir[2 * i + 1] = pose1.q * d;
+      const auto a = geometry::Camera::ray_along(pose0, d), b = geometry::Camera::ray_along(pose1, d);
+      w.origin[2 * i] = a.origin;
+      w.dir[2 * i] = a.dir;
+      w.origin[2 * i + 1] = b.origin;
+      w.dir[2 * i + 1] = b.dir;
     }
-    // Per-ray random streams keyed by the pixel: independent of tiling and thread count.
-    w.t.resize(static_cast<std::size_t>(R) * Nc);
-    w.noise.resize(static_cast<std::size_t>(R) * Nc);
-    std::vector<Rng> ray_rng;
-    ray_rng.reserve(R);
-    for (int r = 0; r < R; ++r) {
-      ray_rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
-      render::stratified_depths<float>(Nc, float(box_.near), float(box_.far), &ray_rng[r], &w.t[static_cast<std::size_t>(r) * Nc]);
-      for (int k = 0; k < Nc; ++k) w.noise[static_cast<std::size_t>(r) * Nc + k] = static_cast<float>(ray_rng[r].normal());
-    }
-    const int width = data.camera.width();
-    make_samples(origin.data(), dir.data(), R, Nc, w.t, w);
-    forward_rays(0, dir.data(), R, Nc, w.t, w.noise.data(), w, w.coarse);
-    double loss = pair_loss(sw, p0, P, batch, w.coarse, grads, w, width);
-    backward_rays(0, R, Nc, w.coarse, grads, w);
-    if constexpr (n_fields == 2) {
-      constexpr int S = Nc + Nf;
-      const std::vector<float> tf = fine_depths(R, ray_rng.data(), w);
-      std::vector<float> nf(static_cast<std::size_t>(R) * S);
-      for (int r = 0; r < R; ++r)
-        for (int k = 0; k < S; ++k) nf[static_cast<std::size_t>(r) * S + k] = static_cast<float>(ray_rng[r].normal());
-      make_samples(origin.data(), dir.data(), R, S, tf, w);
-      forward_rays(1, dir.data(), R, S, tf, nf.data(), w, w.fine);
-      loss += pair_loss(sw, p0, P, batch, w.fine, grads, w, width);
-      backward_rays(1, R, S, w.fine, grads, w);
-    }
+    for (int r = 0; r < R; ++r)
+      w.rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
+    const Scalar* params = params_.values.data();
+    renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
+    double loss = 0;
+    for (int net = 0; net < n_fields; ++net) loss += pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width());
+    renderer_.backward(params, w.rw, grads);
     return loss;
   }
 
-  /// Evaluation rays (no jitter, no density noise) for pixels of one pose; results in w.coarse / w.fine.
-  void eval_rays(const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose, const std::uint32_t* pix, int R,
-                 TileWork& w) const {
-    std::vector<Vec3> origin(R, pose.t), dir(R);
-    for (int r = 0; r < R; ++r) dir[r] = pose.q * pixel_dirs[pix[r]].cast<double>();
-    w.t.resize(static_cast<std::size_t>(R) * Nc);
-    for (int r = 0; r < R; ++r)
-      render::stratified_depths<float>(Nc, float(box_.near), float(box_.far), nullptr, &w.t[static_cast<std::size_t>(r) * Nc]);
-    make_samples(origin.data(), dir.data(), R, Nc, w.t, w);
-    forward_rays(0, dir.data(), R, Nc, w.t, nullptr, w, w.coarse);
-    if constexpr (n_fields == 2) {
-      constexpr int S = Nc + Nf;
-      const std::vector<float> tf = fine_depths(R, nullptr, w);
-      make_samples(origin.data(), dir.data(), R, S, tf, w);
-      forward_rays(1, dir.data(), R, S, tf, nullptr, w, w.fine);
-    }
-  }
-
-  render::SceneBox box_;
-  render::OccupancyGrid grid_;
+  renderer_type renderer_;
   std::size_t n_slices_ = 0;
-  nn::ParameterBuffer<float> params_;
-  nn::Adam<float> adam_;
-  std::vector<TileWork> work_;  ///< train_step's per-thread scratch (no state: any content gives the same step)
-  StepWindow window_;           ///< train_step's window scratch (likewise)
+  nn::ParameterBuffer<Scalar> params_;
+  nn::Adam<Scalar> adam_;
+  std::vector<TileWork> work_;  ///< gradients()'s per-thread scratch (no state: any content gives the same step)
+  StepWindow window_;           ///< the last gradients()'s window (train_step applies Adam to its thresholds)
   std::vector<std::uint8_t> taken_;
   std::vector<int> slot_;
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())

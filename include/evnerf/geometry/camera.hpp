@@ -76,8 +76,11 @@ class Camera {
   /// World-space ray through continuous pixel coordinate (u, v). Pass x + 0.5 for a pixel centre.
   Ray ray(const Pose& c2w, double u, double v) const {
     const Vec2 n = undistort_to_normalized(u, v);
-    return {c2w.t, c2w.q * Vec3(n.x(), n.y(), 1.0)};
+    return ray_along(c2w, Vec3(n.x(), n.y(), 1.0));
   }
+  /// World-space ray along a camera-frame direction with unit z: what ray() gives for the pixel that
+  /// direction passes through (renderers cache the directions, render::pixel_directions, and call this).
+  static Ray ray_along(const Pose& c2w, const Vec3& dir_cam) { return {c2w.t, c2w.q * dir_cam}; }
 
  private:
   int width_ = 0, height_ = 0;

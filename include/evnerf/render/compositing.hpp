@@ -11,6 +11,11 @@
 
 namespace evnerf::render {
 
+/// Length given to a ray's last interval (open to infinity, as in NeRF): its alpha is 1 unless σ = 0.
+inline constexpr double kOpenInterval = 1e10;
+/// Added to every 1 − α in the transmittance product, so that the backward's division by it stays finite.
+inline constexpr double kTransmittanceEpsilon = 1e-10;
+
 /// α = 1 − exp(−act(σ + noise)·δ), written once: value and dα/dσ both come from this text. `Act` is the
 /// field's density activation (ReLU in the paper; TruncExp for Instant-NGP-style fields).
 template <class Act = nn::ReLU>
@@ -40,7 +45,7 @@ struct RayComposite {
 /// Composites S samples of one ray with C channels. sigma[k·sigma_stride] raw density, raw[k·C + c] raw
 /// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
 /// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
-/// null). The last interval is open (δ = 1e10), as in NeRF.
+/// null). The last interval is open (δ = kOpenInterval), as in NeRF.
 template <class T, class DensityAct = nn::ReLU>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
                        const T* noise, RayComposite<T>& r) {
@@ -54,7 +59,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
   r.depth = r.opacity = 0;
   T trans = 1;
   for (int k = 0; k < S; ++k) {
-    const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : 1e10;
+    const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : kOpenInterval;
     const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0},
                                       std::array<double, 1>{double(sigma[static_cast<std::size_t>(k) * sigma_stride])});
     r.alpha[k] = static_cast<T>(a.value);
@@ -71,12 +76,12 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
     }
     r.depth += w * t[k];
     r.opacity += w;
-    trans *= T(1) - r.alpha[k] + T(1e-10);
+    trans *= T(1) - r.alpha[k] + T(kTransmittanceEpsilon);
   }
 }
 
 /// Backward of composite_forward for dL/dcolor (C values): writes dL/dsigma (stride sigma_stride) and
-/// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j) / (1 − α_k + 1e-10).
+/// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j) / (1 − α_k + kTransmittanceEpsilon).
 template <class T>
 void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor, T* dsigma, int sigma_stride, T* draw) {
   T suffix = 0;  // Σ_{j>k} w_j c_j with c_j = Σ_c dcolor_c · lum_jc
@@ -87,7 +92,7 @@ void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor,
       ck += dcolor[c] * r.lum[i];
       draw[i] = dcolor[c] * r.weight[k] * r.dlum_draw[i];
     }
-    const T dalpha = r.trans[k] * ck - suffix / (T(1) - r.alpha[k] + T(1e-10));
+    const T dalpha = r.trans[k] * ck - suffix / (T(1) - r.alpha[k] + T(kTransmittanceEpsilon));
     dsigma[static_cast<std::size_t>(k) * sigma_stride] = dalpha * r.dalpha_dsigma[k];
     suffix += r.weight[k] * ck;
   }

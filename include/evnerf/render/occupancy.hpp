@@ -1,7 +1,7 @@
-// render/occupancy.hpp — empty-space skipping for one-network samplers: a Res³ grid over the scene box
-// [−1, 1]³ holding a decaying maximum of the density seen in each cell (Instant-NGP's occupancy grid).
-// Samples in cells whose density cannot make a visible alpha are not evaluated: they composite as density
-// 0 and get no gradient. Depends on core/ only.
+// render/occupancy.hpp — empty-space skipping: OccupancyGrid, a Res³ grid over the scene box [−1, 1]³
+// holding a decaying maximum of the density seen in each cell (Instant-NGP's occupancy grid), and the
+// sampler that owns one, OccupancySkipping. Samples in cells whose density cannot make a visible alpha are
+// not evaluated: they composite as density 0 and get no gradient. Depends on core/ and render/sampler.hpp.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -13,25 +13,9 @@
 #include "../core/error.hpp"
 #include "../core/parallel.hpp"
 #include "../core/rng.hpp"
+#include "sampler.hpp"
 
 namespace evnerf::render {
-
-/// Sampler: N stratified samples per ray, one network, with a Res³ occupancy grid. The grid is refreshed
-/// every `Interval` steps once `Warmup` steps have passed; until then every cell counts as occupied.
-template <int N, int Res = 64, int Interval = 16, int Warmup = 256>
-struct OccupancySkipping {
-  static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");
-  static_assert(Res >= 2 && Res <= 512, "OccupancySkipping: the grid resolution must be between 2 and 512.");
-  static_assert(Interval >= 1 && Warmup >= 0, "OccupancySkipping: Interval must be positive and Warmup non-negative.");
-  static constexpr int n_coarse = N, n_fine = 0;
-  static constexpr bool two_networks = false;
-  static constexpr int grid_res = Res, update_interval = Interval, warmup_steps = Warmup;
-};
-
-template <class S>
-constexpr bool has_occupancy() {
-  return requires { S::grid_res; };
-}
 
 class OccupancyGrid {
  public:
@@ -136,6 +120,58 @@ class OccupancyGrid {
   bool active_ = false;
   std::vector<float> density_;
   std::vector<std::uint8_t> occupied_, visible_;
+};
+
+/// Sampler: N stratified samples per ray, one network, with a Res³ occupancy grid that it owns. The grid is
+/// refreshed every `Interval` steps once `Warmup` steps have passed; until then every sample is evaluated.
+/// A cell is occupied when its density can give a sample an alpha of kOccupiedAlpha at the stratified spacing.
+template <int N, int Res = 64, int Interval = 16, int Warmup = 256>
+struct OccupancySkipping {
+  static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");
+  static_assert(Res >= 2 && Res <= 512, "OccupancySkipping: the grid resolution must be between 2 and 512.");
+  static_assert(Interval >= 1 && Warmup >= 0, "OccupancySkipping: Interval must be positive and Warmup non-negative.");
+  static constexpr int n_coarse = N, n_fine = 0;
+  static constexpr bool two_networks = false, skips_samples = true;
+  static constexpr int grid_res = Res, update_interval = Interval, warmup_steps = Warmup;
+  static constexpr double kOccupiedAlpha = 0.01;
+  static std::string name() {
+    return "occupancy " + std::to_string(N) + " grid " + std::to_string(Res) + " every " + std::to_string(Interval) +
+           " after " + std::to_string(Warmup);
+  }
+
+  template <class T>
+  void coarse_depths(int n, T near, T far, Rng* rng, T* t) const {
+    stratified_depths(n, near, far, rng, t);
+  }
+  bool skipping() const { return grid_.active(); }
+  bool evaluates(const float* p) const { return grid_.occupied(p); }
+  double occupied_fraction() const { return grid_.occupied_fraction(); }
+  const OccupancyGrid& grid() const { return grid_; }
+
+  /// Before a step: from step Warmup on, every Interval steps, the grid is refreshed from the density.
+  /// The first refresh also restricts the grid to the cells some training camera sees.
+  void update(const SamplerUpdate& u) {
+    if (u.step < Warmup || (u.step - Warmup) % Interval != 0) return;
+    if (!grid_.has_visibility() && u.seen) grid_.set_visible(visible_cells(u));
+    const float threshold = static_cast<float>(kOccupiedAlpha * N * u.box.density_length / (u.box.far - u.box.near));
+    grid_.update(u.density, Rng(u.seed), threshold);
+  }
+  std::string serialize() const { return grid_.serialize(); }
+  bool deserialize(std::string_view b) { return grid_.deserialize(b); }
+
+ private:
+  /// Cells whose ball (the cell's circumradius) some training camera sees.
+  std::vector<std::uint8_t> visible_cells(const SamplerUpdate& u) const {
+    std::vector<std::uint8_t> vis(grid_.cells(), 0);
+    const double radius = std::sqrt(3.0) * u.box.scale / grid_.resolution();
+    parallel_for(grid_.cells(), 4096, [&](std::size_t c) {
+      float p[3];
+      grid_.cell_centre(c, p);
+      vis[c] = u.seen(u.box.center + u.box.scale * Vec3(p[0], p[1], p[2]), radius) ? 1 : 0;
+    });
+    return vis;
+  }
+  OccupancyGrid grid_{Res};
 };
 
 }  // namespace evnerf::render

@@ -1,27 +1,21 @@
-// render/sampler.hpp — where along a ray the field is evaluated: Stratified<N> (one network) and
-// Hierarchical<Nc, Nf> (coarse stratified samples, then Nf more drawn from the coarse weights; separate
-// coarse and fine networks, both trained). Depends on core/ only.
+// render/sampler.hpp — where along a ray the field is evaluated. The `Sampler` concept, and two samplers
+// without state: Stratified<N> (one network) and Hierarchical<Nc, Nf> (coarse stratified samples, then Nf
+// more drawn from the coarse weights; separate coarse and fine networks, both trained). The sampler with
+// state, OccupancySkipping, is in render/occupancy.hpp. Depends on core/ and render/scene.hpp only.
 #pragma once
 #include <algorithm>
+#include <concepts>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "../core/rng.hpp"
+#include "../core/types.hpp"
+#include "scene.hpp"
 
 namespace evnerf::render {
-
-template <int N>
-struct Stratified {
-  static_assert(N >= 2, "Stratified<N>: need at least two samples per ray.");
-  static constexpr int n_coarse = N, n_fine = 0;
-  static constexpr bool two_networks = false;
-};
-
-template <int Nc, int Nf>
-struct Hierarchical {
-  static_assert(Nc >= 2 && Nf >= 1, "Hierarchical<Nc, Nf>: need at least two coarse and one fine sample.");
-  static constexpr int n_coarse = Nc, n_fine = Nf;
-  static constexpr bool two_networks = true;
-};
 
 /// N stratified depths in [near, far]: bin centres when `rng` is null (evaluation), jittered otherwise.
 template <class T>
@@ -29,6 +23,9 @@ void stratified_depths(int n, T near, T far, Rng* rng, T* t) {
   const T step = (far - near) / static_cast<T>(n);
   for (int k = 0; k < n; ++k) t[k] = near + step * (static_cast<T>(k) + (rng ? static_cast<T>(rng->uniform()) : T(0.5)));
 }
+
+/// Added to every bin's weight before drawing fine depths, so that a ray of zero weight still gets a pdf.
+inline constexpr double kImportanceWeightFloor = 1e-5;
 
 /// Draws n depths from the piecewise-constant pdf given by `weights` (size m-2) on the bins between the
 /// mid-points of the m coarse depths (NeRF's inverse-CDF sampling), then merges them with the coarse
@@ -41,7 +38,7 @@ void importance_depths(int m, const T* coarse_t, const T* weights, int n, Rng* r
   T total = 0;
   cdf[0] = 0;
   for (int k = 1; k + 1 < m; ++k) {
-    total += weights[k] + T(1e-5);
+    total += weights[k] + T(kImportanceWeightFloor);
     cdf[k] = total;
   }
   out.assign(coarse_t, coarse_t + m);
@@ -55,5 +52,76 @@ void importance_depths(int m, const T* coarse_t, const T* weights, int n, Rng* r
   }
   std::sort(out.begin(), out.end());
 }
+
+/// What a sampler may look at between training steps (Sampler::update): the step about to be taken, a
+/// seed for it, the scene box, the field's density, and which parts of the box the training cameras see.
+struct SamplerUpdate {
+  long step = 0;
+  std::uint64_t seed = 0;
+  SceneBox box;
+  /// density(pts, n, out): σ after the field's density activation at n points (3 floats each, in the
+  /// normalised box [−1, 1]³). Runs in parallel itself.
+  std::function<void(const float*, std::size_t, float*)> density;
+  /// seen(world point, radius): whether some training camera sees a ball of this radius between near and
+  /// far. Pure: depends only on the recording and the box.
+  std::function<bool(const Vec3&, double)> seen;
+};
+
+/// A sampler chooses the depths at which a ray is evaluated and may skip some samples. It owns whatever
+/// state it keeps (a grid of occupied cells, say), refreshes it in update() before a training step, and
+/// writes it into checkpoints with serialize(). Depths are in units of the ray direction (z-depth for
+/// our rays). A sampler with `two_networks` also has a fine pass: refine() draws n_fine more depths per
+/// ray from the coarse pass's weights, evaluated by a second network.
+template <class S>
+concept Sampler = std::semiregular<S> &&
+                  requires(S& s, const S& cs, float* t, Rng* rng, const float* p, const SamplerUpdate& u, std::string_view bytes) {
+                    requires S::n_coarse >= 2 && S::n_fine >= 0;
+                    { S::two_networks } -> std::convertible_to<bool>;
+                    { S::skips_samples } -> std::convertible_to<bool>;
+                    { S::name() } -> std::convertible_to<std::string>;
+                    cs.coarse_depths(1, 0.f, 1.f, rng, t);
+                    { cs.skipping() } -> std::same_as<bool>;
+                    { cs.evaluates(p) } -> std::same_as<bool>;
+                    { cs.occupied_fraction() } -> std::convertible_to<double>;
+                    s.update(u);
+                    { cs.serialize() } -> std::same_as<std::string>;
+                    { s.deserialize(bytes) } -> std::same_as<bool>;
+                  } &&
+                  (!S::two_networks || requires(const S& cs, const float* t, const float* w, Rng* rng, std::vector<float>& out) {
+                    cs.refine(1, t, w, rng, out);
+                  });
+
+/// N stratified samples per ray, one network, every sample evaluated.
+template <int N>
+struct Stratified {
+  static_assert(N >= 2, "Stratified<N>: need at least two samples per ray.");
+  static constexpr int n_coarse = N, n_fine = 0;
+  static constexpr bool two_networks = false, skips_samples = false;
+  static std::string name() { return "stratified " + std::to_string(N); }
+  template <class T>
+  void coarse_depths(int n, T near, T far, Rng* rng, T* t) const {
+    stratified_depths(n, near, far, rng, t);
+  }
+  bool skipping() const { return false; }
+  bool evaluates(const float*) const { return true; }
+  double occupied_fraction() const { return 1.0; }
+  void update(const SamplerUpdate&) {}
+  std::string serialize() const { return {}; }
+  bool deserialize(std::string_view b) { return b.empty(); }
+};
+
+/// Nc stratified samples through a coarse network, then Nf more from its weights through a fine one.
+template <int Nc, int Nf>
+struct Hierarchical : Stratified<Nc> {
+  static_assert(Nc >= 3 && Nf >= 1, "Hierarchical<Nc, Nf>: need at least three coarse and one fine sample.");
+  static constexpr int n_fine = Nf;
+  static constexpr bool two_networks = true;
+  static std::string name() { return "hierarchical " + std::to_string(Nc) + "+" + std::to_string(Nf); }
+  /// The m coarse depths merged with Nf drawn from their weights (jittered by `rng`, or deterministic).
+  template <class T>
+  void refine(int m, const T* coarse_t, const T* weights, Rng* rng, std::vector<T>& out) const {
+    importance_depths<T>(m, coarse_t, weights, Nf, rng, out);
+  }
+};
 
 }  // namespace evnerf::render

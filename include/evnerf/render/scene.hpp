@@ -35,14 +35,13 @@ struct SceneBox {
   }
 };
 
-/// Undistorted camera-frame directions (x, y, 1) of every pixel centre, row-major.
+/// Undistorted camera-frame directions (x, y, 1) of every pixel centre, row-major: Camera::ray's direction
+/// at the identity pose, cached (geometry::Camera::ray_along turns one into a world ray).
 inline std::vector<Vec3f> pixel_directions(const geometry::Camera& cam) {
   std::vector<Vec3f> d(static_cast<std::size_t>(cam.width()) * cam.height());
   for (int y = 0; y < cam.height(); ++y)
-    for (int x = 0; x < cam.width(); ++x) {
-      const Vec2 n = cam.undistort_to_normalized(x + 0.5, y + 0.5);
-      d[static_cast<std::size_t>(y) * cam.width() + x] = Vec3f(float(n.x()), float(n.y()), 1.f);
-    }
+    for (int x = 0; x < cam.width(); ++x)
+      d[static_cast<std::size_t>(y) * cam.width() + x] = cam.ray(geometry::Pose{}, x + 0.5, y + 0.5).dir.cast<float>();
   return d;
 }
 

@@ -227,7 +227,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"lr", model.optimizer().learning_rate()},
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
-      if constexpr (Model::has_occupancy) j["occupied"] = model.occupancy().occupied_fraction();
+      if constexpr (Model::sampler_type::skips_samples) j["occupied"] = model.sampler().occupied_fraction();
       log << j.dump() << "\n";
       log.flush();
       sum_loss = sum_event = sum_threshold = sum_samples = sum_backward = 0;

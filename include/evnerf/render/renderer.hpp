@@ -1,0 +1,360 @@
+// render/renderer.hpp — Renderer<Field, Sampler, T>: rays (any number, from any poses) to samples, the field
+// over the samples the sampler keeps, compositing forward and backward; whole images with depth and
+// opacity. It owns the scene box and the sampler (and so the sampler's state). Two-network samplers run a
+// coarse and a fine pass, each with its own network parameters (network n at params + n · Field::n_params).
+// Depends on field/, geometry/ and render/.
+#pragma once
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "../core/parallel.hpp"
+#include "../core/rng.hpp"
+#include "../core/types.hpp"
+#include "../geometry/camera.hpp"
+#include "../geometry/pose.hpp"
+#include "compositing.hpp"
+#include "sampler.hpp"
+#include "scene.hpp"
+
+namespace evnerf::render {
+
+/// One rendered image: luminance (C channels), depth along the optical axis, opacity.
+struct Rendering {
+  Image luminance, depth, opacity;
+};
+
+template <class FieldT, Sampler SamplerT, class T = float>
+class Renderer {
+ public:
+  using field_type = FieldT;
+  using sampler_type = SamplerT;
+  using scalar = T;
+  static constexpr int channels = FieldT::channels;
+  static constexpr int networks = SamplerT::two_networks ? 2 : 1;
+  static constexpr int n_coarse = SamplerT::n_coarse, n_fine = SamplerT::two_networks ? SamplerT::n_fine : 0;
+  static constexpr std::size_t field_params = FieldT::n_params;
+  /// Parameters of all networks (the coarse network's first).
+  static constexpr std::size_t n_params = networks * field_params;
+
+  /// Backward early termination (samplers that skip): samples behind this transmittance get no gradient.
+  static constexpr T kMinTransmittance = T(1e-4);
+  /// Forward early termination of evaluation rays: a ray stops behind this transmittance, checked every
+  /// kEvalChunk samples.
+  static constexpr T kEvalTransmittance = T(1e-4);
+  static constexpr int kEvalChunk = 8;
+  /// Raw density given to samples that were not evaluated (skipped cells, terminated rays): α = 0.
+  static constexpr T kSkippedDensity = T(-1e4);
+
+  /// Samples per ray of pass `net` (the fine pass evaluates the coarse depths again, with the fine ones).
+  static constexpr int samples(int net) { return net == 0 ? n_coarse : n_coarse + n_fine; }
+
+  /// One network's pass over a batch of rays: depths, inputs, outputs, composites and what backward needs.
+  struct Pass {
+    typename FieldT::template Workspace<T> ws;
+    int S = 0;                                ///< samples per ray
+    std::vector<T> t, noise, pts, dirs;      ///< R×S depths and density noise; 3·R·S points and directions
+    std::vector<RayComposite<T>> comp;        ///< one per ray
+    std::vector<T> dcolor;                    ///< R×C, dL/dcolor of comp: the caller fills it before backward()
+    std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
+    std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
+  };
+  /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
+  struct Workspace {
+    std::array<Pass, networks> pass;
+    std::vector<Vec3> dir;                ///< the batch's world directions
+    std::size_t evaluated = 0;            ///< field evaluations so far
+    std::size_t backward_samples = 0;     ///< samples run backward so far
+    bool early_termination = false;       ///< evaluation rays: stop a ray behind kEvalTransmittance
+    std::vector<T> one;                   ///< a ray's fine depths
+  };
+
+  Renderer() = default;
+  explicit Renderer(SceneBox box, SamplerT sampler = {}) : box_(box), sampler_(std::move(sampler)) {}
+  const SceneBox& box() const { return box_; }
+  SceneBox& box() { return box_; }
+  const SamplerT& sampler() const { return sampler_; }
+  SamplerT& sampler() { return sampler_; }
+
+  /// Training forward of R rays: ray r's depths are jittered and its density noise drawn from rng[r] (coarse
+  /// depths, coarse noise, then for a fine pass its depths and noise). Every pass's dcolor is zeroed.
+  void forward_train(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
+    forward(params, origin, dir, rng, R, w);
+  }
+  /// Evaluation forward of R rays: bin-centre depths, no noise; with w.early_termination a ray stops once
+  /// its transmittance falls below kEvalTransmittance.
+  void forward_eval(const T* params, const Vec3* origin, const Vec3* dir, int R, Workspace& w) const {
+    forward(params, origin, dir, nullptr, R, w);
+  }
+  /// The composites of the last forward's pass `net` (0 coarse, 1 fine); the last pass is the image.
+  static const std::vector<RayComposite<T>>& composites(const Workspace& w, int net) { return w.pass[net].comp; }
+
+  /// Backward of the last training forward from every pass's dcolor: adds the gradients of all networks'
+  /// parameters to `grads` (laid out as params). With a deferring field workspace, flush() applies the
+  /// table gradients that backward() kept back.
+  void backward(const T* params, Workspace& w, T* grads) const {
+    for (int net = 0; net < networks; ++net) backward_pass(params + net * field_params, w.pass[net], w, grads + net * field_params);
+  }
+  /// Defers table gradients of every pass to flush() (bit-identical; see Field::Workspace::defer_encoding_grad).
+  static void defer_encoding_grad(Workspace& w) {
+    for (auto& p : w.pass) p.ws.defer_encoding_grad = true;
+  }
+  static void flush(Workspace& w) {
+    for (auto& p : w.pass) FieldT::flush_encoding_grad(p.ws);
+  }
+
+  /// Renders the full image at `pose` (the fine pass where there is one), parallel over rows; `pixel_dirs`
+  /// are render::pixel_directions(cam). With `early_termination` (the default) a ray stops being evaluated
+  /// once its transmittance falls below kEvalTransmittance: what lies behind changes a pixel by less than that.
+  Rendering render(const T* params, const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs,
+                   const geometry::Pose& pose, bool early_termination = true) const {
+    Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
+                  Image(cam.width(), cam.height(), 1)};
+    const int H = cam.height(), W = cam.width();
+    parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
+      Workspace w;
+      w.early_termination = early_termination;
+      std::vector<Vec3> origin(W), dir(W);
+      for (std::size_t y = b; y < e; ++y) {
+        for (int x = 0; x < W; ++x) {
+          const auto ray = geometry::Camera::ray_along(pose, pixel_dirs[y * W + x].cast<double>());
+          origin[x] = ray.origin;
+          dir[x] = ray.dir;
+        }
+        forward_eval(params, origin.data(), dir.data(), W, w);
+        const auto& comp = w.pass[networks - 1].comp;
+        for (int x = 0; x < W; ++x) {
+          for (int c = 0; c < channels; ++c) out.luminance.at(x, int(y), c) = static_cast<float>(comp[x].color[c]);
+          out.depth.at(x, int(y)) = static_cast<float>(comp[x].depth);
+          out.opacity.at(x, int(y)) = static_cast<float>(comp[x].opacity);
+        }
+      }
+    });
+    return out;
+  }
+
+  /// Lets the sampler refresh its state before training step `step`: `u` carries the step, seed and
+  /// visibility; the box and the density of the coarse network (params) are filled in here.
+  void update_sampler(const T* params, SamplerUpdate u) {
+    u.box = box_;
+    u.density = [params](const float* pts, std::size_t n, float* out) {
+      parallel_blocks(n, 8192, [&](std::size_t b, std::size_t e, int) {
+        typename FieldT::template Workspace<T> ws;
+        std::vector<T> p, o;
+        for (std::size_t c = b; c < e; c += 4096) {
+          const int m = static_cast<int>(std::min<std::size_t>(4096, e - c));
+          const T* in;
+          T* res;
+          if constexpr (std::is_same_v<T, float>) {
+            in = pts + 3 * c;
+            res = out + c;
+          } else {
+            p.assign(pts + 3 * c, pts + 3 * (c + m));
+            o.resize(static_cast<std::size_t>(m));
+            in = p.data();
+            res = o.data();
+          }
+          FieldT::density(params, in, m, ws, res);
+          for (int j = 0; j < m; ++j) out[c + j] = static_cast<float>(FieldT::density_activation::f(res[j]));  // σ as α sees it
+        }
+      });
+    };
+    sampler_.update(u);
+  }
+
+ private:
+  void forward(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
+    w.dir.assign(dir, dir + R);
+    Pass& c = w.pass[0];
+    c.S = n_coarse;
+    c.t.resize(static_cast<std::size_t>(R) * n_coarse);
+    c.noise.resize(rng ? static_cast<std::size_t>(R) * n_coarse : 0);
+    for (int r = 0; r < R; ++r) {
+      T* tr = &c.t[static_cast<std::size_t>(r) * n_coarse];
+      sampler_.coarse_depths(n_coarse, T(box_.near), T(box_.far), rng ? &rng[r] : nullptr, tr);
+      if (rng)
+        for (int k = 0; k < n_coarse; ++k) c.noise[static_cast<std::size_t>(r) * n_coarse + k] = static_cast<T>(rng[r].normal());
+    }
+    run_pass(params, origin, dir, R, rng != nullptr, c, w);
+    if constexpr (networks == 2) {
+      Pass& f = w.pass[1];
+      constexpr int S = n_coarse + n_fine;
+      f.S = S;
+      f.t.resize(static_cast<std::size_t>(R) * S);
+      for (int r = 0; r < R; ++r) {
+        sampler_.refine(n_coarse, &c.t[static_cast<std::size_t>(r) * n_coarse], c.comp[r].weight.data(), rng ? &rng[r] : nullptr, w.one);
+        std::copy(w.one.begin(), w.one.end(), f.t.begin() + static_cast<std::ptrdiff_t>(r) * S);
+      }
+      f.noise.resize(rng ? static_cast<std::size_t>(R) * S : 0);
+      if (rng)
+        for (int r = 0; r < R; ++r)
+          for (int k = 0; k < S; ++k) f.noise[static_cast<std::size_t>(r) * S + k] = static_cast<T>(rng[r].normal());
+      run_pass(params + field_params, origin, dir, R, rng != nullptr, f, w);
+    }
+  }
+
+  /// Points and unit directions of the pass's R×S samples, in the normalised box.
+  void make_samples(const Vec3* origin, const Vec3* dir, int R, Pass& p) const {
+    const int S = p.S;
+    p.pts.resize(3 * static_cast<std::size_t>(R) * S);
+    p.dirs.resize(3 * static_cast<std::size_t>(R) * S);
+    const double inv = 1.0 / box_.scale;
+    for (int r = 0; r < R; ++r) {
+      const Vec3 u = dir[r].normalized();
+      for (int k = 0; k < S; ++k) {
+        const std::size_t i = static_cast<std::size_t>(r) * S + k;
+        const Vec3 q = (origin[r] + static_cast<double>(p.t[i]) * dir[r] - box_.center) * inv;
+        for (int d = 0; d < 3; ++d) {
+          p.pts[3 * i + d] = static_cast<T>(q[d]);
+          p.dirs[3 * i + d] = static_cast<T>(u[d]);
+        }
+      }
+    }
+  }
+
+  /// Packs the points and directions of the samples listed in p.active into p.cpts / p.cdirs.
+  static void gather_active(Pass& p) {
+    const std::size_t m = p.active.size();
+    p.cpts.resize(3 * m);
+    p.cdirs.resize(3 * m);
+    for (std::size_t j = 0; j < m; ++j)
+      for (int d = 0; d < 3; ++d) {
+        p.cpts[3 * j + d] = p.pts[3 * static_cast<std::size_t>(p.active[j]) + d];
+        p.cdirs[3 * j + d] = p.dirs[3 * static_cast<std::size_t>(p.active[j]) + d];
+      }
+  }
+
+  /// Evaluates the packed samples p.active and scatters raw density and luminance into p.sig_full/raw_full.
+  void evaluate_active(const T* params, Pass& p, Workspace& w) const {
+    const int m = static_cast<int>(p.active.size());
+    if (m == 0) return;
+    gather_active(p);
+    const T *sg = nullptr, *rw = nullptr;
+    FieldT::forward(params, p.cpts.data(), p.cdirs.data(), m, p.ws, &sg, &rw);
+    w.evaluated += static_cast<std::size_t>(m);
+    constexpr int stride = FieldT::density_net::out_dims;
+    for (int j = 0; j < m; ++j) {
+      const std::size_t i = static_cast<std::size_t>(p.active[j]);
+      p.sig_full[i] = sg[static_cast<std::size_t>(j) * stride];
+      for (int c = 0; c < channels; ++c) p.raw_full[i * channels + c] = rw[static_cast<std::size_t>(j) * channels + c];
+    }
+  }
+
+  /// Evaluation forward with early termination, kEvalChunk samples of every live ray at a time.
+  void forward_terminating(const T* params, const Vec3* dir, int R, Pass& p, Workspace& w) const {
+    const int S = p.S;
+    const std::size_t n = static_cast<std::size_t>(R) * S;
+    p.sig_full.assign(n, kSkippedDensity);
+    p.raw_full.assign(n * channels, T(0));
+    p.ray_trans.assign(static_cast<std::size_t>(R), T(1));
+    for (int k0 = 0; k0 < S; k0 += kEvalChunk) {
+      const int k1 = std::min(S, k0 + kEvalChunk);
+      p.active.clear();
+      for (int r = 0; r < R; ++r) {
+        if (p.ray_trans[r] <= kEvalTransmittance) continue;
+        for (int k = k0; k < k1; ++k) {
+          const int i = r * S + k;
+          if (sampler_.evaluates(&p.pts[3 * static_cast<std::size_t>(i)])) p.active.push_back(i);
+        }
+      }
+      evaluate_active(params, p, w);
+      // Transmittance after this chunk (as composite_forward computes it).
+      bool alive = false;
+      for (int r = 0; r < R; ++r) {
+        if (p.ray_trans[r] <= kEvalTransmittance) continue;
+        const double dn = dir[r].norm() / box_.density_length;
+        for (int k = k0; k < k1; ++k) {
+          const std::size_t i = static_cast<std::size_t>(r) * S + k;
+          const double delta = k + 1 < S ? double(p.t[i + 1] - p.t[i]) * dn : kOpenInterval;
+          const double alpha = 1.0 - std::exp(-(FieldT::density_activation::f(p.sig_full[i]) * delta));
+          p.ray_trans[r] *= static_cast<T>(1.0 - alpha + kTransmittanceEpsilon);
+        }
+        alive = alive || p.ray_trans[r] > kEvalTransmittance;
+      }
+      if (!alive) break;
+    }
+  }
+
+  /// Forward of one network over the pass's R×S samples, compositing each ray into p.comp. Training rays
+  /// evaluate every sample the sampler keeps; evaluation rays may terminate early.
+  void run_pass(const T* params, const Vec3* origin, const Vec3* dir, int R, bool training, Pass& p, Workspace& w) const {
+    const int S = p.S;
+    make_samples(origin, dir, R, p);
+    const T *sigma = nullptr, *raw = nullptr;
+    int stride = FieldT::density_net::out_dims;
+    p.active.clear();
+    if (!training && w.early_termination) {
+      forward_terminating(params, dir, R, p, w);
+      sigma = p.sig_full.data();
+      raw = p.raw_full.data();
+      stride = 1;
+    } else if (sampler_.skipping()) {
+      const int n = R * S;
+      for (int i = 0; i < n; ++i)
+        if (sampler_.evaluates(&p.pts[3 * static_cast<std::size_t>(i)])) p.active.push_back(i);
+      p.sig_full.assign(static_cast<std::size_t>(n), kSkippedDensity);
+      p.raw_full.assign(static_cast<std::size_t>(n) * channels, T(0));
+      evaluate_active(params, p, w);
+      sigma = p.sig_full.data();
+      raw = p.raw_full.data();
+      stride = 1;
+    } else {
+      FieldT::forward(params, p.pts.data(), p.dirs.data(), R * S, p.ws, &sigma, &raw);
+      w.evaluated += static_cast<std::size_t>(R) * S;
+    }
+    p.comp.resize(R);
+    for (int r = 0; r < R; ++r) {
+      const std::size_t o = static_cast<std::size_t>(r) * S;
+      composite_forward<T, typename FieldT::density_activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
+                                                                p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
+                                                                training ? p.noise.data() + o : nullptr, p.comp[r]);
+    }
+    p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
+  }
+
+  void backward_pass(const T* params, Pass& p, Workspace& w, T* grads) const {
+    const int R = static_cast<int>(p.comp.size()), S = p.S;
+    p.dsigma.resize(static_cast<std::size_t>(R) * S);
+    p.draw.resize(static_cast<std::size_t>(R) * S * channels);
+    for (int r = 0; r < R; ++r) {
+      const std::size_t o = static_cast<std::size_t>(r) * S;
+      composite_backward<T>(S, channels, p.comp[r], p.dcolor.data() + static_cast<std::size_t>(r) * channels, p.dsigma.data() + o, 1,
+                            p.draw.data() + o * channels);
+    }
+    if (sampler_.skipping()) {  // only the evaluated samples carry gradient
+      // Early termination for the backward pass: a sample behind transmittance < kMinTransmittance has weight
+      // and gradients below that fraction of the ray's, so it is dropped: the forward's workspace is
+      // compacted to the kept samples (Field::keep_only) and only they go backward.
+      p.keep.clear();
+      for (int j = 0; j < static_cast<int>(p.active.size()); ++j) {
+        const int i = p.active[j];
+        if (p.comp[i / S].trans[i % S] > kMinTransmittance) p.keep.push_back(j);
+      }
+      const int m = static_cast<int>(p.keep.size());
+      w.backward_samples += static_cast<std::size_t>(m);
+      if (m == 0) return;
+      p.cdsigma.resize(static_cast<std::size_t>(m));
+      p.cdraw.resize(static_cast<std::size_t>(m) * channels);
+      for (int j = 0; j < m; ++j) {
+        const std::size_t i = static_cast<std::size_t>(p.active[p.keep[j]]);
+        p.cdsigma[j] = p.dsigma[i];
+        for (int c = 0; c < channels; ++c) p.cdraw[static_cast<std::size_t>(j) * channels + c] = p.draw[i * channels + c];
+      }
+      if (m < static_cast<int>(p.active.size())) {
+        const T *sg = nullptr, *rw = nullptr;
+        FieldT::keep_only(p.ws, p.keep.data(), m, &sg, &rw);
+      }
+      FieldT::backward(params, p.ws, p.cdsigma.data(), p.cdraw.data(), grads);
+      return;
+    }
+    w.backward_samples += static_cast<std::size_t>(R) * S;
+    FieldT::backward(params, p.ws, p.dsigma.data(), p.draw.data(), grads);
+  }
+
+  SceneBox box_;
+  SamplerT sampler_;
+};
+
+}  // namespace evnerf::render
