@@ -6,6 +6,7 @@
 #include <evnerf/train/trainer.hpp>
 
 #include "common.hpp"
+#include "tiny_scene.hpp"
 
 using namespace evnerf;
 namespace fs = std::filesystem;
@@ -16,30 +17,7 @@ using TinyField = field::Field<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmo
                                nn::Mlp<4 + 4, 16, 1, 1, nn::ReLU, nn::Identity>>;
 using Tiny = EvNerf<TinyField, render::Stratified<16>>;
 
-struct Fixture {
-  io::Dataset d;
-  TrainingData td;
-  train::Config cfg;
-  Fixture() {
-    auto spec = sim::parse_scene("plane 0 0 1.5 0 0 -1 1 0 0 0 0 checker 2\npath slider -0.1 0 0 0.1 0 0 0 0 1 0.5\n", "tiny.txt");
-    sim::SensorConfig sc;
-    sc.width = 32;
-    sc.height = 24;
-    sc.fx = sc.fy = 30;
-    sc.cx = sc.cy = -1;
-    sc.frame_rate = 12;
-    auto rec = sim::Simulator(spec, sc).run();
-    d.camera = rec.camera;
-    d.events = rec.events;
-    d.trajectory = rec.trajectory;
-    d.frames.t = rec.frame_times;
-    d.frames.paths.resize(rec.frame_times.size());
-    cfg.near = 0.5;
-    cfg.far = 3.0;
-    cfg.pixels_per_step = 256;
-    td = train::prepare(d, cfg);
-  }
-};
+using evtest::Fixture;
 }  // namespace
 
 using TinySigned = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::SignedCount>;

@@ -5,6 +5,7 @@
 // backward per tile of pixels with per-thread gradients reduced in a fixed order, applies Adam, and reads
 // and writes checkpoints (io/checkpoint.hpp). The named variants are in presets.hpp.
 #pragma once
+#include <array>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -49,6 +50,10 @@ struct StepStats {
   std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
   std::size_t first_slice = 0, window = 1;  ///< the step's window of slices [first, first + window)
+  /// event_loss by pass (coarse, fine): a two-network sampler's fine depths are drawn from the coarse
+  /// weights and held fixed in the backward (as in NeRF), so the coarse network's gradient is that of the
+  /// coarse pass's loss alone.
+  std::array<double, 2> pass_event_loss{};
 };
 
 /// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and the objective
@@ -206,6 +211,7 @@ class EvNerf {
     params_.begin_accumulate(threads);
     std::vector<double> loss_ev(threads, 0.0);
     std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
+    std::vector<std::array<double, 2>> pass_loss(threads);
     const geometry::Pose& pose0 = data.boundary_poses[first];
     const geometry::Pose& pose1 = data.boundary_poses[first + L];
     const std::uint64_t ray_key = rng.next_u64();
@@ -213,6 +219,7 @@ class EvNerf {
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.rw.evaluated = w.rw.backward_samples = 0;
+      w.pass_loss = {};
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
@@ -220,6 +227,7 @@ class EvNerf {
       }
       renderer_type::flush(w.rw);
       evaluated[th] = w.rw.evaluated;
+      pass_loss[th] = w.pass_loss;
       backward[th] = w.rw.backward_samples;
     });
     params_.end_accumulate(threads);
@@ -227,6 +235,8 @@ class EvNerf {
     st.first_slice = first;
     st.window = L;
     for (double l : loss_ev) st.event_loss += l;
+    for (const auto& l : pass_loss)
+      for (int net = 0; net < 2; ++net) st.pass_event_loss[net] += l[net];
     for (std::size_t e : evaluated) st.samples += e;
     for (std::size_t e : backward) st.backward_samples += e;
     // Threshold floor on every slice of the window (λ = 1000 for joint training, floor at the policy's
@@ -406,6 +416,7 @@ class EvNerf {
     std::vector<Vec3> origin, dir;
     std::vector<Rng> rng;
     std::vector<double> bp, bm, gbp, gbm;
+    std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
   };
 
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
@@ -468,7 +479,11 @@ class EvNerf {
     const Scalar* params = params_.values.data();
     renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
     double loss = 0;
-    for (int net = 0; net < n_fields; ++net) loss += pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width());
+    for (int net = 0; net < n_fields; ++net) {
+      const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width());
+      w.pass_loss[net] += l;
+      loss += l;
+    }
     renderer_.backward(params, w.rw, grads);
     return loss;
   }

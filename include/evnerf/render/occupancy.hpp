@@ -32,16 +32,18 @@ class OccupancyGrid {
   }
 
   /// Cell of a point in [−1, 1]³, or −1 outside the box (outside counts as occupied: never skipped).
-  long cell_of(const float* p) const {
+  template <class T>
+  long cell_of(const T* p) const {
     long idx = 0;
     for (int d = 2; d >= 0; --d) {
-      const float u = (p[d] + 1.f) * 0.5f * static_cast<float>(res_);
+      const float u = (static_cast<float>(p[d]) + 1.f) * 0.5f * static_cast<float>(res_);
       if (!(u >= 0.f && u < static_cast<float>(res_))) return -1;
       idx = idx * res_ + static_cast<long>(u);
     }
     return idx;
   }
-  bool occupied(const float* p) const {
+  template <class T>
+  bool occupied(const T* p) const {
     if (!active_) return true;
     const long c = cell_of(p);
     return c < 0 || occupied_[static_cast<std::size_t>(c)];
@@ -144,7 +146,10 @@ struct OccupancySkipping {
     stratified_depths(n, near, far, rng, t);
   }
   bool skipping() const { return grid_.active(); }
-  bool evaluates(const float* p) const { return grid_.occupied(p); }
+  template <class T>
+  bool evaluates(const T* p) const {
+    return grid_.occupied(p);
+  }
   double occupied_fraction() const { return grid_.occupied_fraction(); }
   const OccupancyGrid& grid() const { return grid_; }
 

@@ -103,7 +103,10 @@ struct Stratified {
     stratified_depths(n, near, far, rng, t);
   }
   bool skipping() const { return false; }
-  bool evaluates(const float*) const { return true; }
+  template <class T>
+  bool evaluates(const T*) const {
+    return true;
+  }
   double occupied_fraction() const { return 1.0; }
   void update(const SamplerUpdate&) {}
   std::string serialize() const { return {}; }

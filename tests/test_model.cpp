@@ -1,0 +1,137 @@
+// The whole training loss of tiny models in double precision against central finite differences: every
+// network parameter (both networks of a hierarchical sampler) and every per-slice threshold, for each
+// sampler (Stratified, Hierarchical, OccupancySkipping with an active grid) and for 1 and 3 (RGGB) channels.
+#include <algorithm>
+#include <cmath>
+
+#include <evnerf/evnerf.hpp>
+
+#include "common.hpp"
+#include "tiny_scene.hpp"
+
+using namespace evnerf;
+
+namespace {
+// Tiny fields: a hash grid of 2 levels × 32 entries with small networks, and a paper-like frequency
+// field with a skip connection (the Paper model's shape, a few hundred parameters).
+template <int C>
+using HashTiny = field::Field<nn::HashGrid<2, 2, 5, 2, 4>, nn::SphericalHarmonics<2>, nn::Mlp<4, 8, 1, 4, nn::ReLU, nn::Identity>,
+                              nn::Mlp<3 + 4, 8, 1, C, nn::ReLU, nn::Identity>>;
+template <int C>
+using FreqTiny = field::Field<nn::Frequency<1>, nn::Frequency<1>, nn::Mlp<9, 8, 3, 9, nn::ReLU, nn::Identity, 0>,
+                              nn::Mlp<8 + 9, 4, 1, C, nn::ReLU, nn::Identity>>;
+using Window = loss::WindowInterval<4, loss::HalfSlackCounts>;
+// The paper's objective with its λ = 1000 floor; the Fast presets' windowed one with projected thresholds.
+template <int C>
+using StratifiedModel = EvNerf<HashTiny<C>, render::Stratified<8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
+template <int C>
+using HierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
+template <int C>
+using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+template <int C>
+using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
+
+struct GradCheck {
+  std::size_t checked = 0, nonzero = 0, kinks = 0, bad = 0;
+  double worst = 0;
+};
+
+/// Central differences of Model::gradients()'s loss for every parameter. A parameter where the two
+/// one-sided differences disagree sits on a kink (ReLU, hinge) and is counted, not compared. The coarse
+/// network of a two-network sampler is compared with its own pass's loss: the fine depths it decides are
+/// held fixed in the backward, as in NeRF.
+template <class Model>
+GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t seed) {
+  auto loss_for = [&](std::size_t i, const StepStats& st) {
+    if (Model::n_fields == 2 && i < Model::field_params) return st.pass_event_loss[0] + st.threshold_loss;
+    return st.loss;
+  };
+  const auto st0 = m.gradients(td, pixels, seed, 4);
+  const std::vector<double> g = m.params().grads;
+  auto& x = m.params().values;
+  GradCheck r;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double x0 = x[i], h = 1e-7 * std::max(1.0, std::abs(x0)), l0 = loss_for(i, st0);
+    x[i] = x0 + h;
+    const double lp = loss_for(i, m.gradients(td, pixels, seed, 4));
+    x[i] = x0 - h;
+    const double lm = loss_for(i, m.gradients(td, pixels, seed, 4));
+    x[i] = x0;
+    const double fwd = (lp - l0) / h, bwd = (l0 - lm) / h, num = (lp - lm) / (2 * h);
+    ++r.checked;
+    if (std::abs(fwd - bwd) > 1e-3 * std::max(1.0, std::abs(num))) {
+      ++r.kinks;
+      continue;
+    }
+    if (g[i] != 0) ++r.nonzero;
+    const double err = std::abs(num - g[i]) / std::max(1.0, std::abs(num));
+    r.worst = std::max(r.worst, err);
+    if (err > 1e-5) {
+      ++r.bad;
+      MESSAGE("parameter " << i << ": analytic " << g[i] << ", finite differences " << num);
+    }
+  }
+  return r;
+}
+
+template <class Model>
+void check_model() {
+  const evtest::Fixture f;
+  Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
+  // kink compared with the step of the differences (the comparison is of a smooth function).
+  Rng rng(11);
+  for (int net = 0; net < Model::n_fields; ++net)
+    for (std::size_t i = 0; i < Model::field_type::pos_encoding::n_params; ++i)
+      m.params().values[net * Model::field_params + i] = rng.uniform() - 0.5;
+  // Thresholds spread around the floor, so that the floor term (where there is one) is both active and not.
+  for (std::size_t i = 0; i < m.n_slices(); ++i) {
+    m.params().values[m.threshold_offset() + 2 * i] = 0.2 + 0.2 * rng.uniform();
+    m.params().values[m.threshold_offset() + 2 * i + 1] = -(0.2 + 0.2 * rng.uniform());
+  }
+  if constexpr (Model::sampler_type::skips_samples) {
+    m.update_sampler(f.td, 0, 3);  // an active grid: some samples are skipped, and get no gradient
+    const double occ = m.sampler().occupied_fraction();
+    CAPTURE(occ);
+    REQUIRE(occ > 0);
+    REQUIRE(occ < 1);
+  }
+  int threshold_grads = 0;
+  for (const std::uint64_t seed : {1u, 2u}) {
+    const auto st = m.gradients(f.td, 16, seed, 4);
+    CAPTURE(seed);
+    REQUIRE(std::isfinite(st.loss));
+    REQUIRE(st.loss > 0);
+    if constexpr (Model::sampler_type::skips_samples) {
+      CHECK(st.samples > 0);
+      CHECK(st.samples < st.rays * Model::Nc);
+    }
+    const GradCheck r = check_all(m, f.td, 16, seed);
+    CAPTURE(r.checked);
+    CAPTURE(r.kinks);
+    CAPTURE(r.nonzero);
+    CAPTURE(r.worst);
+    CHECK(r.checked == Model::n_fields * Model::field_params + 2 * m.n_slices());
+    CHECK(r.bad == 0);
+    CHECK(r.kinks * 50 <= r.checked);    // kinks are rare: the comparison covers almost every parameter
+    CHECK(r.nonzero * 3 >= r.checked);  // and most of them get a gradient at all
+    // Only the window's thresholds can have a gradient.
+    const std::size_t to = m.threshold_offset();
+    for (std::size_t i = 0; i < m.n_slices(); ++i) {
+      const bool inside = i >= st.first_slice && i < st.first_slice + st.window;
+      for (int k = 0; k < 2; ++k) {
+        const double gi = m.params().grads[to + 2 * i + k];
+        if (inside) threshold_grads += gi != 0;
+        else CHECK(gi == 0);
+      }
+    }
+  }
+  CHECK(threshold_grads > 0);  // and some of them did (the comparison above covered them)
+}
+}  // namespace
+
+TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
+                   StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
+                   OccupancyModel<3>, WindowHierarchicalModel<1>) {
+  check_model<Model>();
+}
