@@ -5,8 +5,9 @@
 
 using namespace evnerf;
 // γ(x) with 6 frequencies → 3 × 96 Softplus → density + 8 features; features + SH degree 3 → 48 → luminance.
-using MyField = field::Field<nn::Frequency<6>, nn::SphericalHarmonics<3>, nn::Mlp<39, 96, 3, 9, nn::Softplus, nn::Identity>,
-                             nn::Mlp<8 + 9, 48, 1, 1, nn::ReLU, nn::Identity>>;
+// FieldOf derives the networks' input and output widths from the encodings and the feature count.
+using MyField = field::FieldOf<nn::Frequency<6>, nn::SphericalHarmonics<3>, nn::MlpShape{.width = 96, .hidden_layers = 3}, 8,
+                               nn::MlpShape{.width = 48, .hidden_layers = 1}, 1, nn::Softplus>;
 using Mine = EvNerf<MyField, render::Stratified<48>, loss::ProjectedThresholds, loss::DefaultNoise, loss::WindowInterval<16>>;
 
 int main(int argc, char** argv) {

@@ -13,13 +13,19 @@ using namespace nn;
 /// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs. `Prec` is the networks'
 /// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/bf16.hpp).
 template <int C = 1, int W = 256, class Prec = Fp32>
-using PaperField = field::Field<Frequency<10>, Frequency<4>, Mlp<63, W, 8, W + 1, ReLU, Identity, 4, Prec>,
-                                Mlp<W + 27, W / 2, 1, C, ReLU, Identity, -1, Prec>>;
+using PaperField = field::FieldOf<Frequency<10>, Frequency<4>, MlpShape{.width = W, .hidden_layers = 8, .skip = 4}, W,
+                                  MlpShape{.width = W / 2, .hidden_layers = 1}, C, ReLU, Prec>;
 /// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
 /// spherical harmonics into two 64-wide networks.
 template <int C = 1, class Prec = Fp32>
-using FastField = field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16, ReLU, Identity, -1, Prec>,
-                               Mlp<15 + 16, 64, 2, C, ReLU, Identity, -1, Prec>>;
+using FastField = field::FieldOf<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, MlpShape{.width = 64, .hidden_layers = 1}, 15,
+                                 MlpShape{.width = 64, .hidden_layers = 2}, C, ReLU, Prec>;
+static_assert(std::is_same_v<FastField<>, field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16>,
+                                                       Mlp<15 + 16, 64, 2, 1>>>,
+              "FastField: the derived widths are the ones written out");
+static_assert(std::is_same_v<PaperField<>, field::Field<Frequency<10>, Frequency<4>, Mlp<63, 256, 8, 257, ReLU, Identity, 4>,
+                                                        Mlp<256 + 27, 128, 1, 1>>>,
+              "PaperField: the derived widths are the ones written out");
 
 template <class Th = loss::JointThresholds, class No = loss::DefaultNoise, int C = 1, class Prec = Fp32>
 using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128>, Th, No>;

@@ -2,6 +2,7 @@
 // events and the high-pass filter of Scheerlinck et al. (ACCV 2018), each giving an image at any time.
 // Depends on core/ and events/ only.
 #pragma once
+#include <numbers>
 #include <cmath>
 #include <vector>
 
@@ -29,7 +30,7 @@ inline std::vector<Image> direct_integration(const events::EventStream& ev, cons
 /// High-pass filter: per pixel L ← exp(−α·Δt)·L + polarity × contrast at every event, decayed to each
 /// requested time; α (rad/s) is the cut-off. Returns exp(L).
 inline std::vector<Image> high_pass_filter(const events::EventStream& ev, const std::vector<double>& times,
-                                           double contrast = 0.2, double alpha = 2.0 * 3.141592653589793) {
+                                           double contrast = 0.2, double alpha = 2.0 * std::numbers::pi) {
   const std::size_t n = static_cast<std::size_t>(ev.width) * ev.height;
   std::vector<double> logi(n, 0.0), last(n, ev.empty() ? 0.0 : ev.t.front());
   std::vector<Image> out;

@@ -46,7 +46,7 @@ void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T*
 
 /// `DensityAct` turns the raw density (plus training noise) into σ ≥ 0: nn::ReLU as in NeRF and the
 /// paper, nn::TruncExp as in Instant-NGP (large densities within reach of a small network).
-template <class PosEnc, class DirEnc, class DensityNet, class ColorNet, class DensityAct = nn::ReLU>
+template <nn::Encoding PosEnc, nn::Encoding DirEnc, class DensityNet, class ColorNet, class DensityAct = nn::ReLU>
 struct Field {
   static_assert(nn::Activation<DensityAct>, "Field: DensityAct must be an activation type (nn::ReLU, nn::TruncExp, ...).");
   static_assert(PosEnc::in_dims == 3, "Field: the position encoding must take 3-D points.");
@@ -204,5 +204,15 @@ struct Field {
     }
   }
 };
+
+/// A Field with its networks' input and output widths derived: the density network takes the position
+/// encoding's features and gives a density and `Features` features; the colour network takes those and the
+/// direction encoding's features and gives `Channels` raw luminances. Both end in nn::Identity (the density
+/// activation is `DensityAct`, the compositor applies the sigmoid), their hidden layers use `Act`, and
+/// `Prec` is their product precision.
+template <nn::Encoding PosEnc, nn::Encoding DirEnc, nn::MlpShape DensityShape, int Features, nn::MlpShape ColourShape,
+          int Channels = 1, class Act = nn::ReLU, class Prec = nn::Fp32, class DensityAct = nn::ReLU>
+using FieldOf = Field<PosEnc, DirEnc, nn::MlpOf<PosEnc::out_dims, DensityShape, 1 + Features, Act, nn::Identity, Prec>,
+                      nn::MlpOf<Features + DirEnc::out_dims, ColourShape, Channels, Act, nn::Identity, Prec>, DensityAct>;
 
 }  // namespace evnerf::field

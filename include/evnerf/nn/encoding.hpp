@@ -9,12 +9,26 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <concepts>
 #include <cstdint>
 
 #include "../ad/expr.hpp"
 #include "../core/rng.hpp"
 
 namespace evnerf::nn {
+
+/// An encoding maps `in_dims` inputs of a sample to `out_dims` features, may have `n_params` trainable
+/// parameters (initialised by init), and has a backward that adds the gradient for its parameters and for
+/// its input. Batch paths (forward_batch, backward_batch) are optional; field::Field uses them when
+/// present. A network that follows an encoding takes its width from out_dims (field::FieldOf).
+template <class E>
+concept Encoding = requires(const double* p, const double* x, double* y, double* dp, double* dx, Rng& rng) {
+  requires E::in_dims >= 1 && E::out_dims >= 1;
+  { E::n_params } -> std::convertible_to<std::size_t>;
+  E::init(dp, rng);
+  E::forward(p, x, y);
+  E::backward(p, x, y, dp, dx);
+};
 
 /// Passes D inputs through.
 template <int D = 3>
@@ -115,6 +129,9 @@ struct SphericalHarmonics {
   }
 };
 
+/// The spatial hash's per-axis multipliers (Teschner et al. 2003, as Instant-NGP uses them): x·1 ⊕ y·P1 ⊕ z·P2.
+inline constexpr std::uint32_t kHashPrimeY = 2654435761u, kHashPrimeZ = 805459861u;
+
 /// Multiresolution hash encoding (Müller et al. 2022) of a 3-D point in [0, 1]³. Level l has resolution
 /// floor(BaseRes · b^l) with b chosen so that the last level reaches MaxRes; a level whose grid fits in
 /// the table is indexed densely, otherwise by the spatial hash (x·1 ⊕ y·2654435761 ⊕ z·805459861) mod T.
@@ -155,7 +172,7 @@ struct HashGrid {
   static std::uint32_t index(int l, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
     const auto& lv = levels()[l];
     if (lv.dense) return static_cast<std::uint32_t>(x + lv.res * (y + lv.res * z));
-    return (x ^ (y * 2654435761u) ^ (z * 805459861u)) & (table_size - 1);
+    return (x ^ (y * kHashPrimeY) ^ (z * kHashPrimeZ)) & (table_size - 1);
   }
 
   /// Visits the 8 corners of level l around point p: fn(table_index, weight, dweight/dp[3]). The weight is
@@ -176,7 +193,7 @@ struct HashGrid {
     // Per-axis index terms: dense levels add x + res·y + res²·z, hashed ones xor x, y·π₂, z·π₃.
     std::uint32_t term[3][2];
     const auto res = static_cast<std::uint32_t>(lv.res);
-    const std::uint32_t mul[3] = {1u, lv.dense ? res : 2654435761u, lv.dense ? res * res : 805459861u};
+    const std::uint32_t mul[3] = {1u, lv.dense ? res : kHashPrimeY, lv.dense ? res * res : kHashPrimeZ};
     for (int d = 0; d < 3; ++d) {
       term[d][0] = base[d] * mul[d];
       term[d][1] = (base[d] + 1) * mul[d];
@@ -238,8 +255,8 @@ struct HashGrid {
     const float sc = static_cast<float>(lv.scale);
     const __m256 s = _mm256_set1_ps(sc), last = _mm256_set1_ps(sc - 1);
     const auto res = static_cast<std::uint32_t>(lv.res);
-    const __m256i mul[3] = {_mm256_set1_epi32(1), _mm256_set1_epi32(static_cast<int>(lv.dense ? res : 2654435761u)),
-                            _mm256_set1_epi32(static_cast<int>(lv.dense ? res * res : 805459861u))};
+    const __m256i mul[3] = {_mm256_set1_epi32(1), _mm256_set1_epi32(static_cast<int>(lv.dense ? res : kHashPrimeY)),
+                            _mm256_set1_epi32(static_cast<int>(lv.dense ? res * res : kHashPrimeZ))};
     const __m256i at = _mm256_add_epi32(_mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21), _mm256_set1_epi32(3 * j0));
     __m256i term[3][2];
     __m256 wd[3][2];
@@ -370,5 +387,8 @@ struct HashGrid {
     }
   }
 };
+
+static_assert(Encoding<IdentityEncoding<3>> && Encoding<Frequency<4>> && Encoding<SphericalHarmonics<4>> &&
+              Encoding<HashGrid<2, 2, 6, 2, 8>>);
 
 }  // namespace evnerf::nn

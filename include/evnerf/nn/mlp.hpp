@@ -271,4 +271,16 @@ struct Mlp {
   }
 };
 
+/// An MLP's hidden shape by name: `width` units in each of `hidden_layers` layers, and the layer after which
+/// the input is concatenated again (`skip`, −1 for none). For example MlpShape{.width = 256,
+/// .hidden_layers = 8, .skip = 4} is the NeRF trunk.
+struct MlpShape {
+  int width = 64;
+  int hidden_layers = 1;
+  int skip = -1;
+};
+/// Mlp with its hidden shape given by name.
+template <int In, MlpShape Shape, int Out, class HiddenAct = ReLU, class OutAct = Identity, class Prec = Fp32>
+using MlpOf = Mlp<In, Shape.width, Shape.hidden_layers, Out, HiddenAct, OutAct, Shape.skip, Prec>;
+
 }  // namespace evnerf::nn

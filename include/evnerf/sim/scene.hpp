@@ -3,6 +3,7 @@
 // stripes, fractal noise) and PNG textures; camera paths (slider, arc, hand-held); a text description
 // format and the built-in scenes. Depends on core/, geometry/ and io/image_io.hpp only.
 #pragma once
+#include <numbers>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -219,7 +220,7 @@ inline CameraPath arc_path(const Vec3& center, double radius, double height, dou
 /// Smooth hand-held zig-zag: sideways sweeps with vertical bob and small rotations.
 inline CameraPath handheld_path(const Vec3& start, const Vec3& look, double amplitude, double duration) {
   return {duration, [=](double t) {
-            const double w = 2 * 3.141592653589793 / duration;
+            const double w = 2 * std::numbers::pi / duration;
             const Vec3 eye = start + Vec3(amplitude * std::sin(1.5 * w * t), 0.3 * amplitude * std::sin(3.1 * w * t),
                                           0.4 * amplitude * std::sin(0.7 * w * t));
             const Vec3 target = eye + look + Vec3(0.15 * std::sin(1.1 * w * t), 0.1 * std::cos(1.7 * w * t), 0);

@@ -173,16 +173,18 @@ struct StepReport {
   double seconds = 0;
 };
 
+/// Steps between two lines of log.jsonl (each line holds the means over them).
+inline constexpr long kLogEvery = 50;
+
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
-/// `log_every` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
+/// `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
 /// every checkpoint_every steps and at the end. On a NaN/Inf loss it stops with a message and leaves the
 /// last good checkpoint in place. `on_step`, when given, is called after every step and may return false
 /// to stop the run (a checkpoint is written first). The caller's thread count is restored on return.
 template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
-  constexpr long log_every = 50;
   fs::create_directories(out);
   const ScopedThreadCount threads(cfg.threads);
   std::ofstream log(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
@@ -215,7 +217,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", sum_loss / window, rays / std::max(el, 1e-9));
     bar.update(s, extra);
     StepReport rep{s, st, false, sum_loss / window, sum_event / window, sum_threshold / window, el};
-    if (s % log_every == 0 || s == cfg.iterations) {
+    if (s % kLogEvery == 0 || s == cfg.iterations) {
       rep.logged = true;
       nlohmann::ordered_json j = {{"step", s},
                           {"loss", rep.mean_loss},
