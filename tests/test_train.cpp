@@ -209,9 +209,10 @@ TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, 
   }
   CHECK(a.params().values == c.params().values);
   CHECK(a.sampler().serialize() == c.sampler().serialize());
-  // A grid-less model refuses a checkpoint with a grid.
+  // A grid-less model refuses a checkpoint with a grid: another sampler is another architecture.
   Tiny t;
-  CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", ""), "tiny", "x.ckpt"), doctest::Contains("occupancy grid"));
+  CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", ""), "tiny", "x.ckpt"),
+                    doctest::Contains("sampler occupancy 16 grid 16 every 4 after 8'; this model is"));
 }
 
 TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with a clear error") {
@@ -223,7 +224,21 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   bad[bad.size() / 2] ^= 0x55;
   CHECK_THROWS_WITH(b.deserialize(bad, "tiny", "x.ckpt"), doctest::Contains("x.ckpt:0: corrupt or mismatched checkpoint: checksum mismatch"));
   CHECK_THROWS_WITH(b.deserialize(bytes.substr(0, 100), "tiny", "x.ckpt"), doctest::Contains("checksum mismatch"));
-  CHECK_THROWS_WITH(b.deserialize(bytes, "paper", "x.ckpt"), doctest::Contains("written by preset 'tiny'"));
+  // The architecture decides, not the name: a file of this model under another name loads, a model of
+  // another architecture refuses it with both descriptions.
+  CHECK_NOTHROW(b.deserialize(bytes, "paper", "x.ckpt"));
+  using Wider = EvNerf<field::FieldOf<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 32}, 4,
+                                      nn::MlpShape{.width = 16}>,
+                       render::Stratified<16>>;
+  static_assert(Wider::field_params != Tiny::field_params);
+  Wider wider;
+  CHECK_THROWS_WITH(wider.deserialize(bytes, "tiny", "x.ckpt"),
+                    doctest::Contains("written by a model of another architecture ('position hash grid 6x2 2^12 4..64, direction "
+                                      "spherical harmonics 2, density mlp 12>16x1>5 relu/identity, colour mlp 8>16x1>1 "
+                                      "relu/identity, density activation relu; sampler stratified 16'; this model is"));
+  using OtherSampler = EvNerf<TinyField, render::Stratified<24>>;
+  OtherSampler other;
+  CHECK_THROWS_WITH(other.deserialize(bytes, "tiny", "x.ckpt"), doctest::Contains("sampler stratified 24"));
   CHECK_THROWS_WITH(b.deserialize("hello", "tiny", "x.ckpt"), doctest::Contains("not an evnerf checkpoint"));
   // The trainer's file path: atomic write and load.
   const fs::path dir = fs::temp_directory_path() / ("evnerf_ck_" + std::to_string(::getpid()));
@@ -234,7 +249,7 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   fs::remove_all(dir);
 }
 
-TEST_CASE("checkpoints: version 4 records the loss; versions 3 and 2 load (density length, a note on the loss)") {
+TEST_CASE("checkpoints: version 5 records the architecture, 4 the loss; versions 4, 3 and 2 load") {
   Fixture f;
   f.cfg.density_per_box = true;
   const auto box = train::scene_box(f.td, f.cfg);
@@ -242,12 +257,32 @@ TEST_CASE("checkpoints: version 4 records the loss; versions 3 and 2 load (densi
   CHECK(box.density_length == box.scale);
   Tiny a(f.td.slices.size(), box, 7);
   for (int s = 0; s < 4; ++s) a.train_step(f.td, 128, 3);
-  const std::string v4 = a.serialize("tiny", "meta");
+  const std::string v5 = a.serialize("tiny", "meta");
   auto with_sum = [](std::string b) {
     const std::uint64_t sum = fnv1a64(b);
     b.append(reinterpret_cast<const char*>(&sum), 8);
     return b;
   };
+  // Rewrite as version 4: no architecture after the loss; the variant's name is checked instead.
+  const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
+  std::string v4 = v5.substr(0, v5.size() - 8);
+  {
+    const std::size_t arch = at + 8 + 8 + Tiny::loss_description().size();
+    std::uint64_t len = 0;
+    std::memcpy(&len, v4.data() + arch, 8);
+    REQUIRE(len == Tiny::architecture().size());
+    REQUIRE(v4.substr(arch + 8, len) == Tiny::architecture());
+    v4.erase(arch, 8 + len);
+    const std::uint64_t four = 4;
+    std::memcpy(v4.data() + 8, &four, 8);
+    v4 = with_sum(v4);
+  }
+  {
+    Tiny t;
+    CHECK(t.deserialize(v4, "tiny", "m.ckpt") == "meta");
+    CHECK(t.params().values == a.params().values);
+    CHECK_THROWS_WITH(t.deserialize(v4, "paper", "m.ckpt"), doctest::Contains("written by preset 'tiny', loading as 'paper'"));
+  }
   // The same model type loads it with no note; one trained with other bounds or without noise refuses it.
   Tiny same;
   CHECK(same.deserialize(v4, "tiny", "m.ckpt") == "meta");
@@ -259,7 +294,6 @@ TEST_CASE("checkpoints: version 4 records the loss; versions 3 and 2 load (densi
                     doctest::Contains("m.ckpt:0: corrupt or mismatched checkpoint: trained with the loss 'bounds split 1, "
                                       "thresholds joint, noise 50 per mille', this model's is 'bounds half-slack, thresholds joint, noise 50 per mille'"));
   // Rewrite as version 3: no loss description after the density length.
-  const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
   std::string v3 = v4.substr(0, v4.size() - 8);
   std::uint64_t loss_len = 0;
   std::memcpy(&loss_len, v3.data() + at + 8, 8);
@@ -288,14 +322,14 @@ TEST_CASE("checkpoints: version 4 records the loss; versions 3 and 2 load (densi
   CHECK(a.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data !=
         b.render(f.td.camera, dirs, f.td.boundary_poses[0]).opacity.data);
   // A file with a nonsensical length is refused.
-  std::string bad = v4.substr(0, v4.size() - 8);
+  std::string bad = v5.substr(0, v5.size() - 8);
   const double zero = 0.0;
   std::memcpy(bad.data() + at, &zero, 8);
   CHECK_THROWS_WITH(b.deserialize(with_sum(bad), "tiny", "x.ckpt"), doctest::Contains("density length is not a positive number"));
-  std::string future = v4.substr(0, v4.size() - 8);
-  const std::uint64_t five = 5;
-  std::memcpy(future.data() + 8, &five, 8);
-  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 5"));
+  std::string future = v5.substr(0, v5.size() - 8);
+  const std::uint64_t six = 6;
+  std::memcpy(future.data() + 8, &six, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 6"));
 }
 
 TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {

@@ -289,6 +289,7 @@ class EvNerf {
     put(boxv, sizeof boxv);
     put(&bx.density_length, 8);
     put_str(loss_description());
+    put_str(architecture());
     put(params_.values.data(), params_.size() * 4);
     put(adam_.m().data(), params_.size() * 4);
     put(adam_.v().data(), params_.size() * 4);
@@ -298,13 +299,20 @@ class EvNerf {
     return b;
   }
   /// Restores from serialize()'s bytes (format: io/checkpoint.hpp); errors name the file and what does not
-  /// match. The model changes only when the whole file has been read and checked. An empty `name` accepts
-  /// any variant name (the parameter count and the loss are still checked).
+  /// match. The model changes only when the whole file has been read and checked. A file of version 5 or
+  /// later must have this model's architecture() and loss_description(); the name it carries is a label.
+  /// Older files carry no architecture: their variant name must equal `name` unless that is empty (the
+  /// parameter count and, from version 4, the loss are checked).
   std::string deserialize(const std::string& b, const std::string& name, const std::string& file) {
     static_assert(std::is_same_v<Scalar, float>, "EvNerf::deserialize: checkpoints hold float models");
     io::CheckpointReader r(b, file);
     const io::CheckpointHeader h = io::read_checkpoint_header(r);
-    if (!name.empty() && h.name != name) r.fail("written by preset '" + h.name + "', loading as '" + name + "'");
+    if (h.version >= 5) {
+      if (h.architecture != architecture())
+        r.fail("written by a model of another architecture ('" + h.architecture + "'; this model is '" + architecture() + "')");
+    } else if (!name.empty() && h.name != name) {
+      r.fail("written by preset '" + h.name + "', loading as '" + name + "'");
+    }
     const std::uint64_t n = h.n_params;
     if (h.n_slices > n || n != n_fields * field_params + 2 * h.n_slices)
       r.fail("parameter count does not match this model (" + std::to_string(n) + " in the file, " +
@@ -342,7 +350,12 @@ class EvNerf {
     load_note_ = std::move(note);
     return extra;
   }
-  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description (io/checkpoint.hpp).
+  /// The model's architecture as checkpoints record it: the field's (encodings, networks, activation) and
+  /// the sampler's. Two variants with the same architecture and loss can load each other's files (the
+  /// FP32 and bf16 twins do).
+  static std::string architecture() { return FieldT::architecture() + "; sampler " + SamplerT::name(); }
+  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description, 5 the architecture
+  /// (io/checkpoint.hpp).
   static constexpr std::uint64_t checkpoint_version = io::kCheckpointVersion;
   /// The loss this model trains with, as checkpoints record it: interval policy, threshold policy, noise.
   /// A checkpoint written under another one is refused (resuming would silently change the objective).

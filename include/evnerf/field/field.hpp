@@ -4,6 +4,7 @@
 // applied by the compositor). Depends on nn/ only.
 #pragma once
 #include <algorithm>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -73,6 +74,13 @@ struct Field {
   static constexpr std::size_t pos_offset = 0, density_offset = PosEnc::n_params,
                                color_offset = PosEnc::n_params + DensityNet::n_params;
   static constexpr std::size_t n_params = color_offset + ColorNet::n_params;
+  /// The field's architecture: encodings, networks, density activation (what a checkpoint must match).
+  static std::string architecture() {
+    std::string a = "position ";
+    a.append(PosEnc::name()).append(", direction ").append(DirEnc::name()).append(", density ").append(DensityNet::name());
+    a.append(", colour ").append(ColorNet::name()).append(", density activation ").append(DensityAct::name);
+    return a;
+  }
   /// Multiply-adds per sample through both networks (forward).
   static constexpr std::size_t macs_per_sample() { return DensityNet::macs_per_sample() + ColorNet::macs_per_sample(); }
 

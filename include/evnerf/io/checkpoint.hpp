@@ -1,10 +1,12 @@
 // io/checkpoint.hpp — the checkpoint format's one parser. A checkpoint is
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
 //   f64×6 box (centre, scale, near, far) | f64 density length (v ≥ 3) | str loss (v ≥ 4) |
+//   str architecture (v ≥ 5) |
 //   f32 parameters | f32 Adam m | f32 Adam v | str occupancy grid (v ≥ 2) | str caller's metadata |
 //   u64 FNV-1a of everything before it
 // (u64/i64/f64 little-endian as stored by this machine; str = u64 length + bytes). Versions: 2 added the
-// occupancy grid, 3 the density length, 4 the loss. EvNerf::serialize writes it; EvNerf::deserialize and
+// occupancy grid, 3 the density length, 4 the loss, 5 the architecture (the model's types: encodings,
+// networks, sampler; the variant's name is then only a label). EvNerf::serialize writes it; EvNerf::deserialize and
 // the command line (which variant wrote this file?) read it through this header. Depends on core/ only.
 #pragma once
 #include <cmath>
@@ -19,7 +21,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 4;
+inline constexpr std::uint64_t kCheckpointVersion = 5;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -67,6 +69,7 @@ struct CheckpointHeader {
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
   double density_length = 1.0;         ///< versions 1 and 2 measured density per world unit
   std::string loss;                    ///< empty before version 4
+  std::string architecture;            ///< empty before version 5
 };
 
 /// Reads the header; the reader is left at the parameters.
@@ -84,6 +87,7 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
     if (!(h.density_length > 0) || !std::isfinite(h.density_length)) r.fail("density length is not a positive number");
   }
   if (h.version >= 4) h.loss = r.str();
+  if (h.version >= 5) h.architecture = r.str();
   return h;
 }
 

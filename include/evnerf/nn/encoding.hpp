@@ -11,13 +11,15 @@
 #include <cmath>
 #include <concepts>
 #include <cstdint>
+#include <string>
 
 #include "../ad/expr.hpp"
 #include "../core/rng.hpp"
 
 namespace evnerf::nn {
 
-/// An encoding maps `in_dims` inputs of a sample to `out_dims` features, may have `n_params` trainable
+/// An encoding maps `in_dims` inputs of a sample to `out_dims` features (name() says which, for checkpoints'
+/// architecture), may have `n_params` trainable
 /// parameters (initialised by init), and has a backward that adds the gradient for its parameters and for
 /// its input. Batch paths (forward_batch, backward_batch) are optional; field::Field uses them when
 /// present. A network that follows an encoding takes its width from out_dims (field::FieldOf).
@@ -25,6 +27,7 @@ template <class E>
 concept Encoding = requires(const double* p, const double* x, double* y, double* dp, double* dx, Rng& rng) {
   requires E::in_dims >= 1 && E::out_dims >= 1;
   { E::n_params } -> std::convertible_to<std::size_t>;
+  { E::name() } -> std::convertible_to<std::string>;
   E::init(dp, rng);
   E::forward(p, x, y);
   E::backward(p, x, y, dp, dx);
@@ -34,6 +37,7 @@ concept Encoding = requires(const double* p, const double* x, double* y, double*
 template <int D = 3>
 struct IdentityEncoding {
   static constexpr int in_dims = D, out_dims = D;
+  static std::string name() { return "identity " + std::to_string(D); }
   static constexpr std::size_t n_params = 0;
   template <class T> static void init(T*, Rng&) {}
   template <class T> static void forward(const T*, const T* x, T* y) { std::copy(x, x + D, y); }
@@ -48,6 +52,7 @@ template <int N, int D = 3>
 struct Frequency {
   static_assert(N >= 0 && N <= 24, "Frequency<N>: N must be between 0 and 24 frequencies.");
   static constexpr int in_dims = D, out_dims = D * (1 + 2 * N);
+  static std::string name() { return "frequency " + std::to_string(N) + " of " + std::to_string(D); }
   static constexpr std::size_t n_params = 0;
   template <class T> static void init(T*, Rng&) {}
   template <class T>
@@ -81,6 +86,7 @@ template <int Degree>
 struct SphericalHarmonics {
   static_assert(Degree >= 1 && Degree <= 4, "SphericalHarmonics<Degree>: Degree must be between 1 and 4.");
   static constexpr int in_dims = 3, out_dims = Degree * Degree;
+  static std::string name() { return "spherical harmonics " + std::to_string(Degree); }
   static constexpr std::size_t n_params = 0;
   template <class T> static void init(T*, Rng&) {}
 
@@ -143,6 +149,10 @@ struct HashGrid {
   static_assert(Log2T >= 4 && Log2T <= 24, "HashGrid: Log2TableSize must be between 4 and 24.");
   static_assert(BaseRes >= 2 && MaxRes >= BaseRes, "HashGrid: need 2 <= BaseRes <= MaxRes.");
   static constexpr int in_dims = 3, out_dims = Levels * F;
+  static std::string name() {
+    return "hash grid " + std::to_string(Levels) + "x" + std::to_string(F) + " 2^" + std::to_string(Log2T) + " " +
+           std::to_string(BaseRes) + ".." + std::to_string(MaxRes);
+  }
   static constexpr std::uint32_t table_size = 1u << Log2T;
   static constexpr std::size_t n_params = static_cast<std::size_t>(Levels) * table_size * F;
 

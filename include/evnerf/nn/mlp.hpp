@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -49,6 +50,15 @@ struct Mlp {
   using hidden_activation = HiddenAct;
   using output_activation = OutAct;
   using precision = Prec;
+  /// The shape as checkpoints record it (the product precision is not part of it: FP32 and bf16 twins share
+  /// their parameters).
+  static std::string name() {
+    std::string n = "mlp " + std::to_string(In) + ">" + std::to_string(Width) + "x" + std::to_string(Depth) + ">" +
+                    std::to_string(Out) + " ";
+    n.append(HiddenAct::name).append("/").append(OutAct::name);
+    if (Skip >= 0) n.append(" skip ").append(std::to_string(Skip));
+    return n;
+  }
 
   /// Whether the products of a T network run on bf16 pairs (float, Prec = Bf16, a CPU with AVX-512 BF16).
   template <class T>
