@@ -14,8 +14,9 @@ using namespace evnerf;
 template <class Model>
 std::array<eval::Scores, 2> train_and_score(const io::Dataset& d, const train::Config& cfg, const char* name) {
   const auto td = train::prepare(d, cfg);
-  auto model = train::make_model<Model>(td, cfg);
-  train::run(model, td, cfg, std::string("ablation_out/") + name, name, train::describe(td, d.folder.string()));
+  train::Trainer<Model> trainer(td, cfg, std::string("ablation_out/") + name, name, train::describe(td, d.folder.string()));
+  trainer.run();
+  const Model& model = trainer.model();
   std::vector<Image> preds, gts;
   for (std::size_t i = 0; i < d.frames.size(); ++i) {
     const double t = d.frames.t[i];

@@ -54,12 +54,21 @@ TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the l
 
 TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants differ") {
   Fixture f;
-  EvNerf<TinyField, render::Stratified<16>, loss::FixedThresholds> m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
-  for (int s = 0; s < 5; ++s) m.train_step(f.td, 128, 3);
-  CHECK(m.threshold_pos(0) == doctest::Approx(0.3f));
-  CHECK(m.threshold_neg(0) == doctest::Approx(-0.3f));
+  const auto box = train::scene_box(f.td, f.cfg);
+  EvNerf<TinyField, render::Stratified<16>, loss::FixedThresholds> m(f.td.slices.size(), box, 7);
+  EvNerf<TinyField, render::Stratified<16>, loss::FixedThresholds, loss::NoNoise> quiet(f.td.slices.size(), box, 7);
+  REQUIRE(m.params().values == quiet.params().values);
+  for (int s = 0; s < 5; ++s) {
+    m.train_step(f.td, 128, 3);
+    quiet.train_step(f.td, 128, 3);
+  }
+  for (std::size_t i = 0; i < m.n_slices(); ++i) {  // every slice, exactly, and the fields did train
+    CHECK(m.threshold_pos(i) == 0.3f);
+    CHECK(m.threshold_neg(i) == -0.3f);
+    CHECK(m.optimizer().m()[m.threshold_offset() + 2 * i] == 0.f);
+  }
+  CHECK(m.params().values != quiet.params().values);
 }
-
 TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip",
                    Model, Tiny, TinyBf16, TinyWindow) {
   Fixture f;
@@ -343,11 +352,41 @@ TEST_CASE("training data: poses that do not cover the events are an error; clamp
 
 TEST_CASE("noise injection inside training draws a fresh noise map per step") {
   Fixture f;
-  Rng r1(1), r2(2);
-  const auto& s = f.td.slices.slices[1];
-  CHECK(events::inject_noise(s, 0.05, r1).pos != events::inject_noise(s, 0.05, r2).pos);
+  TrainingData td = f.td;
+  for (std::size_t i = 0; i < td.slice_enabled.size(); ++i) td.slice_enabled[i] = i == 1;  // always slice 1
+  const std::size_t hw = td.slices.slices[1].pixels();
+  const auto box = train::scene_box(td, f.cfg);
+  Tiny noisy(td.slices.size(), box, 7);
+  EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::NoNoise> clean(td.slices.size(), box, 7);
+  // Every pixel of the slice in every step: the counts a step sees minus the recording's are its noise.
+  auto noise_map = [&](const auto& draw) {
+    REQUIRE(draw.first == 1);
+    REQUIRE(draw.pixels.size() == hw);
+    std::vector<int> n(hw, 0);
+    for (std::size_t i = 0; i < hw; ++i) {
+      const auto p = draw.pixels[i];
+      n[p] = draw.npos[i] - td.slices.slices[1].pos[p] + draw.nneg[i] - td.slices.slices[1].neg[p];
+    }
+    return n;
+  };
+  std::vector<std::vector<int>> maps;
+  for (int s = 0; s < 3; ++s) {
+    noisy.train_step(td, static_cast<int>(hw), 3);
+    clean.train_step(td, static_cast<int>(hw), 3);
+    maps.push_back(noise_map(noisy.last_draw()));
+    const auto none = noise_map(clean.last_draw());
+    CHECK(std::all_of(none.begin(), none.end(), [](int c) { return c == 0; }));  // no noise without the policy
+    long added = 0;
+    for (int c : maps.back()) {
+      CHECK(c >= 0);
+      added += c;
+    }
+    // 5 % of the slice's events (saturation aside)
+    CHECK(added == static_cast<long>(std::llround(0.05 * static_cast<double>(td.slices.slices[1].total))));
+  }
+  CHECK(maps[0] != maps[1]);
+  CHECK(maps[1] != maps[2]);
 }
-
 TEST_CASE("training: windows span 1..W trainable slices, every length occurs, held-out slices are never inside one") {
   Fixture f;
   REQUIRE(f.td.slices.size() == 4);
@@ -494,4 +533,37 @@ TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the t
   CAPTURE(worst_depth);
   CHECK(worst <= 1.5e-4);
   CHECK(worst_depth <= 1.5e-4 * f.cfg.far * 1.5);
+}
+
+TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does") {
+  Fixture f;
+  train::Config cfg = f.cfg;
+  cfg.iterations = 30;
+  cfg.pixels_per_step = 64;
+  cfg.progress = false;
+  cfg.threads = 2;
+  cfg.near = 0.6;
+  cfg.far = 2.5;
+  cfg.lr = 2e-3;
+  cfg.checkpoint_every = 0;
+  const fs::path base = fs::temp_directory_path() / ("evnerf_trainer_" + std::to_string(::getpid()));
+  train::Trainer<Tiny> whole(f.td, cfg, base / "whole", "tiny", "meta");
+  CHECK(whole.model().box().near == 0.6);
+  CHECK(whole.model().box().far == 2.5);
+  CHECK(whole.model().optimizer().config().lr == 2e-3);
+  CHECK_FALSE(whole.resume());  // nothing to resume from
+  whole.run();
+  CHECK(whole.model().step() == 30);
+  {
+    train::Trainer<Tiny> first(f.td, cfg, base / "split", "tiny", "meta");
+    const auto r = first.run([](const train::StepReport& rep) { return rep.step < 12; });
+    CHECK(r.stopped);
+  }
+  train::Trainer<Tiny> second(f.td, cfg, base / "split", "tiny", "meta");
+  REQUIRE(second.resume());
+  CHECK(second.model().step() == 12);
+  second.run();
+  CHECK(second.model().step() == 30);
+  CHECK(second.model().params().values == whole.model().params().values);
+  fs::remove_all(base);
 }

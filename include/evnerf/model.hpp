@@ -260,6 +260,17 @@ class EvNerf {
     return st;
   }
 
+  /// A step's window and what its pixels saw there (the per-slice counts, noise included).
+  struct StepWindow {
+    std::size_t first = 0, len = 1;
+    std::vector<std::uint32_t> pixels;
+    std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
+    std::vector<events::NoiseEvent> noise;
+    std::vector<std::size_t> starts, touched;
+  };
+  /// What the last gradients() (or train_step()) drew: window, pixels and their counts with the noise.
+  const StepWindow& last_draw() const { return window_; }
+
   /// Renders the full image at `pose` (the fine network where there is one); see Renderer::render.
   Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
                    bool early_termination = true) const {
@@ -383,15 +394,6 @@ class EvNerf {
     constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
-
-  /// A step's window and what its pixels saw there (the per-slice counts, noise included).
-  struct StepWindow {
-    std::size_t first = 0, len = 1;
-    std::vector<std::uint32_t> pixels;
-    std::vector<int> npos, nneg;  ///< P × len
-    std::vector<events::NoiseEvent> noise;
-    std::vector<std::size_t> starts, touched;
-  };
 
   /// The step's window. One slice (max_window = 1): uniform among the trainable slices, as the paper.
   /// Otherwise the length uniform in 1..max_window, then the start uniform among the windows of that length

@@ -307,17 +307,15 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       const auto td = train::prepare(d, cfg);
       const std::string meta = train::describe(td, fs::absolute(folder).string());
       return with_variant<V...>(variant, [&]<class Model>(const std::string& name) {
-        const nn::AdamConfig ac = train::adam_config(cfg);
-        Model model(td.slices.size(), train::scene_box(td, cfg), cfg.seed, ac);
-        if (resume && fs::exists(out / "model.ckpt")) {
-          train::load_checkpoint(out / "model.ckpt", model, name);
-          if (!model.load_note().empty()) fmt::print(stderr, "warning: {}\n", model.load_note());
-          model.optimizer().set_config(ac);
-          fmt::print(stderr, "resuming {} at step {}\n", name, model.step());
+        train::Trainer<Model> trainer(td, cfg, out, name, meta);
+        std::string note;
+        if (resume && trainer.resume(&note)) {
+          if (!note.empty()) fmt::print(stderr, "warning: {}\n", note);
+          fmt::print(stderr, "resuming {} at step {}\n", name, trainer.model().step());
         }
         fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), d.events.size(),
                    cfg.threads > 0 ? cfg.threads : thread_count());
-        const auto r = train::run(model, td, cfg, out, name, meta);
+        const auto r = trainer.run();
         fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
                    r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (out / "model.ckpt").string());
         return r.diverged ? 3 : 0;

@@ -254,4 +254,42 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   return r;
 }
 
+/// A training run of `Model` as one object: the Config is its only source of settings (scene box from
+/// near/far and density_per_box, Adam from lr and its decay, seed, threads, steps, checkpoint period), the
+/// output folder holds log.jsonl and model.ckpt. The training data must outlive the trainer.
+template <class Model>
+class Trainer {
+ public:
+  Trainer(const TrainingData& td, Config cfg, fs::path out, std::string name, std::string meta)
+      : td_(td), cfg_(cfg), out_(std::move(out)), name_(std::move(name)), meta_(std::move(meta)),
+        model_(make_model<Model>(td, cfg_)) {}
+
+  /// Continues from out/model.ckpt when there is one (same architecture and loss; the Config's learning
+  /// rate applies from here on). Returns whether it did; `note` gets what the file could not tell (an old
+  /// format's missing loss), or stays empty.
+  bool resume(std::string* note = nullptr) {
+    if (!fs::exists(out_ / "model.ckpt")) return false;
+    load_checkpoint(out_ / "model.ckpt", model_, name_);
+    if (note) *note = model_.load_note();
+    model_.optimizer().set_config(adam_config(cfg_));
+    return true;
+  }
+  /// Trains up to cfg.iterations steps in total (see train::run); `on_step` may stop early.
+  template <class OnStep = bool (*)(const StepReport&)>
+  RunResult run(OnStep&& on_step = nullptr) {
+    return train::run(model_, td_, cfg_, out_, name_, meta_, std::forward<OnStep>(on_step));
+  }
+  Model& model() { return model_; }
+  const Model& model() const { return model_; }
+  const Config& config() const { return cfg_; }
+  const fs::path& out() const { return out_; }
+
+ private:
+  const TrainingData& td_;
+  Config cfg_;
+  fs::path out_;
+  std::string name_, meta_;
+  Model model_;
+};
+
 }  // namespace evnerf::train
