@@ -6,6 +6,9 @@
 
 #include <evnerf/evnerf.hpp>
 
+#include "../examples/parts/inverse_depth.hpp"
+#include "../examples/parts/shot_noise_counts.hpp"
+#include "../examples/parts/triangle_wave.hpp"
 #include "common.hpp"
 #include "tiny_scene.hpp"
 
@@ -30,6 +33,12 @@ template <int C>
 using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
+
+// The examples' parts (examples/parts/) in one tiny model: a sampler, an encoding and a bound policy of a user's own.
+using CustomParts = EvNerf<field::FieldOf<mylab::TriangleWave<2>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 8}, 3,
+                                          nn::MlpShape{.width = 8}>,
+                           mylab::InverseDepth<8>, loss::ProjectedThresholds, loss::DefaultNoise,
+                           loss::WindowInterval<4, mylab::ShotNoiseCounts, events::EventPixels<100>>, double>;
 
 struct GradCheck {
   std::size_t checked = 0, nonzero = 0, kinks = 0, bad = 0;
@@ -132,6 +141,40 @@ void check_model() {
 
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
-                   OccupancyModel<3>, WindowHierarchicalModel<1>) {
+                   OccupancyModel<3>, WindowHierarchicalModel<1>, CustomParts) {
   check_model<Model>();
+}
+
+TEST_CASE("examples' parts: inverse-depth samples, the triangle-wave encoding's input gradient, the shot-noise interval") {
+  // Depths increase from near to far, denser near; bin centres without a generator.
+  static_assert(render::Sampler<mylab::InverseDepth<16>>);
+  std::vector<double> t(16);
+  Rng rng(3);
+  mylab::InverseDepth<16>{}.coarse_depths(16, 0.5, 4.0, &rng, t.data());
+  for (int k = 0; k < 16; ++k) {
+    CHECK(t[k] >= 0.5);
+    CHECK(t[k] <= 4.0);
+    if (k > 0) CHECK(t[k] > t[k - 1]);
+  }
+  mylab::InverseDepth<16>{}.coarse_depths(16, 0.5, 4.0, static_cast<Rng*>(nullptr), t.data());
+  CHECK(t[1] - t[0] < t[15] - t[14]);
+  // The encoding's gradient w.r.t. its input against finite differences (away from the kinks).
+  using Tri = mylab::TriangleWave<3>;
+  const std::vector<double> x{0.137, -0.421, 0.293};
+  std::vector<double> w(Tri::out_dims);
+  for (int i = 0; i < Tri::out_dims; ++i) w[i] = std::sin(1.0 + i);
+  auto f = [&](const std::vector<double>& p) {
+    std::vector<double> y(Tri::out_dims);
+    Tri::forward(static_cast<const double*>(nullptr), p.data(), y.data());
+    double v = 0;
+    for (int i = 0; i < Tri::out_dims; ++i) v += w[i] * y[i];
+    return v;
+  };
+  std::vector<double> dx(3, 0.0);
+  Tri::backward(static_cast<const double*>(nullptr), x.data(), w.data(), static_cast<double*>(nullptr), dx.data());
+  CHECK(evtest::max_fd_error(f, x, dx) < 1e-7);
+  // The interval widens with the count: ±½ threshold plus ¼√N.
+  const auto b = mylab::ShotNoiseCounts::make(12, 4);
+  CHECK(b.k_pos == doctest::Approx(1.5));
+  CHECK(mylab::ShotNoiseCounts::make(0, 0).k_neg == 1.0);
 }
