@@ -96,3 +96,31 @@ TEST_CASE("alignment: the sequence-level log-affine fit recovers one known map p
   CHECK(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)[1].mse > 1e-6);
   CHECK(eval::parse_alignment("global-log-affine") == eval::Alignment::GlobalLogAffine);
 }
+
+TEST_CASE("alignment: EventNeRF's fit recovers a known map per channel in log(x^2.2 + 0.1)") {
+  std::vector<Image> gts, preds;
+  const double A[3] = {1.2, 1.5, 1.1}, B[3] = {-0.1, 0.2, 0.05};  // a ≥ 1: the inverse map stays above the offset
+  const eval::LogTransform T = eval::kEventNerfTransform;
+  for (int f = 0; f < 2; ++f) {
+    const Image g = det(24, 16, 0.15 + 0.1 * f, 0.3);
+    Image gt(24, 16, 3), pred(24, 16, 3);
+    for (std::size_t i = 0; i < g.pixels(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        gt.data[3 * i + c] = (0.4f + 0.1f * c) * g.data[i];
+        // pred = T⁻¹((T(gt) − b) / a): the ground truth under the inverse map, kept inside the transform's range
+        pred.data[3 * i + c] = static_cast<float>(T.inverse((T.forward(gt.data[3 * i + c]) - B[c]) / A[c]));
+      }
+    gts.push_back(gt);
+    preds.push_back(pred);
+  }
+  const auto fit = eval::fit_log_affine(preds, gts, T);
+  for (int c = 0; c < 3; ++c) {
+    CHECK(fit[c].a == doctest::Approx(A[c]).epsilon(1e-4));
+    CHECK(fit[c].b == doctest::Approx(B[c]).epsilon(1e-4));
+  }
+  for (const auto& s : eval::score_sequence(preds, gts, eval::Alignment::EventNerf)) CHECK(s.mse < 1e-8);
+  // The plain log-affine space is another space: its fit cannot undo this map exactly.
+  CHECK(eval::mean(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)).mse > 1e-7);
+  CHECK(eval::parse_alignment("eventnerf") == eval::Alignment::EventNerf);
+  CHECK(std::string(eval::to_string(eval::Alignment::EventNerf)) == "eventnerf");
+}

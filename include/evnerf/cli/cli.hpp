@@ -101,11 +101,11 @@ inline void print_table(const eval::AlignedScores& a, const std::vector<std::siz
   }
 }
 
-/// The requested alignment first, then the others of global-log-affine, log-affine and min-max.
+/// The requested alignment first, then the others of global-log-affine, log-affine, min-max and eventnerf.
 inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
   const auto first = eval::parse_alignment(flag);
   std::vector<eval::Alignment> all{first};
-  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax})
+  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax, eval::Alignment::EventNerf})
     if (al != first) all.push_back(al);
   return all;
 }
@@ -138,7 +138,8 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
 }
 
 const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
-                               "sequence), log-affine (per image), min-max, none";
+                               "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
+                               "min-max, none";
 
 }  // namespace detail
 

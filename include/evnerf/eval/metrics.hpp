@@ -90,14 +90,17 @@ inline double ssim(const Image& a, const Image& b) {
 ///   GlobalLogAffine  one affine map in log intensity per channel, fitted over all frames of the sequence
 ///                    (as Robust e-NeRF scores): the primary alignment.
 ///   LogAffine        the same fitted per image (all channels together).
+///   EventNerf        EventNeRF's: one affine map per channel over the sequence, in log(x^2.2 + 0.1)
+///                    (gamma-decoded intensity with an offset) instead of log(x + ε).
 ///   MinMax           each image, prediction and ground truth, scaled to [0, 1].
 ///   None             as rendered.
-enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None };
+enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None, EventNerf };
 inline const char* to_string(Alignment a) {
   switch (a) {
     case Alignment::GlobalLogAffine: return "global-log-affine";
     case Alignment::LogAffine: return "log-affine";
     case Alignment::MinMax: return "min-max";
+    case Alignment::EventNerf: return "eventnerf";
     default: return "none";
   }
 }
@@ -106,23 +109,39 @@ inline Alignment parse_alignment(const std::string& s) {
   if (s == "log-affine") return Alignment::LogAffine;
   if (s == "min-max") return Alignment::MinMax;
   if (s == "none") return Alignment::None;
-  throw Error("unknown alignment '" + s + "' (expected global-log-affine, log-affine, min-max or none)");
+  if (s == "eventnerf") return Alignment::EventNerf;
+  throw Error("unknown alignment '" + s + "' (expected global-log-affine, log-affine, eventnerf, min-max or none)");
 }
 
 /// ε of the log-domain alignments (as in the loss).
 inline constexpr double kLogEps = 1e-3;
 
-/// y ≈ a·x + b in log(· + ε), the least-squares map of one channel.
+/// The space a sequence-level fit works in: x ↦ log(x^gamma + offset). The default is log(x + ε); EventNeRF
+/// fits in log(x^2.2 + 0.1).
+struct LogTransform {
+  double gamma = 1.0, offset = kLogEps;
+  double forward(double x) const {
+    const double v = std::max(0.0, x);
+    return std::log((gamma == 1.0 ? v : std::pow(v, gamma)) + offset);
+  }
+  double inverse(double y) const {
+    const double v = std::max(0.0, std::exp(y) - offset);
+    return gamma == 1.0 ? v : std::pow(v, 1.0 / gamma);
+  }
+};
+inline constexpr LogTransform kEventNerfTransform{2.2, 0.1};
+
+/// y ≈ a·x + b in the transform's space (log(· + ε) by default), the least-squares map of one channel.
 struct LogAffine {
   double a = 1, b = 0;
-  float apply(float v) const {
-    return static_cast<float>(std::clamp(std::exp(a * std::log(std::max(0.0, double(v)) + kLogEps) + b) - kLogEps, 0.0, 1.0));
-  }
+  LogTransform space{};
+  float apply(float v) const { return static_cast<float>(std::clamp(space.inverse(a * space.forward(v) + b), 0.0, 1.0)); }
 };
 
 /// Least-squares log-affine maps, one per channel, over every pixel of every (prediction, ground truth)
-/// pair. A prediction with no variance in a channel gets a = 0 (its best constant).
-inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts) {
+/// pair, in `space`. A prediction with no variance in a channel gets a = 0 (its best constant).
+inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts,
+                                             LogTransform space = {}) {
   require(!preds.empty() && preds.size() == gts.size(), "fit_log_affine: need as many predictions as ground-truth images");
   const int C = preds.front().channels;
   std::vector<double> n(C, 0), sx(C, 0), sy(C, 0), sxx(C, 0), sxy(C, 0);
@@ -133,7 +152,7 @@ inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, co
     const auto& g = gts[f].data;
     for (std::size_t i = 0; i < p.size(); ++i) {
       const int c = static_cast<int>(i % static_cast<std::size_t>(C));
-      const double x = std::log(std::max(0.0, double(p[i])) + kLogEps), y = std::log(std::max(0.0, double(g[i])) + kLogEps);
+      const double x = space.forward(p[i]), y = space.forward(g[i]);
       n[c] += 1;
       sx[c] += x;
       sy[c] += y;
@@ -146,6 +165,7 @@ inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, co
     const double var = sxx[c] - sx[c] * sx[c] / n[c];
     fit[c].a = var > 1e-12 * n[c] ? (sxy[c] - sx[c] * sy[c] / n[c]) / var : 0.0;
     fit[c].b = (sy[c] - fit[c].a * sx[c]) / n[c];
+    fit[c].space = space;
   }
   return fit;
 }
@@ -172,6 +192,7 @@ inline std::pair<Image, Image> align(const Image& pred, const Image& gt, Alignme
   if (how == Alignment::None) return {pred, gt};
   if (how == Alignment::MinMax) return {min_max(pred), min_max(gt)};
   if (how == Alignment::GlobalLogAffine) return {apply_log_affine(pred, fit_log_affine({pred}, {gt})), gt};
+  if (how == Alignment::EventNerf) return {apply_log_affine(pred, fit_log_affine({pred}, {gt}, kEventNerfTransform)), gt};
   const double eps = 1e-3;
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   const double n = static_cast<double>(pred.data.size());
@@ -198,8 +219,8 @@ inline Scores score(const Image& pred, const Image& gt, Alignment how) {
   return {mse(p, g), psnr(p, g), ssim(p, g)};
 }
 
-/// Scores a sequence frame by frame. GlobalLogAffine fits its maps once over all frames; the others align
-/// each frame on its own. `aligned`, when given, receives the aligned predictions.
+/// Scores a sequence frame by frame. GlobalLogAffine and EventNerf fit their maps once over all frames; the
+/// others align each frame on its own. `aligned`, when given, receives the aligned predictions.
 inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const std::vector<Image>& gts, Alignment how,
                                           std::vector<Image>* aligned = nullptr) {
   require(preds.size() == gts.size(), "score_sequence: need as many predictions as ground-truth images");
@@ -207,10 +228,10 @@ inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const
   if (aligned) aligned->clear();
   if (preds.empty()) return out;
   std::vector<LogAffine> fit;
-  if (how == Alignment::GlobalLogAffine) fit = fit_log_affine(preds, gts);
+  const bool sequence = how == Alignment::GlobalLogAffine || how == Alignment::EventNerf;
+  if (sequence) fit = fit_log_affine(preds, gts, how == Alignment::EventNerf ? kEventNerfTransform : LogTransform{});
   for (std::size_t f = 0; f < preds.size(); ++f) {
-    const auto [p, g] = how == Alignment::GlobalLogAffine ? std::pair<Image, Image>{apply_log_affine(preds[f], fit), gts[f]}
-                                                          : align(preds[f], gts[f], how);
+    const auto [p, g] = sequence ? std::pair<Image, Image>{apply_log_affine(preds[f], fit), gts[f]} : align(preds[f], gts[f], how);
     out.push_back({mse(p, g), psnr(p, g), ssim(p, g)});
     if (aligned) aligned->push_back(p);
   }
