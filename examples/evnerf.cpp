@@ -10,6 +10,6 @@ int main(int argc, char** argv) {
                            Variant<FastNoJointThresholds, "no-joint">, Variant<FastNoNoiseInjection, "no-noise">,
                            Variant<FastColour, "colour">, Variant<Paper, "paper">, Variant<PaperBf16, "paper-bf16">,
                            Variant<PaperNoJointThresholds, "paper-no-joint">, Variant<PaperNoNoiseInjection, "paper-no-noise">,
-                           Variant<FastWindow<8>, "fast-w8">, Variant<FastWindow<48>, "fast-w48">,
+                           Variant<FastRatio, "fast-ratio">, Variant<FastWindow<8>, "fast-w8">, Variant<FastWindow<48>, "fast-w48">,
                            Variant<FastWindow<24, evnerf::events::EventPixels<100>>, "fast-events">>(argc, argv);
 }

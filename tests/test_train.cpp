@@ -567,3 +567,28 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   CHECK(second.model().params().values == whole.model().params().values);
   fs::remove_all(base);
 }
+
+TEST_CASE("ratio thresholds: only B+/|B-| is learned, the scale stays shared and fixed") {
+  Fixture f;
+  using M = EvNerf<TinyField, render::Stratified<16>, loss::RatioThresholds, loss::DefaultNoise, loss::WindowInterval<4>>;
+  M m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{2e-2, 0.9, 0.999, 1e-7, 0.1, 250000});
+  for (int s = 0; s < 40; ++s) m.train_step(f.td, 128, 3);
+  int moved = 0;
+  for (std::size_t i = 0; i < m.n_slices(); ++i) {
+    const double bp = m.threshold_pos(i), bm = m.threshold_neg(i);
+    CHECK(bp * -bm == doctest::Approx(0.09).epsilon(1e-5));
+    CHECK(bp / -bm <= 4.0 + 1e-5);
+    CHECK(bp / -bm >= 0.25 - 1e-5);
+    moved += std::abs(bp - 0.3) > 1e-4;
+  }
+  CHECK(moved > 0);
+  // The projection itself: a pair is moved onto the curve, its ratio kept, and clamped at the bounds.
+  float bp = 0.6f, bm = -0.3f;
+  loss::RatioThresholds::project(bp, bm);
+  CHECK(bp / -bm == doctest::Approx(2.0).epsilon(1e-5));
+  CHECK(bp * -bm == doctest::Approx(0.09).epsilon(1e-5));
+  bp = -0.1f;
+  bm = -0.2f;
+  loss::RatioThresholds::project(bp, bm);
+  CHECK(bp / -bm == doctest::Approx(0.25).epsilon(1e-5));
+}

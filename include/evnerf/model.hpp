@@ -156,6 +156,10 @@ class EvNerf {
         bp = std::max(bp, static_cast<Scalar>(ThresholdP::init));
         bm = std::min(bm, static_cast<Scalar>(-ThresholdP::init));
       }
+    if constexpr (requires { ThresholdP::shared_scale; })
+      for (std::size_t k = 0; k < sw.len; ++k)
+        ThresholdP::project(params_.values[threshold_offset() + 2 * (sw.first + k)],
+                            params_.values[threshold_offset() + 2 * (sw.first + k) + 1]);
     return st;
   }
 

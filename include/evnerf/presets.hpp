@@ -51,6 +51,8 @@ using Fast = FastModel<>;
 using FastOneSlice = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts>;
 using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
 using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>;
+/// Fast learning only each slice's threshold ratio, the scale shared and fixed (loss::RatioThresholds).
+using FastRatio = FastModel<loss::RatioThresholds>;
 using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3>;
 /// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
 /// gradients); checkpoints are interchangeable with the FP32 presets'.

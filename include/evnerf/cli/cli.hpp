@@ -225,6 +225,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->check(CLI::NonNegativeNumber);
   trainc->add_flag("--clamp-poses", cfg.clamp_poses, "slice boundaries outside the poses take the nearest pose");
   trainc->add_flag("--density-per-box", cfg.density_per_box, "density per unit of the normalised scene box, not per world unit");
+  std::string box_fit = cfg.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras";
+  trainc->add_option("--box", box_fit, "scene box: cameras (centres plus far in every direction) or frusta (tight around the views)")
+      ->check(CLI::IsMember({"cameras", "frusta"}))
+      ->capture_default_str();
   trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
   trainc->add_flag("--quiet", quiet, "no progress bar");
 
@@ -303,6 +307,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*trainc) {
       cfg.progress = !quiet;
+      cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load_ijrr(folder);
       const auto td = train::prepare(d, cfg);

@@ -3,6 +3,7 @@
 // the threshold floor loss; threshold and noise policies. Written once with ad/.
 // Depends on ad/ only.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -84,6 +85,25 @@ struct ProjectedThresholds {
   static constexpr bool learnable = true, projected = true;
   static constexpr double lambda = 0.0, init = 0.3;
   static constexpr const char* name = "joint-projected";
+};
+/// Per-slice thresholds of which only the ratio B⁺/|B⁻| is learned: after every update each touched pair is
+/// projected onto B⁺·|B⁻| = init² (one scale shared by all slices, which a log-affine evaluation cannot see
+/// anyway), its ratio kept within [1/max_ratio, max_ratio]. No floor term (λ unused): the fixed scale is
+/// what the floor protects.
+struct RatioThresholds {
+  static constexpr bool learnable = true, shared_scale = true;
+  static constexpr double lambda = 0.0, init = 0.3, max_ratio = 4.0;
+  static constexpr const char* name = "joint-ratio";
+  /// The projection, on one slice's pair.
+  template <class T>
+  static void project(T& bp, T& bm) {
+    double r = bm < 0 ? static_cast<double>(bp) / -static_cast<double>(bm) : max_ratio;
+    if (!(r > 0)) r = 1.0 / max_ratio;
+    r = std::clamp(r, 1.0 / max_ratio, max_ratio);
+    const double q = std::sqrt(r);
+    bp = static_cast<T>(init * q);
+    bm = static_cast<T>(-init / q);
+  }
 };
 /// Fixed thresholds ±0.3 and λ = 0 (the paper's "without joint training" ablation).
 struct FixedThresholds {

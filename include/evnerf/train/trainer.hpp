@@ -37,6 +37,9 @@ struct Config {
   bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
   bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
                                  ///< (render::SceneBox::density_length)
+  /// How the scene box is fitted: around the camera centres with room for `far` in every direction
+  /// (render::SceneBox::from_cameras), or tightly around the cameras' frusta (render::frustum_box).
+  enum class BoxFit { Cameras, Frusta } box = BoxFit::Cameras;
   bool progress = true;
 };
 
@@ -93,7 +96,8 @@ inline nn::AdamConfig adam_config(const Config& cfg) {
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
   for (auto& p : td.boundary_poses) c.push_back(p.t);
-  auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
+  auto box = cfg.box == Config::BoxFit::Frusta ? render::frustum_box(td.camera, td.boundary_poses, cfg.near, cfg.far)
+                                               : render::SceneBox::from_cameras(c, cfg.near, cfg.far);
   if (cfg.density_per_box) box.density_length = box.scale;
   return box;
 }
