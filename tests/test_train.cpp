@@ -592,3 +592,59 @@ TEST_CASE("ratio thresholds: only B+/|B-| is learned, the scale stays shared and
   loss::RatioThresholds::project(bp, bm);
   CHECK(bp / -bm == doctest::Approx(0.25).epsilon(1e-5));
 }
+
+TEST_CASE("collapse detection: a forced collapse stops the run with what it saw; a healthy run is not stopped") {
+  Fixture f;
+  train::Config cfg = f.cfg;
+  cfg.iterations = 300;
+  cfg.pixels_per_step = 128;
+  cfg.progress = false;
+  cfg.collapse_check_from = 100;
+  cfg.collapse_check_every = 100;
+  const fs::path base = fs::temp_directory_path() / ("evnerf_collapse_" + std::to_string(::getpid()));
+  {
+    // Forced: every parameter zero and no learning rate. No density, so every render is black and the
+    // loss never moves.
+    cfg.lr = 1e-30;
+    train::Trainer<Tiny> t(f.td, cfg, base / "dead", "tiny", "meta");
+    std::fill(t.model().params().values.begin(), t.model().params().values.end(), 0.f);
+    const auto r = t.run();
+    CHECK(r.collapsed);
+    CHECK(t.model().step() == 100);  // stopped at the first check
+    REQUIRE(r.checks.size() == 1);
+    CHECK(r.checks[0].flat_renders);
+    CHECK(r.checks[0].log_spread < 1e-6);
+    CHECK(r.checks[0].loss_stuck);
+    CHECK_CONTAINS(r.checks[0].describe(), "at step 100: the renders are almost constant");
+    CHECK(fs::exists(base / "dead" / "model.ckpt"));
+    // Asked to go on, it does, and still reports it.
+    cfg.allow_collapse = true;
+    train::Trainer<Tiny> u(f.td, cfg, base / "dead2", "tiny", "meta");
+    std::fill(u.model().params().values.begin(), u.model().params().values.end(), 0.f);
+    const auto r2 = u.run();
+    CHECK(r2.collapsed);
+    CHECK(u.model().step() == 300);
+    CHECK(r2.checks.size() == 3);
+    cfg.allow_collapse = false;
+  }
+  {
+    // Healthy: the windowed half-slack objective of the Fast presets on the tiny model.
+    cfg.lr = 5e-3;
+    using Healthy = EvNerf<TinyField, render::Stratified<16>, loss::ProjectedThresholds, loss::DefaultNoise, loss::WindowInterval<4>>;
+    train::Trainer<Healthy> t(f.td, cfg, base / "healthy", "tiny", "meta");
+    const auto r = t.run();
+    for (const auto& c : r.checks) MESSAGE(c.describe());
+    CHECK_FALSE(r.collapsed);
+    CHECK(t.model().step() == 300);
+    REQUIRE(r.checks.size() == 3);
+    for (const auto& c : r.checks) {
+      CAPTURE(c.describe());
+      CHECK(c.log_spread > 3 * train::CollapseCheck::kMinLogSpread);
+      CHECK(c.recent_loss < c.start_loss);
+    }
+  }
+  cfg.collapse_check_every = 75;  // not a multiple of the log period
+  train::Trainer<Tiny> bad(f.td, cfg, base / "bad", "tiny", "meta");
+  CHECK_THROWS_WITH(bad.run(), doctest::Contains("multiples of 50"));
+  fs::remove_all(base);
+}

@@ -144,7 +144,8 @@ const char* const kAlignHelp = "alignment of the primary scores: global-log-affi
 }  // namespace detail
 
 /// The command line over the variants V... (the first is train's default). Returns the process exit code:
-/// 0 success, 1 an error (printed), 2 a usage error (printed with the command's flags), 3 training diverged.
+/// 0 success, 1 an error (printed), 2 a usage error (printed with the command's flags), 3 training diverged,
+/// 4 training collapsed (train::CollapseCheck; --allow-collapse goes on and returns 0).
 template <class... V>
 int main(int argc, char** argv, const std::string& description = "evnerf: neural radiance fields from event cameras") {
   static_assert(sizeof...(V) >= 1, "cli::main needs at least one variant");
@@ -225,6 +226,8 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->check(CLI::NonNegativeNumber);
   trainc->add_flag("--clamp-poses", cfg.clamp_poses, "slice boundaries outside the poses take the nearest pose");
   trainc->add_flag("--density-per-box", cfg.density_per_box, "density per unit of the normalised scene box, not per world unit");
+  trainc->add_flag("--allow-collapse", cfg.allow_collapse,
+                   "go on when a collapse check fires (renders almost constant, or the event loss not improving)");
   std::string box_fit = cfg.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras";
   trainc->add_option("--box", box_fit, "scene box: cameras (centres plus far in every direction) or frusta (tight around the views)")
       ->check(CLI::IsMember({"cameras", "frusta"}))
@@ -324,7 +327,13 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         const auto r = trainer.run();
         fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
                    r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (out / "model.ckpt").string());
-        return r.diverged ? 3 : 0;
+        if (r.diverged) return 3;
+        if (r.collapsed && !cfg.allow_collapse) {
+          fmt::print(stderr, "train: the run collapsed ({}); the checkpoint is kept, but this is not a usable model\n",
+                     r.checks.back().describe());
+          return 4;
+        }
+        return 0;
       });
     }
     if (*renderc) {

@@ -41,7 +41,56 @@ struct Config {
   /// (render::SceneBox::from_cameras), or tightly around the cameras' frusta (render::frustum_box).
   enum class BoxFit { Cameras, Frusta } box = BoxFit::Cameras;
   bool progress = true;
+  /// Collapse detection (see CollapseCheck): every `collapse_check_every` steps from step
+  /// `collapse_check_from` on (0 = never; both multiples of the log period, 50), the run looks at its renders
+  /// and its event loss; a collapsed run stops unsuccessfully unless `allow_collapse`.
+  long collapse_check_every = 250, collapse_check_from = 500;
+  bool allow_collapse = false;
 };
+
+/// What a collapse check saw. A run has collapsed when its renders are almost constant (the spread of
+/// log luminance over the pixels of a few low-resolution views below kMinLogSpread) or when its event loss
+/// has not fallen below kMinLossImprovement of where it started (the mean of the first kLogEvery steps).
+struct CollapseCheck {
+  static constexpr double kMinLogSpread = 0.05;       ///< nats: a standard deviation of 5 % brightness
+  static constexpr double kMinLossImprovement = 0.9;  ///< the loss must reach 90 % of its start
+  long step = 0;
+  double log_spread = 0, start_loss = 0, recent_loss = 0;
+  bool flat_renders = false, loss_stuck = false;
+  bool collapsed() const { return flat_renders || loss_stuck; }
+  std::string describe() const {
+    std::string d = "at step " + std::to_string(step) + ": ";
+    if (flat_renders) d += "the renders are almost constant (log-luminance spread " + std::to_string(log_spread) + " nats < " +
+                           std::to_string(kMinLogSpread) + ")";
+    if (flat_renders && loss_stuck) d += "; ";
+    if (loss_stuck)
+      d += "the event loss is not improving (" + std::to_string(recent_loss) + " now, " + std::to_string(start_loss) +
+           " over the first steps)";
+    if (!collapsed()) d += "healthy (log-luminance spread " + std::to_string(log_spread) + " nats)";
+    return d;
+  }
+};
+
+/// The spread (standard deviation over all pixels) of log(ℓ + 1e-3) in renders at quarter resolution from
+/// three boundary poses (first, middle, last): near 0 for a field that renders a constant image.
+template <class Model>
+double render_log_spread(const Model& model, const TrainingData& td) {
+  const auto cam = td.camera.resized(std::max(8, td.camera.width() / 4), std::max(8, td.camera.height() / 4));
+  const auto dirs = render::pixel_directions(cam);
+  const std::size_t n = td.boundary_poses.size();
+  double s = 0, ss = 0, count = 0;
+  for (std::size_t i : {std::size_t{0}, n / 2, n - 1}) {
+    const auto r = model.render(cam, dirs, td.boundary_poses[i]);
+    for (float v : r.luminance.data) {
+      const double l = std::log(std::max(0.0, double(v)) + 1e-3);
+      s += l;
+      ss += l * l;
+      count += 1;
+    }
+  }
+  const double mean = s / count;
+  return std::sqrt(std::max(0.0, ss / count - mean * mean));
+}
 
 /// Slice boundaries (frame times inside the events' span whose poses exist, else uniform at ~24 Hz),
 /// slice counts, boundary poses and the camera's pixel directions.
@@ -165,6 +214,8 @@ struct RunResult {
   long steps = 0;
   double final_loss = 0, seconds = 0, rays_per_second = 0;
   bool diverged = false, stopped = false;  ///< stopped: the callback asked to stop
+  bool collapsed = false;                  ///< a collapse check fired (the run stopped unless allow_collapse)
+  std::vector<CollapseCheck> checks;       ///< every collapse check of this run, in order
 };
 
 /// What the per-step callback sees: the step just taken, its statistics, the period's means (over the
@@ -189,6 +240,8 @@ inline constexpr long kLogEvery = 50;
 template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
+  require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
+          "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
   fs::create_directories(out);
   const ScopedThreadCount threads(cfg.threads);
   std::ofstream log(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
@@ -197,6 +250,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   RunResult r;
   const double t_start = bar.elapsed();
   double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_samples = 0, sum_backward = 0;
+  double start_event = 0, recent_event = 0;  // event loss: mean of the first kLogEvery steps, and of the last period
+  long start_steps = 0;
   long window = 0;
   std::size_t rays = 0;
   while (model.step() < cfg.iterations) {
@@ -216,6 +271,10 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     ++window;
     r.final_loss = st.loss;
     const long s = model.step();
+    if (s <= kLogEvery) {
+      start_event += st.event_loss;
+      ++start_steps;
+    }
     const double el = bar.elapsed() - t_start;
     char extra[160];
     std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", sum_loss / window, rays / std::max(el, 1e-9));
@@ -234,10 +293,36 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
       if constexpr (Model::sampler_type::skips_samples) j["occupied"] = model.sampler().occupied_fraction();
+      recent_event = rep.mean_event_loss;
+      const bool check = cfg.collapse_check_every > 0 && cfg.collapse_check_from > 0 && s >= cfg.collapse_check_from &&
+                         (s - cfg.collapse_check_from) % cfg.collapse_check_every == 0;
+      if (check) {
+        CollapseCheck c;
+        c.step = s;
+        c.log_spread = render_log_spread(model, td);
+        c.flat_renders = c.log_spread < CollapseCheck::kMinLogSpread;
+        if (start_steps > 0) {  // a resumed run has no start of its own to compare with
+          c.start_loss = start_event / static_cast<double>(start_steps);
+          c.recent_loss = recent_event;
+          c.loss_stuck = c.recent_loss > CollapseCheck::kMinLossImprovement * c.start_loss;
+        }
+        j["collapse_check"] = {{"log_spread", c.log_spread}, {"collapsed", c.collapsed()}};
+        r.checks.push_back(c);
+        if (c.collapsed()) {
+          r.collapsed = true;
+          std::fprintf(stderr, "\ntraining has collapsed %s%s\n", c.describe().c_str(),
+                       cfg.allow_collapse ? "; going on (allow_collapse)" : "; stopping (pass --allow-collapse to go on)");
+        }
+      }
       log << j.dump() << "\n";
       log.flush();
       sum_loss = sum_event = sum_threshold = sum_samples = sum_backward = 0;
       window = 0;
+      if (r.collapsed && !cfg.allow_collapse) {
+        ++r.steps;
+        save_checkpoint(out / "model.ckpt", model, name, meta);
+        break;
+      }
     }
     bool go_on = true;
     if constexpr (!std::is_same_v<std::decay_t<OnStep>, bool (*)(const StepReport&)>) {
