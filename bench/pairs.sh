@@ -6,11 +6,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PAIRS=${1:-10}
 PEER=../shared/peers/peer_torch.py
-if [ ! -f "$PEER" ] || ! /usr/bin/python3 -c "import torch" 2>/dev/null; then
-  echo "bench/pairs.sh: needs $PEER and Debian's python3-torch (see ../shared/peers/README.md)" >&2
+if [ ! -f "$PEER" ]; then
+  echo "bench/pairs.sh: needs the peer $PEER (see ../shared/peers/README.md)" >&2
   exit 1
 fi
-scripts/deps.sh libbenchmark-dev
+scripts/deps.sh libbenchmark-dev python3-torch python3-numpy libopenblas0-openmp libtcmalloc-minimal4
 cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null

@@ -4,7 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${1:-3}
-scripts/deps.sh libbenchmark-dev
+# The PyTorch peer and its best configuration's libraries (../shared/peers/README.md).
+scripts/deps.sh libbenchmark-dev python3-torch python3-numpy libopenblas0-openmp libtcmalloc-minimal4
 cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null

@@ -148,7 +148,7 @@ class EvNerf {
     if (!std::isfinite(st.loss)) return st;
     // The field's parameters all move; of the thresholds only the window's slices' (lazy Adam).
     const StepWindow& sw = window_;
-    adam_.update(params_.values, params_.grads, threshold_offset(), sw.touched);
+    adam_.update(params_.values, params_.grads, threshold_offset(), touched_);
     if constexpr (requires { ThresholdP::projected; })
       for (std::size_t k = 0; k < sw.len; ++k) {
         Scalar& bp = params_.values[threshold_offset() + 2 * (sw.first + k)];
@@ -173,42 +173,9 @@ class EvNerf {
     const long s = adam_.step();
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
     StepWindow& sw = window_;
-    draw_window(data, rng, sw);
+    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw);
     const std::size_t first = sw.first, L = sw.len;
-    const std::size_t hw = data.slices.slices[first].pixels();
-    // Noise events (Ev-NeRF's injection, redrawn at every step): ratio × the window's count, each in a
-    // random slice of the window. Drawn before the pixels, so a one-slice step draws as inject_noise does.
-    sw.noise.clear();
-    if constexpr (NoiseP::ratio > 0) {
-      std::size_t total = 0;
-      for (std::size_t k = 0; k < L; ++k) total += data.slices.slices[first + k].total;
-      events::draw_noise(total, NoiseP::ratio, hw, L, rng, sw.noise);
-    }
-    // Pixels, by the objective's pixel policy.
-    if (taken_.size() != hw) taken_.assign(hw, 0);
-    pixel_policy::draw(events::PixelWindow{hw, first, first + L, &data.prefix}, pixels_per_step, rng, sw.pixels, taken_);
     const int P = static_cast<int>(sw.pixels.size());
-    require(P > 0, "train_step: no pixel to train on");
-    // Per pixel and slice of the window: n⁺, n⁻ with the noise added (saturating like inject_noise).
-    sw.npos.resize(static_cast<std::size_t>(P) * L);
-    sw.nneg.resize(static_cast<std::size_t>(P) * L);
-    for (int i = 0; i < P; ++i)
-      for (std::size_t k = 0; k < L; ++k) {
-        const auto& c = data.slices.slices[first + k];
-        sw.npos[static_cast<std::size_t>(i) * L + k] = c.pos[sw.pixels[i]];
-        sw.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[sw.pixels[i]];
-      }
-    if (!sw.noise.empty()) {
-      if (slot_.size() != hw) slot_.assign(hw, -1);
-      for (int i = 0; i < P; ++i) slot_[sw.pixels[i]] = i;
-      for (const auto& e : sw.noise) {
-        const int i = slot_[e.pixel];
-        if (i < 0) continue;
-        int& c = (e.positive ? sw.npos : sw.nneg)[static_cast<std::size_t>(i) * L + e.slice];
-        if (c < INT16_MAX) ++c;
-      }
-      for (int i = 0; i < P; ++i) slot_[sw.pixels[i]] = -1;
-    }
     const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
     const int n_tiles = (P + tile - 1) / tile;
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
@@ -259,19 +226,13 @@ class EvNerf {
     }
     st.loss = st.event_loss + st.threshold_loss;
     st.rays = static_cast<std::size_t>(2 * P);
-    sw.touched.clear();
-    for (std::size_t k = 0; k < 2 * L; ++k) sw.touched.push_back(threshold_offset() + 2 * first + k);
+    touched_.clear();
+    for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
     return st;
   }
 
-  /// A step's window and what its pixels saw there (the per-slice counts, noise included).
-  struct StepWindow {
-    std::size_t first = 0, len = 1;
-    std::vector<std::uint32_t> pixels;
-    std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
-    std::vector<events::NoiseEvent> noise;
-    std::vector<std::size_t> starts, touched;
-  };
+  /// A step's window and what its pixels saw there (loss::draw_step: the per-slice counts, noise included).
+  using StepWindow = loss::StepDraw;
   /// What the last gradients() (or train_step()) drew: window, pixels and their counts with the noise.
   const StepWindow& last_draw() const { return window_; }
 
@@ -285,33 +246,18 @@ class EvNerf {
   /// Serialises the model and optimiser state; `extra` carries the caller's metadata (camera, poses…).
   std::string serialize(const std::string& name, const std::string& extra) const {
     static_assert(std::is_same_v<Scalar, float>, "EvNerf::serialize: checkpoints hold float models");
-    std::string b;
-    auto put = [&](const void* p, std::size_t n) { b.append(static_cast<const char*>(p), n); };
-    auto put_u64 = [&](std::uint64_t v) { put(&v, 8); };
-    auto put_str = [&](const std::string& s) {
-      put_u64(s.size());
-      put(s.data(), s.size());
-    };
-    put("EVNERFCK", 8);
-    put_u64(checkpoint_version);
-    put_str(name);
-    put_u64(params_.size());
-    put_u64(n_slices_);
-    const std::int64_t step = adam_.step();
-    put(&step, 8);
+    io::CheckpointHeader h;
+    h.name = name;
+    h.n_slices = n_slices_;
+    h.step = adam_.step();
     const auto& bx = box();
     const double boxv[6] = {bx.center.x(), bx.center.y(), bx.center.z(), bx.scale, bx.near, bx.far};
-    put(boxv, sizeof boxv);
-    put(&bx.density_length, 8);
-    put_str(loss_description());
-    put_str(architecture());
-    put(params_.values.data(), params_.size() * 4);
-    put(adam_.m().data(), params_.size() * 4);
-    put(adam_.v().data(), params_.size() * 4);
-    put_str(sampler().serialize());
-    put_str(extra);
-    put_u64(fnv1a64(b));
-    return b;
+    std::copy(boxv, boxv + 6, h.box);
+    h.density_length = bx.density_length;
+    h.loss = loss_description();
+    h.architecture = architecture();
+    return io::write_checkpoint(h, {params_.values.data(), adam_.m().data(), adam_.v().data(), params_.size(),
+                                    sampler().serialize(), extra});
   }
   /// Restores from serialize()'s bytes (format: io/checkpoint.hpp); errors name the file and what does not
   /// match. The model changes only when the whole file has been read and checked. A file of version 5 or
@@ -399,35 +345,6 @@ class EvNerf {
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
 
-  /// The step's window. One slice (max_window = 1): uniform among the trainable slices, as the paper.
-  /// Otherwise the length uniform in 1..max_window, then the start uniform among the windows of that length
-  /// whose slices are all trainable (shorter when none is).
-  void draw_window(const TrainingData& data, Rng& rng, StepWindow& sw) const {
-    const std::size_t N = data.slices.size();
-    auto enabled = [&](std::size_t i) { return data.slice_enabled.empty() || data.slice_enabled[i]; };
-    sw.starts.clear();
-    if constexpr (max_window == 1) {
-      for (std::size_t i = 0; i < N; ++i)
-        if (enabled(i)) sw.starts.push_back(i);
-      require(!sw.starts.empty(), "train_step: no slice to train on");
-      sw.first = sw.starts[rng.below(sw.starts.size())];
-      sw.len = 1;
-    } else {
-      // run[i]: trainable slices in a row from i.
-      std::vector<std::size_t> run(N + 1, 0);
-      for (std::size_t i = N; i-- > 0;) run[i] = enabled(i) ? run[i + 1] + 1 : 0;
-      std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(max_window));
-      for (; L >= 1; --L) {
-        for (std::size_t i = 0; i + L <= N; ++i)
-          if (run[i] >= L) sw.starts.push_back(i);
-        if (!sw.starts.empty()) break;
-      }
-      require(!sw.starts.empty(), "train_step: no slice to train on");
-      sw.first = sw.starts[rng.below(sw.starts.size())];
-      sw.len = L;
-    }
-  }
-
   /// A thread's scratch: the renderer's workspace, the tile's rays and their random streams, the window's
   /// thresholds and one pixel's threshold gradients.
   struct TileWork {
@@ -513,8 +430,7 @@ class EvNerf {
   nn::Adam<Scalar> adam_;
   std::vector<TileWork> work_;  ///< gradients()'s per-thread scratch (no state: any content gives the same step)
   StepWindow window_;           ///< the last gradients()'s window (train_step applies Adam to its thresholds)
-  std::vector<std::uint8_t> taken_;
-  std::vector<int> slot_;
+  std::vector<std::size_t> touched_;  ///< the last step's threshold entries (lazy Adam)
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
 };
 

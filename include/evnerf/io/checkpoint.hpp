@@ -6,8 +6,9 @@
 //   u64 FNV-1a of everything before it
 // (u64/i64/f64 little-endian as stored by this machine; str = u64 length + bytes). Versions: 2 added the
 // occupancy grid, 3 the density length, 4 the loss, 5 the architecture (the model's types: encodings,
-// networks, sampler; the variant's name is then only a label). EvNerf::serialize writes it; EvNerf::deserialize and
-// the command line (which variant wrote this file?) read it through this header. Depends on core/ only.
+// networks, sampler; the variant's name is then only a label). write_checkpoint writes it (EvNerf::serialize
+// fills it in); EvNerf::deserialize and the command line (which variant wrote this file?) read it through
+// this header. Depends on core/ only.
 #pragma once
 #include <cmath>
 #include <cstdint>
@@ -89,6 +90,42 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
   if (h.version >= 4) h.loss = r.str();
   if (h.version >= 5) h.architecture = r.str();
   return h;
+}
+
+/// What a checkpoint holds besides its header: the parameters with Adam's two moments (n floats each),
+/// the sampler's state and the caller's metadata.
+struct CheckpointBody {
+  const float *params = nullptr, *adam_m = nullptr, *adam_v = nullptr;
+  std::size_t n = 0;
+  std::string sampler_state, extra;
+};
+
+/// The bytes of a checkpoint of the current version (header.version and n_params are set from here).
+inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointBody& body) {
+  std::string b;
+  auto put = [&](const void* p, std::size_t n) { b.append(static_cast<const char*>(p), n); };
+  auto put_u64 = [&](std::uint64_t v) { put(&v, 8); };
+  auto put_str = [&](const std::string& s) {
+    put_u64(s.size());
+    put(s.data(), s.size());
+  };
+  put("EVNERFCK", 8);
+  put_u64(kCheckpointVersion);
+  put_str(h.name);
+  put_u64(body.n);
+  put_u64(h.n_slices);
+  put(&h.step, 8);
+  put(h.box, sizeof h.box);
+  put(&h.density_length, 8);
+  put_str(h.loss);
+  put_str(h.architecture);
+  put(body.params, body.n * 4);
+  put(body.adam_m, body.n * 4);
+  put(body.adam_v, body.n * 4);
+  put_str(body.sampler_state);
+  put_str(body.extra);
+  put_u64(fnv1a64(b));
+  return b;
 }
 
 /// The header of a checkpoint file (the whole file is read and its checksum checked).

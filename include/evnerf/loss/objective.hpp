@@ -4,14 +4,18 @@
 //   SliceInterval<Bound>             the paper's: one slice, its two ends (spec §2).
 //   WindowInterval<W, Bound, Pixels> poses 1..W slices apart, drawn uniformly per step: the counts of every
 //                                    slice in the window, each with its own learned thresholds.
-// A new objective is one type with the members the `Objective` concept names. Depends on ad/ and events/.
+// A new objective is one type with the members the `Objective` concept names. draw_step() draws a step of
+// any objective: its window, its noise, its pixels and their counts. Depends on ad/ and events/.
 #pragma once
 #include <concepts>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "../core/rng.hpp"
+#include "../core/error.hpp"
 #include "../events/pixels.hpp"
+#include "../events/slicing.hpp"
 #include "event_loss.hpp"
 
 namespace evnerf::loss {
@@ -109,5 +113,82 @@ template <BoundPolicy P>
 struct as_objective<P> {
   using type = SliceInterval<P>;
 };
+
+/// What a training step draws: its window of slices [first, first + len), its pixels, and for every pixel
+/// and slice of the window the counts with the injected noise; the rest is scratch kept between steps.
+struct StepDraw {
+  std::size_t first = 0, len = 1;
+  std::vector<std::uint32_t> pixels;
+  std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
+  std::vector<events::NoiseEvent> noise;
+  std::vector<std::size_t> starts;
+  std::vector<std::uint8_t> taken;
+  std::vector<int> slot;
+};
+
+/// Draws a step of objective O from `rng`: the window (one slice when O::max_window = 1: uniform among
+/// the trainable slices, as the paper; otherwise the length uniform in 1..max_window, then the start
+/// uniform among the windows of that length whose slices are all trainable, shorter when there is none),
+/// then Ev-NeRF's noise (noise_ratio × the window's count, each event in a random slice of the window,
+/// redrawn at every step; drawn before the pixels, so a one-slice step draws as inject_noise does), then
+/// the pixels by O's pixel policy, then their counts with the noise added (saturating like inject_noise).
+/// `enabled` marks trainable slices (empty: all). Deterministic for a given rng.
+template <Objective O>
+void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
+               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d) {
+  const std::size_t N = slices.size();
+  auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
+  d.starts.clear();
+  if constexpr (O::max_window == 1) {
+    for (std::size_t i = 0; i < N; ++i)
+      if (trainable(i)) d.starts.push_back(i);
+    require(!d.starts.empty(), "train_step: no slice to train on");
+    d.first = d.starts[rng.below(d.starts.size())];
+    d.len = 1;
+  } else {
+    std::vector<std::size_t> run(N + 1, 0);  // run[i]: trainable slices in a row from i
+    for (std::size_t i = N; i-- > 0;) run[i] = trainable(i) ? run[i + 1] + 1 : 0;
+    std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(O::max_window));
+    for (; L >= 1; --L) {
+      for (std::size_t i = 0; i + L <= N; ++i)
+        if (run[i] >= L) d.starts.push_back(i);
+      if (!d.starts.empty()) break;
+    }
+    require(!d.starts.empty(), "train_step: no slice to train on");
+    d.first = d.starts[rng.below(d.starts.size())];
+    d.len = L;
+  }
+  const std::size_t first = d.first, L = d.len;
+  const std::size_t hw = slices.slices[first].pixels();
+  d.noise.clear();
+  if (noise_ratio > 0) {
+    std::size_t total = 0;
+    for (std::size_t k = 0; k < L; ++k) total += slices.slices[first + k].total;
+    events::draw_noise(total, noise_ratio, hw, L, rng, d.noise);
+  }
+  if (d.taken.size() != hw) d.taken.assign(hw, 0);
+  O::pixels::draw(events::PixelWindow{hw, first, first + L, &prefix}, pixels_per_step, rng, d.pixels, d.taken);
+  const int P = static_cast<int>(d.pixels.size());
+  require(P > 0, "train_step: no pixel to train on");
+  d.npos.resize(static_cast<std::size_t>(P) * L);
+  d.nneg.resize(static_cast<std::size_t>(P) * L);
+  for (int i = 0; i < P; ++i)
+    for (std::size_t k = 0; k < L; ++k) {
+      const auto& c = slices.slices[first + k];
+      d.npos[static_cast<std::size_t>(i) * L + k] = c.pos[d.pixels[i]];
+      d.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[d.pixels[i]];
+    }
+  if (!d.noise.empty()) {
+    if (d.slot.size() != hw) d.slot.assign(hw, -1);
+    for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = i;
+    for (const auto& e : d.noise) {
+      const int i = d.slot[e.pixel];
+      if (i < 0) continue;
+      int& c = (e.positive ? d.npos : d.nneg)[static_cast<std::size_t>(i) * L + e.slice];
+      if (c < INT16_MAX) ++c;
+    }
+    for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = -1;
+  }
+}
 
 }  // namespace evnerf::loss
