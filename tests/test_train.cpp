@@ -537,10 +537,7 @@ TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the t
 
 TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does") {
   Fixture f;
-  train::Config cfg = f.cfg;
-  cfg.iterations = 30;
-  cfg.pixels_per_step = 64;
-  cfg.progress = false;
+  train::Config cfg = f.run_config(30, 64);
   cfg.threads = 2;
   cfg.near = 0.6;
   cfg.far = 2.5;
@@ -595,10 +592,7 @@ TEST_CASE("ratio thresholds: only B+/|B-| is learned, the scale stays shared and
 
 TEST_CASE("collapse detection: a forced collapse stops the run with what it saw; a healthy run is not stopped") {
   Fixture f;
-  train::Config cfg = f.cfg;
-  cfg.iterations = 300;
-  cfg.pixels_per_step = 128;
-  cfg.progress = false;
+  train::Config cfg = f.run_config(300, 128);
   cfg.collapse_check_from = 100;
   cfg.collapse_check_every = 100;
   const fs::path base = fs::temp_directory_path() / ("evnerf_collapse_" + std::to_string(::getpid()));

@@ -29,5 +29,13 @@ struct Fixture {
     cfg.pixels_per_step = 256;
     td = evnerf::train::prepare(d, cfg);
   }
+  /// The fixture's Config for a quiet run of `iterations` steps at `pixels` pixels per step.
+  evnerf::train::Config run_config(long iterations, int pixels) const {
+    evnerf::train::Config c = cfg;
+    c.iterations = iterations;
+    c.pixels_per_step = pixels;
+    c.progress = false;
+    return c;
+  }
 };
 }  // namespace evtest

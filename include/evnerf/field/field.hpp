@@ -13,11 +13,12 @@
 
 namespace evnerf::field {
 
-/// True for encodings that expect inputs in [0, 1]³ (hash grids); the field feeds them (p + 1) / 2.
+/// True for encodings that declare `unit_cube_input = true` (hash grids: inputs in [0, 1]³); the field
+/// feeds them (p + 1) / 2, the others the normalised box's [−1, 1]³.
 template <class Enc>
 constexpr bool wants_unit_cube() {
-  if constexpr (requires { Enc::table_size; })
-    return true;
+  if constexpr (requires { Enc::unit_cube_input; })
+    return Enc::unit_cube_input;
   else
     return false;
 }

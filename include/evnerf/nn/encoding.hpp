@@ -22,7 +22,8 @@ namespace evnerf::nn {
 /// architecture), may have `n_params` trainable
 /// parameters (initialised by init), and has a backward that adds the gradient for its parameters and for
 /// its input. Batch paths (forward_batch, backward_batch) are optional; field::Field uses them when
-/// present. A network that follows an encoding takes its width from out_dims (field::FieldOf).
+/// present. An encoding that wants its points in [0, 1]³ rather than [−1, 1]³ declares
+/// `static constexpr bool unit_cube_input = true`. A network that follows an encoding takes its width from out_dims (field::FieldOf).
 template <class E>
 concept Encoding = requires(const double* p, const double* x, double* y, double* dp, double* dx, Rng& rng) {
   requires E::in_dims >= 1 && E::out_dims >= 1;
@@ -149,6 +150,7 @@ struct HashGrid {
   static_assert(Log2T >= 4 && Log2T <= 24, "HashGrid: Log2TableSize must be between 4 and 24.");
   static_assert(BaseRes >= 2 && MaxRes >= BaseRes, "HashGrid: need 2 <= BaseRes <= MaxRes.");
   static constexpr int in_dims = 3, out_dims = Levels * F;
+  static constexpr bool unit_cube_input = true;  ///< points in [0, 1]³ (field::Field maps the box to it)
   static std::string name() {
     return "hash grid " + std::to_string(Levels) + "x" + std::to_string(F) + " 2^" + std::to_string(Log2T) + " " +
            std::to_string(BaseRes) + ".." + std::to_string(MaxRes);
