@@ -1,6 +1,7 @@
 // core/error.hpp — the one exception type of evnerf: what went wrong and where (file:line for parsers).
 // Depends on the standard library only.
 #pragma once
+#include <cstdio>
 #include <cmath>
 #include <cstddef>
 #include <stdexcept>
@@ -31,9 +32,17 @@ inline void require(bool cond, const std::string& message) {
   if (!cond) throw Error(message);
 }
 
+/// A number as messages show it: at most 15 significant digits, exponent form for very large or small
+/// values (1e+308, not a 309-digit string; an IJRR timestamp keeps its microseconds).
+inline std::string short_number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.15g", v);
+  return b;
+}
+
 /// Throws unless `v` is finite, naming the quantity.
 inline void require_finite(double v, const std::string& what) {
-  if (!std::isfinite(v)) throw Error(what + " is not finite (" + std::to_string(v) + ")");
+  if (!std::isfinite(v)) throw Error(what + " is not finite (" + short_number(v) + ")");
 }
 
 }  // namespace evnerf

@@ -37,8 +37,8 @@ class Trajectory {
     if (empty()) throw Error(source_ + ": no poses");
     if (!covers(t)) {
       if (policy == OutOfRange::Error)
-        throw Error(source_ + ": time " + std::to_string(t) + " s is outside the poses' range [" +
-                    std::to_string(t_.front()) + ", " + std::to_string(t_.back()) + "] s");
+        throw Error(source_ + ": time " + short_number(t) + " s is outside the poses' range [" + short_number(t_.front()) +
+                    ", " + short_number(t_.back()) + "] s");
       return t < t_.front() ? poses_.front() : poses_.back();
     }
     auto it = std::upper_bound(t_.begin(), t_.end(), t);

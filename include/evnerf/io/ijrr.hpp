@@ -33,7 +33,7 @@ inline events::EventStream parse_events_reference(std::string_view text, const s
     const double t = s.real("t");
     const long long x = s.integer("x"), y = s.integer("y"), p = s.integer("polarity");
     s.expect_end();
-    if (t < last_t) s.fail("timestamp " + std::to_string(t) + " goes back in time (previous " + std::to_string(last_t) + ")");
+    if (t < last_t) s.fail("timestamp " + short_number(t) + " goes back in time (previous " + short_number(last_t) + ")");
     if (x < 0 || x >= width || y < 0 || y >= height)
       s.fail("pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " + std::to_string(width) +
              "x" + std::to_string(height) + " sensor");

@@ -111,9 +111,9 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   if (b.size() < 2) {
     const double lo = std::max(t0, d.trajectory.front()), hi = std::min(t1, d.trajectory.back());
     if (!(hi > lo))
-      throw Error(d.folder.string() + ": the poses (" + std::to_string(d.trajectory.front()) + " .. " +
-                  std::to_string(d.trajectory.back()) + " s) do not cover the events (" + std::to_string(t0) + " .. " +
-                  std::to_string(t1) + " s)");
+      throw Error(d.folder.string() + ": the poses (" + short_number(d.trajectory.front()) + " .. " +
+                  short_number(d.trajectory.back()) + " s) do not cover the events (" + short_number(t0) + " .. " +
+                  short_number(t1) + " s)");
     b = events::uniform_boundaries(lo, hi, std::max<std::size_t>(2, static_cast<std::size_t>((hi - lo) * 24)));
     frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
   }
