@@ -291,3 +291,15 @@ TEST_CASE("real data: every IJRR event window parses, including float-noise time
   }
   CHECK(n == 12);
 }
+
+TEST_CASE("dataset: an absurd sensor size is refused before anything is allocated for it") {
+  const auto dir = temp_dir("huge");
+  write(dir / "events.txt", "0.10 1 2 1\n");
+  write(dir / "calib.txt", "100 100 16 12\n");
+  write(dir / "sensor.txt", "60000 60000\n");
+  CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir); }),
+                 "sensor.txt:1: sensor size 60000x60000 has more than 67108864 pixels (refused before allocating");
+  write(dir / "sensor.txt", "70000 10\n");
+  CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir); }), "sensor size 70000x10 out of range (1 to 65535 per side)");
+  fs::remove_all(dir);
+}

@@ -29,6 +29,9 @@ struct Dataset {
   bool from_cache = false;
 };
 
+/// The most pixels a sensor may have (8192 × 8192): per-pixel counts per slice are allocated from it.
+inline constexpr long long kMaxSensorPixels = 1LL << 26;
+
 /// Sensor size: explicit, else `sensor.txt` ("width height"), else the first frame's size, else DAVIS240C.
 inline std::pair<int, int> sensor_size(const std::filesystem::path& folder, const Frames& frames, int w, int h) {
   if (w > 0 && h > 0) return {w, h};
@@ -39,7 +42,11 @@ inline std::pair<int, int> sensor_size(const std::filesystem::path& folder, cons
     if (!s.next_line()) throw Error(path.string(), 0, "empty sensor.txt (expected 'width height')");
     const long long sw = s.integer("width"), sh = s.integer("height");
     s.expect_end();
-    if (sw <= 0 || sh <= 0 || sw > 65535 || sh > 65535) s.fail("sensor size out of range");
+    if (sw <= 0 || sh <= 0 || sw > 65535 || sh > 65535)
+      s.fail("sensor size " + std::to_string(sw) + "x" + std::to_string(sh) + " out of range (1 to 65535 per side)");
+    if (sw * sh > kMaxSensorPixels)
+      s.fail("sensor size " + std::to_string(sw) + "x" + std::to_string(sh) + " has more than " +
+             std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
     return {static_cast<int>(sw), static_cast<int>(sh)};
   }
   if (frames.size() > 0) {
