@@ -642,3 +642,27 @@ TEST_CASE("collapse detection: a forced collapse stops the run with what it saw;
   CHECK_THROWS_WITH(bad.run(), doctest::Contains("multiples of 50"));
   fs::remove_all(base);
 }
+
+TEST_CASE("training data: subslices put evenly spaced boundaries between frames and keep the frames' own") {
+  Fixture f;
+  train::Config cfg = f.cfg;
+  cfg.subslices = 3;
+  std::vector<std::size_t> frames;
+  const TrainingData td = train::prepare(f.d, cfg, &frames);
+  REQUIRE(td.slices.size() == 3 * f.td.slices.size());
+  REQUIRE(frames.size() == td.slices.boundaries.size());
+  for (std::size_t i = 0; i < f.td.slices.boundaries.size(); ++i) {
+    CHECK(td.slices.boundaries[3 * i] == f.td.slices.boundaries[i]);  // the frame boundaries stay
+    if (i + 1 < f.td.slices.boundaries.size()) {
+      const double step = (f.td.slices.boundaries[i + 1] - f.td.slices.boundaries[i]) / 3;
+      CHECK(td.slices.boundaries[3 * i + 1] == doctest::Approx(f.td.slices.boundaries[i] + step));
+      CHECK(frames[3 * i + 1] == static_cast<std::size_t>(-1));
+    }
+  }
+  std::size_t events = 0, fine_events = 0;
+  for (const auto& s : f.td.slices.slices) events += s.total;
+  for (const auto& s : td.slices.slices) fine_events += s.total;
+  CHECK(fine_events == events);  // the same events, cut finer
+  cfg.holdout_every = 4;
+  CHECK_THROWS_WITH(train::prepare(f.d, cfg), doctest::Contains("subslices and holdout cannot be combined"));
+}

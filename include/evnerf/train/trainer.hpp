@@ -34,6 +34,8 @@ struct Config {
   long checkpoint_every = 500;
   double near = 0.3, far = 7.0;
   int holdout_every = 0;       ///< hold out every k-th slice boundary (0 = none)
+  int subslices = 1;           ///< slices per frame interval: k − 1 more boundaries, evenly spaced in time, between
+                               ///< consecutive frames (poses interpolated); windows then start and end between frames
   bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
   bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
                                  ///< (render::SceneBox::density_length)
@@ -116,6 +118,21 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
                   short_number(t1) + " s)");
     b = events::uniform_boundaries(lo, hi, std::max<std::size_t>(2, static_cast<std::size_t>((hi - lo) * 24)));
     frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
+  }
+  require(cfg.subslices >= 1 && cfg.subslices <= 64, "train: subslices must be between 1 and 64");
+  require(cfg.subslices == 1 || cfg.holdout_every == 0, "train: subslices and holdout cannot be combined (holdout counts frame boundaries)");
+  if (cfg.subslices > 1) {
+    std::vector<double> fine;
+    std::vector<std::size_t> ids;
+    for (std::size_t i = 0; i + 1 < b.size(); ++i)
+      for (int k = 0; k < cfg.subslices; ++k) {
+        fine.push_back(b[i] + (b[i + 1] - b[i]) * k / cfg.subslices);
+        ids.push_back(k == 0 ? frame_ids[i] : static_cast<std::size_t>(-1));
+      }
+    fine.push_back(b.back());
+    ids.push_back(frame_ids.back());
+    b = std::move(fine);
+    frame_ids = std::move(ids);
   }
   TrainingData td;
   td.camera = d.camera;
