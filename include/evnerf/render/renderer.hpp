@@ -48,9 +48,6 @@ class Renderer {
   /// Raw density given to samples that were not evaluated (skipped cells, terminated rays): α = 0.
   static constexpr T kSkippedDensity = T(-1e4);
 
-  /// Samples per ray of pass `net` (the fine pass evaluates the coarse depths again, with the fine ones).
-  static constexpr int samples(int net) { return net == 0 ? n_coarse : n_coarse + n_fine; }
-
   /// One network's pass over a batch of rays: depths, inputs, outputs, composites and what backward needs.
   struct Pass {
     typename FieldT::template Workspace<T> ws;
@@ -64,7 +61,6 @@ class Renderer {
   /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
   struct Workspace {
     std::array<Pass, networks> pass;
-    std::vector<Vec3> dir;                ///< the batch's world directions
     std::size_t evaluated = 0;            ///< field evaluations so far
     std::size_t backward_samples = 0;     ///< samples run backward so far
     bool early_termination = false;       ///< evaluation rays: stop a ray behind kEvalTransmittance
@@ -166,7 +162,6 @@ class Renderer {
 
  private:
   void forward(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
-    w.dir.assign(dir, dir + R);
     Pass& c = w.pass[0];
     c.S = n_coarse;
     c.t.resize(static_cast<std::size_t>(R) * n_coarse);
