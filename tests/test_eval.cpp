@@ -124,3 +124,46 @@ TEST_CASE("alignment: EventNeRF's fit recovers a known map per channel in log(x^
   CHECK(eval::parse_alignment("eventnerf") == eval::Alignment::EventNerf);
   CHECK(std::string(eval::to_string(eval::Alignment::EventNerf)) == "eventnerf");
 }
+
+TEST_CASE("HDR scoring: the truth's log range is put on [0, 1]; a known map is undone; clipping is seen") {
+  // Linear truth spanning 9 nats (1e-4 .. 0.8); a prediction that is a power law of it (exact in log space
+  // when the offset is negligible) scores perfectly under the sequence fit, and the same prediction clipped
+  // at 1 after a gain of 20 (what a frame does to highlights) scores worse.
+  std::vector<Image> gts, preds, clipped;
+  for (int f = 0; f < 3; ++f) {
+    Image g = det(32, 24, 0.21 + 0.04 * f, 0.33);
+    for (auto& v : g.data) v = static_cast<float>(1e-4 * std::exp(9.0 * (v - 0.1) / 0.8));
+    Image p = g, q = g;
+    for (std::size_t i = 0; i < g.data.size(); ++i) {
+      p.data[i] = static_cast<float>(3.0 * std::pow(double(g.data[i]), 0.7));
+      q.data[i] = std::min(1.0f, 20.0f * g.data[i]);
+    }
+    gts.push_back(g);
+    preds.push_back(p);
+    clipped.push_back(q);
+  }
+  const auto tone = eval::HdrTone::of(gts, 1e-9);
+  float lo = 1, hi = 0;
+  for (const auto& g : gts)
+    for (float v : g.data) {
+      lo = std::min(lo, tone(v));
+      hi = std::max(hi, tone(v));
+    }
+  CHECK(lo == doctest::Approx(0.0).epsilon(1e-6));
+  CHECK(hi == doctest::Approx(1.0).epsilon(1e-6));
+  for (const auto& s : eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine, nullptr, &tone)) CHECK(s.psnr > 80);
+  for (const auto& s : eval::score_sequence(preds, gts, eval::Alignment::LogAffine, nullptr, &tone)) CHECK(s.psnr > 80);
+  const double clip = eval::mean(eval::score_sequence(clipped, gts, eval::Alignment::GlobalLogAffine, nullptr, &tone)).psnr;
+  CHECK(clip < 40);
+  // Without the HDR path the same (unclipped) prediction cannot be scored against linear truth above 1:
+  // the LDR fit clips its output to [0, 1].
+  std::vector<Image> bright = gts;
+  for (auto& g : bright)
+    for (auto& v : g.data) v *= 4.0f;
+  const double ldr = eval::mean(eval::score_sequence(preds, bright, eval::Alignment::GlobalLogAffine)).psnr;
+  const auto tone4 = eval::HdrTone::of(bright, 1e-9);
+  const double hdr = eval::mean(eval::score_sequence(preds, bright, eval::Alignment::GlobalLogAffine, nullptr, &tone4)).psnr;
+  CHECK(hdr > 80);
+  CHECK(ldr < hdr);
+  CHECK_THROWS_WITH(eval::HdrTone::of({Image(4, 4, 1)}, 1e-4), doctest::Contains("no range"));
+}

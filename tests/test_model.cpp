@@ -34,6 +34,13 @@ using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
 
+// Radiance of any range (field::ExpRadiance: exp of the colour output, the loss's log with ε = 1e-4).
+template <int C>
+using ExpRadianceModel =
+    EvNerf<field::Field<nn::HashGrid<2, 2, 5, 2, 4>, nn::SphericalHarmonics<2>, nn::Mlp<4, 8, 1, 4, nn::ReLU, nn::Identity>,
+                        nn::Mlp<3 + 4, 8, 1, C, nn::ReLU, nn::Identity>, nn::ReLU, field::ExpRadiance>,
+           render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+
 // The examples' parts (examples/parts/) in one tiny model: a sampler, an encoding and a bound policy of a user's own.
 using CustomParts = EvNerf<field::FieldOf<mylab::TriangleWave<2>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 8}, 3,
                                           nn::MlpShape{.width = 8}>,
@@ -141,7 +148,7 @@ void check_model() {
 
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
-                   OccupancyModel<3>, WindowHierarchicalModel<1>, CustomParts) {
+                   OccupancyModel<3>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>, CustomParts) {
   check_model<Model>();
 }
 

@@ -1,5 +1,6 @@
 #include <array>
 
+#include <evnerf/field/field.hpp>
 #include <evnerf/loss/event_loss.hpp>
 #include <evnerf/render/compositing.hpp>
 #include <evnerf/render/sampler.hpp>
@@ -38,6 +39,50 @@ TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densit
   for (double w : r.weight) wsum += w;
   CHECK(wsum == doctest::Approx(r.opacity));
   CHECK(r.opacity <= 1.0 + 1e-9);
+}
+
+TEST_CASE_TEMPLATE("compositing: finite-difference check through each radiance activation", Radiance, field::SigmoidRadiance,
+                   field::ExpRadiance) {
+  const int S = 7, C = 1;
+  Rng rng(5);
+  std::vector<double> sigma(S), raw(S), t(S);
+  for (int k = 0; k < S; ++k) {
+    sigma[k] = rng.uniform(0.1, 2.0);
+    t[k] = 0.5 + 0.3 * k;
+    raw[k] = rng.uniform(-3, 3);
+  }
+  using RA = typename Radiance::activation;
+  auto lum = [&](const std::vector<double>& rw) {
+    render::RayComposite<double> r;
+    render::composite_forward<double, nn::ReLU, RA>(S, C, sigma.data(), 1, rw.data(), t.data(), 1.0, nullptr, r);
+    return std::log(r.color[0] + Radiance::log_eps);
+  };
+  render::RayComposite<double> r;
+  render::composite_forward<double, nn::ReLU, RA>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.0, nullptr, r);
+  // Each sample's luminance is the activation of its raw output.
+  for (int k = 0; k < S; ++k) CHECK(r.lum[k] == doctest::Approx(RA::f(raw[k])).epsilon(1e-12));
+  const double dcolor = 1.0 / (r.color[0] + Radiance::log_eps);
+  std::vector<double> ds(S), dr(S);
+  render::composite_backward<double>(S, C, r, &dcolor, ds.data(), 1, dr.data());
+  CHECK(evtest::max_fd_error(lum, raw, dr) < 1e-6);
+}
+
+TEST_CASE("radiance policies: the sigmoid cannot render more than 6.9 nats of log change, exp radiance can") {
+  // The log change between a fully dark and a fully bright sample: bounded by log(1 + ε) − log(ε) for the
+  // sigmoid, unbounded (up to the e^15 cut) for exp radiance; an HDR scene asks for 8–9 nats.
+  auto range = [](auto radiance, double lo, double hi) {
+    using R = decltype(radiance);
+    return std::log(R::activation::f(hi) + R::log_eps) - std::log(R::activation::f(lo) + R::log_eps);
+  };
+  CHECK(range(field::SigmoidRadiance{}, -40, 40) < 6.91);
+  CHECK(range(field::ExpRadiance{}, -5, 5) > 9.9);
+  CHECK(field::Field<nn::Frequency<1>, nn::Frequency<1>, nn::Mlp<9, 8, 1, 2, nn::ReLU, nn::Identity>,
+                     nn::Mlp<1 + 9, 8, 1, 1, nn::ReLU, nn::Identity>, nn::ReLU, field::ExpRadiance>::architecture()
+            .ends_with(", radiance exp"));
+  // The paper's fields keep the architecture text older checkpoints recorded.
+  CHECK(field::Field<nn::Frequency<1>, nn::Frequency<1>, nn::Mlp<9, 8, 1, 2, nn::ReLU, nn::Identity>,
+                     nn::Mlp<1 + 9, 8, 1, 1, nn::ReLU, nn::Identity>>::architecture()
+            .find("radiance") == std::string::npos);
 }
 
 TEST_CASE("compositing: an opaque sample at depth d gives depth d and its luminance") {

@@ -37,3 +37,4 @@
 #include "train/trainer.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulator.hpp"
+#include "sim/random_scene.hpp"

@@ -379,7 +379,8 @@ class EvNerf {
       std::fill(w.gbm.begin(), w.gbm.end(), 0.0);
       const std::size_t o = static_cast<std::size_t>(p0 + i) * L;
       const auto r = loss::window_pixel_loss<bound_policy>(comp[2 * i].color[c], comp[2 * i + 1].color[c], L, &sw.npos[o],
-                                                           &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data());
+                                                           &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data(),
+                                                           FieldT::radiance::log_eps);
       total += r.value / batch;
       dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<Scalar>(r.dl0 / batch);
       dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<Scalar>(r.dl1 / batch);

@@ -17,9 +17,10 @@ using PaperField = field::FieldOf<Frequency<10>, Frequency<4>, MlpShape{.width =
                                   MlpShape{.width = W / 2, .hidden_layers = 1}, C, ReLU, Prec>;
 /// The fast field: hash grid (16 levels × 2 features, 2^15 entries, resolutions 16..1024) and degree-4
 /// spherical harmonics into two 64-wide networks.
-template <int C = 1, class Prec = Fp32>
+/// `Radiance` is the paper's sigmoid (field::SigmoidRadiance) or radiance of any range (field::ExpRadiance).
+template <int C = 1, class Prec = Fp32, class Radiance = field::SigmoidRadiance>
 using FastField = field::FieldOf<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, MlpShape{.width = 64, .hidden_layers = 1}, 15,
-                                 MlpShape{.width = 64, .hidden_layers = 2}, C, ReLU, Prec>;
+                                 MlpShape{.width = 64, .hidden_layers = 2}, C, ReLU, Prec, ReLU, Radiance>;
 static_assert(std::is_same_v<FastField<>, field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16>,
                                                        Mlp<15 + 16, 64, 2, 1>>>,
               "FastField: the derived widths are the ones written out");
@@ -37,8 +38,8 @@ using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 /// Fast learns its thresholds jointly, kept beyond the floor by projection (loss::ProjectedThresholds): the
 /// λ = 1000 floor loss fought the event loss for the first few hundred steps of every run.
 template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
-          class Prec = Fp32>
-using FastModel = EvNerf<FastField<C, Prec>, render::OccupancySkipping<64>, Th, No, Obj>;
+          class Prec = Fp32, class Radiance = field::SigmoidRadiance>
+using FastModel = EvNerf<FastField<C, Prec, Radiance>, render::OccupancySkipping<64>, Th, No, Obj>;
 /// Fast with windows of 1..W slices (measurement presets).
 template <int W, class Pixels = events::UniformPixels, class Th = loss::ProjectedThresholds>
 using FastWindow = FastModel<Th, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
@@ -54,6 +55,9 @@ using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>
 /// Fast learning only each slice's threshold ratio, the scale shared and fixed (loss::RatioThresholds).
 using FastRatio = FastModel<loss::RatioThresholds>;
 using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3>;
+/// Fast rendering radiance of any range (field::ExpRadiance) instead of the sigmoid's (0, 1), grey and colour.
+using FastHdr = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance>;
+using FastHdrColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastObjective, Fp32, field::ExpRadiance>;
 /// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
 /// gradients); checkpoints are interchangeable with the FP32 presets'.
 using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -118,20 +119,65 @@ inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const st
           {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
 }
 
-/// Scores under every alignment (the first is the primary), prints the tables and returns metrics.json.
-inline nlohmann::json score_and_report(const std::vector<eval::Method>& methods, const std::vector<Image>& gts,
-                                       const std::vector<eval::Alignment>& als, const std::vector<std::size_t>& ids,
-                                       eval::AlignedScores& primary) {
-  primary = eval::score_methods(methods, gts, als.front(), true);
-  std::vector<eval::AlignedScores> others;
-  for (std::size_t k = 1; k < als.size(); ++k) others.push_back(eval::score_methods(methods, gts, als[k]));
-  print_table(primary);
-  for (const auto& o : others) print_table(o);
-  return eval::metrics_json(primary, others, ids);
+/// The ground truth of the frames `ids` (grey): the frames, or the simulator's unclipped linear radiance where
+/// the recording has it, then with the tone map that scores in the log space (`hdr` set).
+struct Truth {
+  std::vector<Image> images;
+  std::optional<eval::HdrTone> hdr;
+  /// What the montage shows of the truth.
+  Image shown(std::size_t k) const { return hdr ? hdr->apply(images[k]) : images[k]; }
+};
+inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& ids) {
+  Truth t;
+  const bool linear = d.linear.size() == d.frames.size() && !d.linear.empty();
+  for (auto i : ids) {
+    if (!linear) {
+      t.images.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+      continue;
+    }
+    const auto a = io::load_npy<float>(d.linear[i]);
+    const int C = a.shape.size() == 3 ? static_cast<int>(a.shape[2]) : 1;
+    if (a.shape.size() < 2 || a.shape.size() > 3 || a.shape[0] != static_cast<std::size_t>(d.camera.height()) ||
+        a.shape[1] != static_cast<std::size_t>(d.camera.width()) || (C != 1 && C != 3))
+      throw Error(d.linear[i].string(), 0, "linear truth: expected a float32 array of H×W or H×W×3 with the sensor's size");
+    Image img(d.camera.width(), d.camera.height(), C);
+    img.data = a.data;
+    t.images.push_back(eval::to_grey(img));
+  }
+  if (linear) t.hdr = eval::HdrTone::of(t.images, d.linear_log_offset);
+  return t;
 }
 
+/// Scores under every alignment (the first is the primary), prints the tables and returns metrics.json.
+inline nlohmann::json score_and_report(const std::vector<eval::Method>& methods, const Truth& truth,
+                                       const std::vector<eval::Alignment>& als, const std::vector<std::size_t>& ids,
+                                       eval::AlignedScores& primary) {
+  const eval::HdrTone* hdr = truth.hdr ? &*truth.hdr : nullptr;
+  primary = eval::score_methods(methods, truth.images, als.front(), true, hdr);
+  std::vector<eval::AlignedScores> others;
+  for (std::size_t k = 1; k < als.size(); ++k) others.push_back(eval::score_methods(methods, truth.images, als[k], false, hdr));
+  if (hdr)
+    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(hdr->offset));
+  print_table(primary);
+  for (const auto& o : others) print_table(o);
+  auto j = eval::metrics_json(primary, others, ids);
+  j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
+                   : nlohmann::json{{"kind", "frames"}};
+  return j;
+}
+
+/// Intensity and depth of one view. Luminance beyond 1 (a field of unbounded radiance) is written as its log
+/// put on [0, 1] (PNG) and as linear float32 (`<stem>.npy`).
 inline void write_rendering(const fs::path& out, const std::string& stem, const Rendering& r, float dlo, float dhi) {
-  io::write_png(out / (stem + ".png"), r.luminance);
+  const auto& l = r.luminance;
+  if (!l.data.empty() && *std::max_element(l.data.begin(), l.data.end()) > 1.0f) {
+    std::vector<std::size_t> shape{static_cast<std::size_t>(l.height), static_cast<std::size_t>(l.width)};
+    if (l.channels > 1) shape.push_back(static_cast<std::size_t>(l.channels));
+    io::save_npy(out / (stem + ".npy"), l.data.data(), shape);
+    io::write_png(out / (stem + ".png"), eval::HdrTone{eval::kLogEps}.log_min_max(l));
+  } else {
+    io::write_png(out / (stem + ".png"), l);
+  }
   io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
   io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
@@ -171,13 +217,23 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   std::uint64_t sim_seed = 1;
   int width = sc.width, height = sc.height;
   double focal = 0;
+  fs::path textures;
   auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
-  simulate->add_option("scene", scene, "built-in scene (planes, object, room) or a scene description file")->required();
+  simulate->add_option("scene", scene,
+                       "built-in scene (planes, object, room), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
+                       "or a scene description file")
+      ->required();
   simulate->add_option("--out", out, "output folder")->required();
   simulate->add_flag("--realistic", realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
   simulate->add_flag("--bayer", bayer, "colour sensor: RGGB mosaic in front of the event pixels");
-  simulate->add_flag("--hdr", hdr, "high dynamic range lighting (exposure ×3)");
-  simulate->add_option("--seed", sim_seed, "random seed")->capture_default_str();
+  simulate->add_flag("--hdr", hdr,
+                     "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
+                     "frames); writes the unclipped linear truth that eval scores against");
+  simulate->add_option("--seed", sim_seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
+  simulate->add_option("--textures", textures, "with 'random': photos (.png) to texture some surfaces with");
+  simulate->add_option("--log-offset", sc.log_offset, "the sensor's dark end: pixels see log(I + offset)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   simulate->add_option("--noise-rate", sc.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
   simulate->add_option("--noise-ratio", sc.noise_ratio, "uniform random events added, as a fraction of the signal events")
       ->capture_default_str()
@@ -272,14 +328,17 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       return 0;
     }
     if (*simulate) {
-      auto spec = sim::load_scene(scene);
+      std::string scene_text;
+      require(textures.empty() || scene == "random", "simulate: --textures goes with the 'random' scene");
+      auto spec = scene == "random" ? sim::random_scene(sim_seed, sim::texture_pictures(textures), &scene_text) : sim::load_scene(scene);
       sim::SensorConfig cfg_s = realistic ? sim::SensorConfig::realistic() : sim::SensorConfig{};
       cfg_s.noise_rate = sc.noise_rate;
       cfg_s.noise_ratio = sc.noise_ratio;
+      cfg_s.log_offset = sc.log_offset;
       cfg_s.bayer = bayer;
       if (hdr) {
         cfg_s.hdr = true;
-        cfg_s.exposure = 3.0;
+        sim::hdr_lighting(spec.scene);
       }
       cfg_s.seed = sim_seed;
       cfg_s.fx = cfg_s.fy = focal > 0 ? focal : cfg_s.fx * width / 240.0;
@@ -289,6 +348,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       const auto t0 = std::chrono::steady_clock::now();
       auto rec = sim::Simulator(spec, cfg_s).run(true);
       sim::write_recording(out, rec);
+      if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
+      if (!rec.linear.empty())
+        fmt::print("{}: wrote the unclipped linear truth (linear/){}; eval scores against it\n", out.string(),
+                   rec.clipped ? ", as highlights clip the frames" : "");
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", spec.scene.name,
                  rec.events.size(), rec.events.count_positive(), spec.path.duration, rec.frames.size(), rec.renders, secs,
@@ -300,14 +363,13 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       const auto als = alignments_from(align);
       const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
       require(!ids.empty(), folder + ": no frames inside the events' time span");
-      std::vector<Image> gts;
-      for (auto i : ids) gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+      const Truth truth = load_truth(d, ids);
       eval::AlignedScores primary;
-      const auto j = score_and_report(baseline_methods(d, ids, contrast), gts, als, ids, primary);
+      const auto j = score_and_report(baseline_methods(d, ids, contrast), truth, als, ids, primary);
       const fs::path bo = baselines_out.empty() ? fs::path(folder) / "baselines" : baselines_out;
       write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
       const std::size_t mid = ids.size() / 2;
-      io::write_png(bo / "montage.png", io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid]}));
+      io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}));
       fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
       return 0;
     }
@@ -368,14 +430,13 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         require(!ids.empty(), "eval: no frames inside the trained time range");
         const auto dirs = render::pixel_directions(d.camera);
         eval::Method ours{"evnerf_" + name, {}};
-        std::vector<Image> gts, depths;
+        std::vector<Image> depths;
         const auto t0 = std::chrono::steady_clock::now();
         for (auto i : ids) {
           const double t = d.frames.t[i];
           const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
           const auto r = model.render(d.camera, dirs, pose);
           ours.images.push_back(eval::to_grey(r.luminance));
-          gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
           depths.push_back(r.depth);
           write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.box().near), float(model.box().far * 0.6));
         }
@@ -383,7 +444,8 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         auto methods = baseline_methods(d, ids, 0.2);
         methods.insert(methods.begin(), ours);
         eval::AlignedScores primary;
-        nlohmann::json j = score_and_report(methods, gts, als, ids, primary);
+        const Truth truth = load_truth(d, ids);
+        nlohmann::json j = score_and_report(methods, truth, als, ids, primary);
         j["seconds_per_render"] = render_s;
         // Depth against simulated ground truth, where the recording has it (median scale alignment).
         if (d.depth.size() == d.frames.size()) {
@@ -407,7 +469,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         write_file_atomic(out / "metrics.json", j.dump(2) + "\n");
         const std::size_t mid = ids.size() / 2;
         io::write_png(out / "montage.png",
-                      io::montage({gts[mid], primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}));
+                      io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}));
         if (!pick.empty()) {
           fmt::print("held-out frames only ({}, novel views):\n", pick.size());
           print_table(primary, pick);

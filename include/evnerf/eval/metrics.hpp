@@ -135,7 +135,8 @@ inline constexpr LogTransform kEventNerfTransform{2.2, 0.1};
 struct LogAffine {
   double a = 1, b = 0;
   LogTransform space{};
-  float apply(float v) const { return static_cast<float>(std::clamp(space.inverse(a * space.forward(v) + b), 0.0, 1.0)); }
+  double max = 1.0;  ///< the result is clipped to [0, max]: 1 for frames, unbounded for HDR truth
+  float apply(float v) const { return static_cast<float>(std::clamp(space.inverse(a * space.forward(v) + b), 0.0, max)); }
 };
 
 /// Least-squares log-affine maps, one per channel, over every pixel of every (prediction, ground truth)
@@ -219,14 +220,82 @@ inline Scores score(const Image& pred, const Image& gt, Alignment how) {
   return {mse(p, g), psnr(p, g), ssim(p, g)};
 }
 
+/// Scoring against high-dynamic-range truth (linear radiance, unclipped, from the simulator's linear/): an
+/// image is scored in log(x + offset), the space the sensor's events live in, put on [0, 1] by the truth's
+/// range over the sequence (lo, hi = the least and greatest log of the truth), so PSNR and SSIM weigh the
+/// dark end as much as the bright one. Predictions are aligned in that space and are not clipped before.
+struct HdrTone {
+  double offset = 1e-4, lo = 0, hi = 1;
+  static HdrTone of(const std::vector<Image>& gts, double offset) {
+    require(offset > 0, "HdrTone: the log offset must be positive");
+    HdrTone t{offset, INFINITY, -INFINITY};
+    for (const auto& g : gts)
+      for (float v : g.data) {
+        const double l = std::log(std::max(0.0, double(v)) + offset);
+        t.lo = std::min(t.lo, l);
+        t.hi = std::max(t.hi, l);
+      }
+    require(t.hi > t.lo, "HdrTone: the ground truth has no range");
+    return t;
+  }
+  LogTransform space() const { return {1.0, offset}; }
+  float operator()(float x) const {
+    return static_cast<float>(std::clamp((std::log(std::max(0.0, double(x)) + offset) - lo) / (hi - lo), 0.0, 1.0));
+  }
+  Image apply(const Image& a) const {
+    Image o = a;
+    for (auto& v : o.data) v = (*this)(v);
+    return o;
+  }
+  /// Min-max in the log space (the HDR form of the min-max alignment).
+  Image log_min_max(const Image& a) const {
+    Image o = a;
+    for (auto& v : o.data) v = static_cast<float>(std::log(std::max(0.0, double(v)) + offset));
+    return min_max(o);
+  }
+};
+
+/// The HDR form of score_sequence: alignments fit in the tone's space (EventNerf in its own) with no clipping,
+/// then prediction and truth are both tone-mapped; MinMax compares the log images, each put on [0, 1].
+inline std::vector<Scores> score_sequence_hdr(const std::vector<Image>& preds, const std::vector<Image>& gts, Alignment how,
+                                              const HdrTone& tone, std::vector<Image>* aligned) {
+  std::vector<Scores> out;
+  std::vector<LogAffine> fit;
+  auto unclipped = [](std::vector<LogAffine> f) {
+    for (auto& m : f) m.max = INFINITY;
+    return f;
+  };
+  if (how == Alignment::GlobalLogAffine) fit = unclipped(fit_log_affine(preds, gts, tone.space()));
+  if (how == Alignment::EventNerf) fit = unclipped(fit_log_affine(preds, gts, kEventNerfTransform));
+  for (std::size_t f = 0; f < preds.size(); ++f) {
+    require_same_shape(preds[f], gts[f]);
+    Image p, g;
+    if (how == Alignment::MinMax) {
+      p = tone.log_min_max(preds[f]);
+      g = tone.log_min_max(gts[f]);
+    } else {
+      if (how == Alignment::LogAffine) p = apply_log_affine(preds[f], unclipped(fit_log_affine({preds[f]}, {gts[f]}, tone.space())));
+      else if (how == Alignment::None) p = preds[f];
+      else p = apply_log_affine(preds[f], fit);
+      p = tone.apply(p);
+      g = tone.apply(gts[f]);
+    }
+    out.push_back({mse(p, g), psnr(p, g), ssim(p, g)});
+    if (aligned) aligned->push_back(std::move(p));
+  }
+  return out;
+}
+
 /// Scores a sequence frame by frame. GlobalLogAffine and EventNerf fit their maps once over all frames; the
-/// others align each frame on its own. `aligned`, when given, receives the aligned predictions.
+/// others align each frame on its own. `aligned`, when given, receives the aligned predictions. With `hdr`,
+/// the truth is linear radiance and the scores are score_sequence_hdr's.
 inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const std::vector<Image>& gts, Alignment how,
-                                          std::vector<Image>* aligned = nullptr) {
+                                          std::vector<Image>* aligned = nullptr, const HdrTone* hdr = nullptr) {
   require(preds.size() == gts.size(), "score_sequence: need as many predictions as ground-truth images");
   std::vector<Scores> out;
   if (aligned) aligned->clear();
   if (preds.empty()) return out;
+  if (hdr) return score_sequence_hdr(preds, gts, how, *hdr, aligned);
   std::vector<LogAffine> fit;
   const bool sequence = how == Alignment::GlobalLogAffine || how == Alignment::EventNerf;
   if (sequence) fit = fit_log_affine(preds, gts, how == Alignment::EventNerf ? kEventNerfTransform : LogTransform{});

@@ -30,7 +30,7 @@ struct AlignedScores {
 
 /// Scores each method against `gts` under `how` (each method gets its own global fit).
 inline AlignedScores score_methods(const std::vector<Method>& methods, const std::vector<Image>& gts, Alignment how,
-                                   bool keep_aligned = false) {
+                                   bool keep_aligned = false, const HdrTone* hdr = nullptr) {
   AlignedScores r;
   r.alignment = how;
   for (const auto& m : methods) {
@@ -38,7 +38,7 @@ inline AlignedScores score_methods(const std::vector<Method>& methods, const std
                                                " images for " + std::to_string(gts.size()) + " frames");
     r.names.push_back(m.name);
     std::vector<Image> al;
-    r.per_frame.push_back(score_sequence(m.images, gts, how, keep_aligned ? &al : nullptr));
+    r.per_frame.push_back(score_sequence(m.images, gts, how, keep_aligned ? &al : nullptr, hdr));
     r.aligned.push_back(std::move(al));
   }
   return r;

@@ -46,9 +46,34 @@ void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T*
   }
 }
 
+/// What the colour network's raw output means: the activation the compositor applies per sample, and the ε
+/// of the log the event loss takes of the composited luminance, log(ℓ + ε).
+/// The paper's: a sigmoid, luminance in (0, 1), ε = 1e-3. It can express log changes of at most
+/// log(1 + ε) − log(ε) = 6.9 nats, less than a scene of high dynamic range asks for.
+struct SigmoidRadiance {
+  using activation = nn::Sigmoid;
+  static constexpr double log_eps = 1e-3;
+  static constexpr const char* name = "sigmoid";
+};
+/// Ours: radiance exp(raw) (truncated at e^15), composited linearly like any radiance. Its log has no floor
+/// but ε = 1e-4 (the simulator's dark end), so any range is within reach; its scale is free, which the
+/// log-affine evaluation ignores anyway.
+struct ExpRadiance {
+  using activation = nn::TruncExp;
+  static constexpr double log_eps = 1e-4;
+  static constexpr const char* name = "exp";
+};
+template <class R>
+concept RadiancePolicy = nn::Activation<typename R::activation> && requires {
+  { R::log_eps } -> std::convertible_to<double>;
+  { R::name } -> std::convertible_to<const char*>;
+};
+
 /// `DensityAct` turns the raw density (plus training noise) into σ ≥ 0: nn::ReLU as in NeRF and the
-/// paper, nn::TruncExp as in Instant-NGP (large densities within reach of a small network).
-template <nn::Encoding PosEnc, nn::Encoding DirEnc, class DensityNet, class ColorNet, class DensityAct = nn::ReLU>
+/// paper, nn::TruncExp as in Instant-NGP (large densities within reach of a small network). `Radiance`
+/// turns the colour output into radiance (SigmoidRadiance, ExpRadiance).
+template <nn::Encoding PosEnc, nn::Encoding DirEnc, class DensityNet, class ColorNet, class DensityAct = nn::ReLU,
+          RadiancePolicy Radiance = SigmoidRadiance>
 struct Field {
   static_assert(nn::Activation<DensityAct>, "Field: DensityAct must be an activation type (nn::ReLU, nn::TruncExp, ...).");
   static_assert(PosEnc::in_dims == 3, "Field: the position encoding must take 3-D points.");
@@ -59,8 +84,8 @@ struct Field {
   static_assert(ColorNet::in_dims == DensityNet::out_dims - 1 + DirEnc::out_dims,
                 "Field: ColorNet's input width must equal DensityNet's features plus the direction encoding.");
   static_assert(std::is_same_v<typename ColorNet::output_activation, nn::Identity>,
-                "Field: ColorNet must end in nn::Identity: the compositor applies the sigmoid to its raw output "
-                "(another output activation would apply one twice).");
+                "Field: ColorNet must end in nn::Identity: the compositor applies the Radiance policy's activation "
+                "to its raw output (another output activation would apply one twice).");
   static_assert(std::is_same_v<typename DensityNet::output_activation, nn::Identity>,
                 "Field: DensityNet must end in nn::Identity: the density activation is the Field's DensityAct parameter.");
 
@@ -69,6 +94,7 @@ struct Field {
   using density_net = DensityNet;
   using color_net = ColorNet;
   using density_activation = DensityAct;
+  using radiance = Radiance;
   static constexpr int channels = ColorNet::out_dims;
   static constexpr int features = DensityNet::out_dims - 1;
   static constexpr int pos_in = PosEnc::out_dims, col_in = ColorNet::in_dims;
@@ -80,6 +106,7 @@ struct Field {
     std::string a = "position ";
     a.append(PosEnc::name()).append(", direction ").append(DirEnc::name()).append(", density ").append(DensityNet::name());
     a.append(", colour ").append(ColorNet::name()).append(", density activation ").append(DensityAct::name);
+    if constexpr (!std::is_same_v<Radiance, SigmoidRadiance>) a.append(", radiance ").append(Radiance::name);
     return a;
   }
   /// Multiply-adds per sample through both networks (forward).
@@ -217,11 +244,12 @@ struct Field {
 /// A Field with its networks' input and output widths derived: the density network takes the position
 /// encoding's features and gives a density and `Features` features; the colour network takes those and the
 /// direction encoding's features and gives `Channels` raw luminances. Both end in nn::Identity (the density
-/// activation is `DensityAct`, the compositor applies the sigmoid), their hidden layers use `Act`, and
+/// activation is `DensityAct`, the compositor applies `Radiance`'s), their hidden layers use `Act`, and
 /// `Prec` is their product precision.
 template <nn::Encoding PosEnc, nn::Encoding DirEnc, nn::MlpShape DensityShape, int Features, nn::MlpShape ColourShape,
-          int Channels = 1, class Act = nn::ReLU, class Prec = nn::Fp32, class DensityAct = nn::ReLU>
+          int Channels = 1, class Act = nn::ReLU, class Prec = nn::Fp32, class DensityAct = nn::ReLU,
+          class Radiance = SigmoidRadiance>
 using FieldOf = Field<PosEnc, DirEnc, nn::MlpOf<PosEnc::out_dims, DensityShape, 1 + Features, Act, nn::Identity, Prec>,
-                      nn::MlpOf<Features + DirEnc::out_dims, ColourShape, Channels, Act, nn::Identity, Prec>, DensityAct>;
+                      nn::MlpOf<Features + DirEnc::out_dims, ColourShape, Channels, Act, nn::Identity, Prec>, DensityAct, Radiance>;
 
 }  // namespace evnerf::field

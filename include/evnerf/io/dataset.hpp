@@ -26,6 +26,8 @@ struct Dataset {
   geometry::Trajectory trajectory;  ///< empty when the folder has no groundtruth.txt
   Frames frames;                    ///< empty when the folder has no images.txt
   std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
+  std::vector<std::filesystem::path> linear; ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
+  double linear_log_offset = 0;              ///< the sensor's dark end, log(I + offset), with `linear`
   bool from_cache = false;
 };
 
@@ -103,6 +105,22 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
       std::snprintf(name, sizeof name, "depth/frame_%08zu.npy", i);
       if (fs::exists(folder / name)) d.depth.push_back(folder / name);
     }
+  if (fs::is_directory(folder / "linear")) {
+    for (std::size_t i = 0; i < d.frames.size(); ++i) {
+      char name[64];
+      std::snprintf(name, sizeof name, "linear/frame_%08zu.npy", i);
+      if (fs::exists(folder / name)) d.linear.push_back(folder / name);
+    }
+    if (d.linear.size() != d.frames.size())
+      throw Error((folder / "linear").string(), 0,
+                  "has " + std::to_string(d.linear.size()) + " of the " + std::to_string(d.frames.size()) + " frames' linear truth");
+    const auto off = folder / "linear" / "log_offset.txt";
+    if (!fs::exists(off)) throw Error(off.string(), 0, "missing (the sensor's log offset, written with the linear truth)");
+    LineScanner sc(read_file(off), off.string());
+    if (!sc.next_line()) sc.fail("empty: expected the sensor's log offset");
+    d.linear_log_offset = sc.real("log offset");
+    if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");
+  }
   return d;
 }
 

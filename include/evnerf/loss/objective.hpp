@@ -36,12 +36,18 @@ struct PixelLoss {
 /// bm[k]. The interval is the bound policy's for the window's total counts N± with the count-weighted
 /// thresholds B±_eff = Σ_k n±_k B±_k / N± (the plain mean where N± = 0), so its centre is exactly
 /// Σ_k n⁺_k B⁺_k + Σ_k n⁻_k B⁻_k and its slack is in units of the thresholds that fired. Adds dloss/dB±_k
-/// to gbp[k], gbm[k]. With L = 1 this is spec §2's loss, computed exactly as EventBounds does.
+/// to gbp[k], gbm[k]. With L = 1 this is spec §2's loss, computed exactly as EventBounds does. `log_eps` is
+/// the ε of log(ℓ + ε) (the field's radiance policy's; the spec's 1e-3 by default).
 template <BoundPolicy Bound>
 PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const int* nneg, const double* bp, const double* bm,
-                            double* gbp, double* gbm) {
+                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps) {
+  auto bounds = [log_eps](int np, int nm) {
+    auto b = Bound::make(np, nm);
+    b.eps = log_eps;
+    return b;
+  };
   if (L == 1) {
-    const auto r = Bound::make(npos[0], nneg[0]).evaluate(l0, l1, bp[0], bm[0]);
+    const auto r = bounds(npos[0], nneg[0]).evaluate(l0, l1, bp[0], bm[0]);
     gbp[0] += r[3];
     gbm[0] += r[4];
     return {r[0], r[1], r[2]};
@@ -57,7 +63,7 @@ PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const 
     mm += bm[k];
   }
   const double bpe = Np > 0 ? sp / static_cast<double>(Np) : mp / L, bme = Nm > 0 ? sm / static_cast<double>(Nm) : mm / L;
-  const auto r = Bound::make(static_cast<int>(std::min<long>(Np, INT32_MAX)), static_cast<int>(std::min<long>(Nm, INT32_MAX)))
+  const auto r = bounds(static_cast<int>(std::min<long>(Np, INT32_MAX)), static_cast<int>(std::min<long>(Nm, INT32_MAX)))
                      .evaluate(l0, l1, bpe, bme);
   for (int k = 0; k < L; ++k) {
     gbp[k] += r[3] * (Np > 0 ? npos[k] / static_cast<double>(Np) : 1.0 / L);

@@ -26,11 +26,13 @@ struct AlphaOfDensity {
     return 1.0 - ad::exp(-(Act::apply(sigma + noise) * delta));
   }
 };
-/// Luminance from the network's raw output.
+/// Luminance from the network's raw output through the field's radiance activation (nn::Sigmoid in the
+/// paper; nn::TruncExp for radiance of any range).
+template <class Act = nn::Sigmoid>
 struct LuminanceOfRaw {
   template <class S>
   auto operator()(const S& raw) const {
-    return ad::sigmoid(raw);
+    return Act::apply(raw);
   }
 };
 
@@ -46,7 +48,7 @@ struct RayComposite {
 /// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
 /// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
 /// null). The last interval is open (δ = kOpenInterval), as in NeRF.
-template <class T, class DensityAct = nn::ReLU>
+template <class T, class DensityAct = nn::ReLU, class RadianceAct = nn::Sigmoid>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
                        const T* noise, RayComposite<T>& r) {
   r.alpha.resize(S);
@@ -69,7 +71,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
     r.weight[k] = w;
     for (int c = 0; c < C; ++c) {
       const std::size_t i = static_cast<std::size_t>(k) * C + c;
-      const auto l = ad::value_and_grad(LuminanceOfRaw{}, std::array<double, 1>{double(raw[i])});
+      const auto l = ad::value_and_grad(LuminanceOfRaw<RadianceAct>{}, std::array<double, 1>{double(raw[i])});
       r.lum[i] = static_cast<T>(l.value);
       r.dlum_draw[i] = static_cast<T>(l.grad[0]);
       r.color[c] += w * r.lum[i];

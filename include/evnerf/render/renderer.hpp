@@ -302,7 +302,7 @@ class Renderer {
     p.comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
-      composite_forward<T, typename FieldT::density_activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
+      composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
                                                                 p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
                                                                 training ? p.noise.data() + o : nullptr, p.comp[r]);
     }

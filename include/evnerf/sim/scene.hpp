@@ -52,17 +52,18 @@ struct Texture {
                  v11 = hash01(ix + 1, iy + 1, seed);
     return (v00 * (1 - tx) + v10 * tx) * (1 - ty) + (v01 * (1 - tx) + v11 * tx) * ty;
   }
-  Vec3 albedo(double u, double v, double fw) const {
-    const double su = u * scale, sv = v * scale, sfw = fw * scale;
+  /// Albedo at (u, v) for a footprint of fu along u and fv along v (texture units).
+  Vec3 albedo(double u, double v, double fu, double fv) const {
+    const double su = u * scale, sv = v * scale, sfu = fu * scale, sfv = fv * scale, sfw = std::max(sfu, sfv);
     double m = 0;
     switch (kind) {
       case Checker: {
-        const double cu = smooth_square(su, sfw), cv = smooth_square(sv, sfw);
+        const double cu = smooth_square(su, sfu), cv = smooth_square(sv, sfv);
         m = cu * cv + (1 - cu) * (1 - cv);
         break;
       }
       case Stripes:
-        m = smooth_square(su, sfw);
+        m = smooth_square(su, sfu);
         break;
       case Noise: {
         double amp = 0.5, freq = 1, total = 0;
@@ -94,6 +95,7 @@ struct Texture {
     }
     return b + m * (a - b);
   }
+  Vec3 albedo(double u, double v, double fw) const { return albedo(u, v, fw, fw); }
 };
 
 /// Analytic primitives. Planes are rectangles (half sizes hu, hv along axes u, v; 0 = unbounded).
@@ -127,7 +129,7 @@ struct Scene {
     for (const auto& pr : prims) {
       double t = INFINITY;
       Vec3 nrm;
-      double tu = 0, tv = 0;
+      double tu = 0, tv = 0, u_stretch = 1;
       if (pr.kind == Primitive::Plane) {
         const double den = pr.n.dot(d);
         if (std::abs(den) < 1e-12) continue;
@@ -150,6 +152,8 @@ struct Scene {
         nrm = (o + t * d - pr.p).normalized();
         tu = std::atan2(nrm.y(), nrm.x()) * pr.radius;
         tv = std::asin(std::clamp(nrm.z(), -1.0, 1.0)) * pr.radius;
+        // Longitude lines converge at the poles: a world length there spans 1/cos(latitude) times more u.
+        u_stretch = 1.0 / std::max(std::sqrt(std::max(0.0, 1.0 - nrm.z() * nrm.z())), 1e-3);
       } else {  // axis-aligned box, slab test
         double t0 = -INFINITY, t1 = INFINITY;
         int axis0 = 0, axis1 = 0;
@@ -181,7 +185,7 @@ struct Scene {
       best.t = t;
       best.normal = nrm;
       const double footprint = pix_angle * t * dn / std::max(0.05, std::abs(nrm.dot(d)) / dn);
-      best.albedo = pr.tex.albedo(tu, tv, footprint);
+      best.albedo = pr.tex.albedo(tu, tv, footprint * u_stretch, footprint);
     }
     return best;
   }
@@ -195,6 +199,13 @@ struct Scene {
     return h.albedo * (ambient + diffuse * lam);
   }
 };
+
+/// High-dynamic-range lighting for a scene (`simulate --hdr`): ambient ×0.05 and the directional light ×4, so
+/// shadowed dark albedo and lit bright albedo lie 7–8 nats apart and lit highlights exceed 1 (frames clip).
+inline void hdr_lighting(Scene& s) {
+  s.ambient *= 0.05;
+  s.diffuse *= 4.0;
+}
 
 /// A camera path: pose at any time in [0, duration].
 struct CameraPath {

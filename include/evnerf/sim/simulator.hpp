@@ -38,8 +38,10 @@ struct SensorConfig {
   double hot_rate = 200.0;
   double jitter = 0.0;               ///< timestamp jitter standard deviation, seconds
   double frame_rate = 24.0;          ///< APS frames per second
-  double exposure = 1.0;             ///< frame gain; > 1 with `hdr` saturates frames (events see all)
-  bool hdr = false;
+  double exposure = 1.0;             ///< frame gain (events see every level; frames clip at 1)
+  double log_offset = 1e-4;          ///< the dark end: pixels respond to log(I + log_offset), I the linear
+                                     ///< radiance (a photoreceptor's dark current, not a hard clamp)
+  bool hdr = false;                  ///< always write linear/ ground truth (also written when a frame clips)
   bool bayer = false;                ///< RGGB colour filter: each pixel sees one channel
   double max_step_fraction = 0.4;    ///< max log change per step, as a fraction of the threshold
   double min_step = 5e-4, max_step = 5e-3;  ///< seconds
@@ -64,6 +66,9 @@ struct Recording {
   std::vector<double> frame_times;
   std::vector<Image> frames;   ///< grey (or RGB with bayer), in [0, 1]
   std::vector<Image> depth;    ///< z-depth per frame (inf where nothing is hit)
+  std::vector<Image> linear;   ///< linear radiance per frame, unclipped (grey, or RGB with bayer): HDR truth
+  bool clipped = false;        ///< some frame pixel exceeded 1 (frames lost highlights)
+  double log_offset = 0;       ///< the sensor's, to score HDR renders in the space the events see
   geometry::Trajectory trajectory;
   std::size_t renders = 0;
 };
@@ -75,6 +80,7 @@ class Simulator {
     if (cfg_.cy < 0) cfg_.cy = cfg_.height * 0.5;
     cam_ = geometry::Camera(cfg_.width, cfg_.height, cfg_.fx, cfg_.fy, cfg_.cx, cfg_.cy);
     require(cfg_.threshold_pos > 0 && cfg_.threshold_neg > 0, "simulator: thresholds must be positive");
+    require(cfg_.log_offset > 0 && std::isfinite(cfg_.log_offset), "simulator: the log offset must be positive");
   }
   const geometry::Camera& camera() const { return cam_; }
 
@@ -102,7 +108,7 @@ class Simulator {
     for (std::size_t i = 0; i < rgb.size(); ++i) {
       const double v = cfg_.bayer ? rgb[i][geometry::rggb_channel(static_cast<int>(i % W), static_cast<int>(i / W))]
                                   : 0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2];
-      L[i] = std::log(std::max(v, 1e-4));
+      L[i] = std::log(std::max(v, 0.0) + cfg_.log_offset);
     }
   }
 
@@ -201,18 +207,21 @@ class Simulator {
     for (double ft = 0; ft <= T + 1e-9; ft += 1.0 / cfg_.frame_rate) {
       std::vector<float> dep;
       render(ft, rgb, &dep);
-      Image frame(W, H, cfg_.bayer ? 3 : 1), depth(W, H, 1);
+      const int C = cfg_.bayer ? 3 : 1;
+      Image frame(W, H, C), depth(W, H, 1), linear(W, H, C);
       for (std::size_t i = 0; i < n; ++i) {
-        const double gain = cfg_.exposure;
-        if (cfg_.bayer)
-          for (int c = 0; c < 3; ++c) frame.data[3 * i + c] = static_cast<float>(std::clamp(rgb[i][c] * gain, 0.0, 1.0));
-        else
-          frame.data[i] = static_cast<float>(std::clamp((0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2]) * gain, 0.0, 1.0));
+        for (int c = 0; c < C; ++c) {
+          const double v = C == 3 ? rgb[i][c] : 0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2];
+          linear.data[C * i + c] = static_cast<float>(v);
+          frame.data[C * i + c] = static_cast<float>(std::clamp(v * cfg_.exposure, 0.0, 1.0));
+          rec.clipped = rec.clipped || v * cfg_.exposure > 1.0;
+        }
         depth.data[i] = dep[i];
       }
       rec.frame_times.push_back(ft);
       rec.frames.push_back(std::move(frame));
       rec.depth.push_back(std::move(depth));
+      rec.linear.push_back(std::move(linear));
     }
     std::vector<double> pt;
     std::vector<geometry::Pose> poses;
@@ -221,6 +230,8 @@ class Simulator {
       poses.push_back(spec_.path.pose(pt_));
     }
     rec.trajectory = geometry::Trajectory(pt, poses, "simulated trajectory");
+    rec.log_offset = cfg_.log_offset;
+    if (!cfg_.hdr && !rec.clipped) rec.linear.clear();  // the frames are the whole truth
     return rec;
   }
 
@@ -231,11 +242,13 @@ class Simulator {
 };
 
 /// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt)
-/// plus sensor.txt and depth/frame_XXXXXXXX.npy. Every file is written atomically.
+/// plus sensor.txt and depth/frame_XXXXXXXX.npy; with HDR truth also linear/frame_XXXXXXXX.npy (float32,
+/// H×W or H×W×3) and linear/log_offset.txt. Every file is written atomically.
 inline void write_recording(const std::filesystem::path& dir, const Recording& rec) {
   namespace fs = std::filesystem;
   fs::create_directories(dir / "images");
   fs::create_directories(dir / "depth");
+  if (!rec.linear.empty()) fs::create_directories(dir / "linear");
   std::string ev;
   ev.reserve(rec.events.size() * 24);
   char buf[128];
@@ -254,6 +267,17 @@ inline void write_recording(const std::filesystem::path& dir, const Recording& r
     images += buf;
     std::snprintf(name, sizeof name, "depth/frame_%08zu.npy", f);
     io::save_npy(dir / name, rec.depth[f].data.data(), {static_cast<std::size_t>(rec.depth[f].height), static_cast<std::size_t>(rec.depth[f].width)});
+    if (f < rec.linear.size()) {
+      const Image& l = rec.linear[f];
+      std::snprintf(name, sizeof name, "linear/frame_%08zu.npy", f);
+      std::vector<std::size_t> shape{static_cast<std::size_t>(l.height), static_cast<std::size_t>(l.width)};
+      if (l.channels > 1) shape.push_back(static_cast<std::size_t>(l.channels));
+      io::save_npy(dir / name, l.data.data(), shape);
+    }
+  }
+  if (!rec.linear.empty()) {
+    std::snprintf(buf, sizeof buf, "%.9g\n", rec.log_offset);
+    write_file_atomic(dir / "linear" / "log_offset.txt", buf);
   }
   write_file_atomic(dir / "images.txt", images);
   io::write_poses_txt(dir / "groundtruth.txt", rec.trajectory);
