@@ -180,6 +180,19 @@ TEST_CASE("occupancy grid: marks the cells of a dense region, and round-trips") 
   // Cells fully inside the ball (radius 0.5 of the half-width 1) are about 4/3·π·0.5³ / 8 of the grid.
   CHECK(g.occupied_fraction() > 0.04);
   CHECK(g.occupied_fraction() < 0.08);
+  CHECK(g.seen_fraction() == 1.0);
+  // Seen cells: half the grid (x < 0); the occupied share among them is twice the share of the grid.
+  render::OccupancyGrid s(16);
+  std::vector<std::uint8_t> half(s.cells(), 0);
+  for (std::size_t c = 0; c < s.cells(); ++c) {
+    float p[3];
+    s.cell_centre(c, p);
+    half[c] = p[0] < 0 ? 1 : 0;
+  }
+  s.set_visible(half);
+  CHECK(s.seen_fraction() == doctest::Approx(0.5));
+  s.update(ball, Rng(1), 1.f);
+  CHECK(s.occupied_fraction() == doctest::Approx(0.5 * g.occupied_fraction()).epsilon(0.1));
   // Decay: with zero density everywhere the occupied set shrinks to nothing after enough updates.
   render::OccupancyGrid h(16);
   CHECK(h.deserialize(g.serialize()));

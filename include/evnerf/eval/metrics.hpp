@@ -222,19 +222,24 @@ inline Scores score(const Image& pred, const Image& gt, Alignment how) {
 
 /// Scoring against high-dynamic-range truth (linear radiance, unclipped, from the simulator's linear/): an
 /// image is scored in log(x + offset), the space the sensor's events live in, put on [0, 1] by the truth's
-/// range over the sequence (lo, hi = the least and greatest log of the truth), so PSNR and SSIM weigh the
-/// dark end as much as the bright one. Predictions are aligned in that space and are not clipped before.
+/// range over the sequence (lo, hi = the 0.1 and 99.9 percentiles of the truth's log, so that a few extreme
+/// pixels do not set it), so PSNR and SSIM weigh the dark end as much as the bright one. Predictions are
+/// aligned in that space and are not clipped before.
 struct HdrTone {
   double offset = 1e-4, lo = 0, hi = 1;
+  static constexpr double kTail = 0.001;  ///< share of the truth's pixels left outside [lo, hi] at each end
   static HdrTone of(const std::vector<Image>& gts, double offset) {
     require(offset > 0, "HdrTone: the log offset must be positive");
-    HdrTone t{offset, INFINITY, -INFINITY};
+    std::vector<double> l;
     for (const auto& g : gts)
-      for (float v : g.data) {
-        const double l = std::log(std::max(0.0, double(v)) + offset);
-        t.lo = std::min(t.lo, l);
-        t.hi = std::max(t.hi, l);
-      }
+      for (float v : g.data) l.push_back(std::log(std::max(0.0, double(v)) + offset));
+    require(!l.empty(), "HdrTone: no ground truth");
+    const auto at = [&](double q) {
+      const auto k = static_cast<std::ptrdiff_t>(std::llround(q * static_cast<double>(l.size() - 1)));
+      std::nth_element(l.begin(), l.begin() + k, l.end());
+      return l[static_cast<std::size_t>(k)];
+    };
+    HdrTone t{offset, at(kTail), at(1 - kTail)};
     require(t.hi > t.lo, "HdrTone: the ground truth has no range");
     return t;
   }

@@ -30,6 +30,12 @@ class OccupancyGrid {
     if (!active_) return 1.0;
     return static_cast<double>(std::count(occupied_.begin(), occupied_.end(), std::uint8_t{1})) / static_cast<double>(cells());
   }
+  /// The share of the cells some training camera sees (1 before visibility is known). Most of a box fitted
+  /// around the cameras is never seen, so occupied_fraction() / seen_fraction() is what pruning kept.
+  double seen_fraction() const {
+    if (visible_.empty()) return 1.0;
+    return static_cast<double>(std::count(visible_.begin(), visible_.end(), std::uint8_t{1})) / static_cast<double>(cells());
+  }
 
   /// Cell of a point in [−1, 1]³, or −1 outside the box (outside counts as occupied: never skipped).
   template <class T>

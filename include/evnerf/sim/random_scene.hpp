@@ -4,7 +4,7 @@
 // What a seed gives: one of the three kinds of path (slider, orbit arc, hand-held; seed mod 3), a floor and
 // a back wall, 2–5 boxes, spheres and rectangles in view, textures with natural-image statistics (fractal
 // value noise, whose octaves halve in amplitude as they double in frequency, i.e. a 1/f² power spectrum),
-// checkers and stripes, or photos from a folder; colours in which dark (albedo down to 0.01) and bright
+// checkers and stripes no finer than the sensor resolves at their distance, or photos from a folder; colours in which dark (albedo down to 0.01) and bright
 // (up to 0.95) regions are both large; and a light of high dynamic range (ambient 0.05–0.4 against a
 // directional light of 0.4–2.5, so radiance spans up to 8.6 nats). Depends on core/ and sim/scene.hpp.
 #pragma once
@@ -41,16 +41,20 @@ class SceneWriter {
   /// A texture: half fractal noise, a fifth each checkers and stripes, a tenth photos (noise when there are
   /// none). Its colours are bright and dark (6 in 8), both dark (1 in 8) or both bright (1 in 8), so scenes
   /// have large dark regions next to bright ones.
-  std::string texture() {
+  /// `distance` is about how far the camera sees the surface from: a checker square or stripe spans 8 to 27
+  /// pixels there at the default 200-pixel focal length (scale 12.5/distance and below), the noise's coarsest
+  /// blobs 3 to 13 times that, so no texture is finer than the sensor resolves.
+  std::string texture(double distance) {
+    const double resolvable = 12.5 / distance;  // periods per metre at which half a period spans 8 pixels
     std::uint64_t kind = below(10);
     kind = kind < 5 ? 0 : kind < 7 ? 1 : kind < 9 ? 2 : pictures_.empty() ? 0 : 3;
     std::string t;
     if (kind == 0)
-      t = fmt("noise %.3f %d %d", uniform(0.8, 4.0), 4 + static_cast<int>(below(3)), static_cast<int>(below(100000)));
+      t = fmt("noise %.3f %d %d", uniform(0.08, 0.3) * resolvable, 4 + static_cast<int>(below(3)), static_cast<int>(below(100000)));
     else if (kind == 1)
-      t = fmt("checker %.3f", uniform(1.5, 8.0));
+      t = fmt("checker %.3f", uniform(0.3, 1.0) * resolvable);
     else if (kind == 2)
-      t = fmt("stripes %.3f", uniform(1.5, 8.0));
+      t = fmt("stripes %.3f", uniform(0.3, 1.0) * resolvable);
     else
       return fmt("image %s %.3f", pictures_[below(pictures_.size())].c_str(), uniform(0.3, 1.5));
     const std::uint64_t mood = below(8);
@@ -107,16 +111,16 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
   if (path_kind == 1) {
     // Orbit: objects on a floor around the origin, a wall behind them, the camera circling above.
     const double floor_y = w.uniform(0.3, 0.5), wall_z = w.uniform(2.5, 3.5);
-    s += SceneWriter::fmt("plane 0 %.4f 0  0 -1 0  1 0 0  0 0  %s\n", floor_y, w.texture().c_str());
-    s += SceneWriter::fmt("plane 0 0 %.4f  0 0 -1  1 0 0  0 0  %s\n", wall_z, w.texture().c_str());
+    s += SceneWriter::fmt("plane 0 %.4f 0  0 -1 0  1 0 0  0 0  %s\n", floor_y, w.texture(2.6).c_str());
+    s += SceneWriter::fmt("plane 0 0 %.4f  0 0 -1  1 0 0  0 0  %s\n", wall_z, w.texture(wall_z + 2.6).c_str());
     for (int k = 0; k < objects; ++k) {
       const double x = w.uniform(-0.8, 0.8), z = w.uniform(-0.6, 0.8);
       if (w.below(2) == 0) {
         const double hx = w.uniform(0.12, 0.4), hy = w.uniform(0.12, 0.4), hz = w.uniform(0.12, 0.4);
-        s += SceneWriter::fmt("box %.4f %.4f %.4f  %.4f %.4f %.4f  %s\n", x, floor_y - hy, z, hx, hy, hz, w.texture().c_str());
+        s += SceneWriter::fmt("box %.4f %.4f %.4f  %.4f %.4f %.4f  %s\n", x, floor_y - hy, z, hx, hy, hz, w.texture(2.6).c_str());
       } else {
         const double r = w.uniform(0.12, 0.35);
-        s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, floor_y - r, z, r, w.texture().c_str());
+        s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, floor_y - r, z, r, w.texture(2.6).c_str());
       }
     }
     const double a0 = w.uniform(-0.7, -0.3), a1 = a0 + w.uniform(0.6, 1.0);
@@ -127,22 +131,22 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
   // Slider and hand-held: the camera near the origin looking along +z at objects 1.2–3.8 m away, a floor
   // below and a wall behind.
   const double floor_y = w.uniform(0.5, 0.9), wall_z = w.uniform(4.5, 6.0);
-  s += SceneWriter::fmt("plane 0 %.4f 0  0 -1 0  1 0 0  0 0  %s\n", floor_y, w.texture().c_str());
-  s += SceneWriter::fmt("plane 0 0 %.4f  0 0 -1  1 0 0  0 0  %s\n", wall_z, w.texture().c_str());
+  s += SceneWriter::fmt("plane 0 %.4f 0  0 -1 0  1 0 0  0 0  %s\n", floor_y, w.texture(2.5).c_str());
+  s += SceneWriter::fmt("plane 0 0 %.4f  0 0 -1  1 0 0  0 0  %s\n", wall_z, w.texture(wall_z).c_str());
   for (int k = 0; k < objects; ++k) {
     const double z = w.uniform(1.2, 3.8), x = w.uniform(-0.4, 0.4) * z, y = std::min(w.uniform(-0.3, 0.25) * z, floor_y - 0.2);
     const std::uint64_t kind = w.below(3);
     if (kind == 0) {
       const double hx = w.uniform(0.1, 0.35), hy = w.uniform(0.1, 0.35), hz = w.uniform(0.1, 0.35);
-      s += SceneWriter::fmt("box %.4f %.4f %.4f  %.4f %.4f %.4f  %s\n", x, y, z, hx, hy, hz, w.texture().c_str());
+      s += SceneWriter::fmt("box %.4f %.4f %.4f  %.4f %.4f %.4f  %s\n", x, y, z, hx, hy, hz, w.texture(z).c_str());
     } else if (kind == 1) {
-      s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, y, z, w.uniform(0.1, 0.35), w.texture().c_str());
+      s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, y, z, w.uniform(0.1, 0.35), w.texture(z).c_str());
     } else {
       // A rectangle facing the camera, tilted a little; its u axis is made orthogonal to the normal.
       const Vec3 n = Vec3(w.uniform(-0.35, 0.35), w.uniform(-0.25, 0.25), -1.0).normalized();
       const Vec3 u = (Vec3::UnitX() - n.x() * n).normalized();
       s += SceneWriter::fmt("plane %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f  %s\n", x, y, z, n.x(), n.y(), n.z(),
-                            u.x(), u.y(), u.z(), w.uniform(0.15, 0.5), w.uniform(0.15, 0.4), w.texture().c_str());
+                            u.x(), u.y(), u.z(), w.uniform(0.15, 0.5), w.uniform(0.15, 0.4), w.texture(z).c_str());
     }
   }
   if (path_kind == 0) {

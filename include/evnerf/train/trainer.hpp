@@ -309,7 +309,11 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"lr", model.optimizer().learning_rate()},
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
-      if constexpr (Model::sampler_type::skips_samples) j["occupied"] = model.sampler().occupied_fraction();
+      if constexpr (Model::sampler_type::skips_samples) {
+        j["occupied"] = model.sampler().occupied_fraction();
+        if constexpr (requires { model.sampler().grid().seen_fraction(); })
+          j["occupied_of_seen"] = model.sampler().occupied_fraction() / std::max(1e-12, model.sampler().grid().seen_fraction());
+      }
       recent_event = rep.mean_event_loss;
       const bool check = cfg.collapse_check_every > 0 && cfg.collapse_check_from > 0 && s >= cfg.collapse_check_from &&
                          (s - cfg.collapse_check_from) % cfg.collapse_check_every == 0;
