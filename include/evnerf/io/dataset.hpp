@@ -116,7 +116,8 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
                   "has " + std::to_string(d.linear.size()) + " of the " + std::to_string(d.frames.size()) + " frames' linear truth");
     const auto off = folder / "linear" / "log_offset.txt";
     if (!fs::exists(off)) throw Error(off.string(), 0, "missing (the sensor's log offset, written with the linear truth)");
-    LineScanner sc(read_file(off), off.string());
+    const std::string text = read_file(off);  // the scanner views it: it must outlive the scanner
+    LineScanner sc(text, off.string());
     if (!sc.next_line()) sc.fail("empty: expected the sensor's log offset");
     d.linear_log_offset = sc.real("log offset");
     if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");

@@ -16,6 +16,8 @@ namespace evnerf::io {
 class LineScanner {
  public:
   LineScanner(std::string_view text, std::string file) : text_(text), file_(std::move(file)) {}
+  /// The scanner views its text: a temporary string would be gone before the first line is read.
+  LineScanner(std::string&& text, std::string file) = delete;
 
   /// Moves to the next non-blank, non-comment line; false at the end.
   bool next_line() {

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The unit-test suite (evnerf_tests: every doctest case) built with AddressSanitizer + UndefinedBehavior-
+# Sanitizer, any report fatal. `.ci/run` runs it after the Release suite. The CLI tests, failtests and the
+# consumer stay with the Release build: they exercise the build system and argument parsing, not memory.
+# Usage: scripts/sanitize.sh [SANITIZERS]   (default address,undefined; 'thread' for ThreadSanitizer)
+# Environment: BUILD (build-sanitize), TESTS (a doctest -tc filter, default all).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/deps.sh
+SAN=${1:-address,undefined}
+BUILD=${BUILD:-build-sanitize}
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_SANITIZE="$SAN" -DEVNERF_BUILD_EXAMPLES=OFF \
+  -DEVNERF_BUILD_TESTS=ON >/dev/null
+cmake --build "$BUILD" -j"$(nproc)" --target evnerf_tests
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export OMP_NUM_THREADS=${OMP_NUM_THREADS:-2}
+"$BUILD/tests/evnerf_tests" ${TESTS:+-tc="$TESTS"}
