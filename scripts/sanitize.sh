@@ -9,8 +9,9 @@ cd "$(dirname "$0")/.."
 scripts/deps.sh
 SAN=${1:-address,undefined}
 BUILD=${BUILD:-build-sanitize}
-cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_SANITIZE="$SAN" -DEVNERF_BUILD_EXAMPLES=OFF \
-  -DEVNERF_BUILD_TESTS=ON >/dev/null
+# -O1 with debug info: readable reports, and less compile time than the Release build's -O3.
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" -DEVNERF_SANITIZE="$SAN" \
+  -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_BUILD_TESTS=ON >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target evnerf_tests
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
