@@ -8,6 +8,7 @@
 // (up to 0.95) regions are both large; and a light of high dynamic range (ambient 0.05–0.4 against a
 // directional light of 0.4–2.5, so radiance spans up to 8.6 nats). Depends on core/ and sim/scene.hpp.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
