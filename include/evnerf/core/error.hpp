@@ -32,11 +32,11 @@ inline void require(bool cond, const std::string& message) {
   if (!cond) throw Error(message);
 }
 
-/// A number as messages show it: at most 15 significant digits, exponent form for very large or small
-/// values (1e+308, not a 309-digit string; an IJRR timestamp keeps its microseconds).
-inline std::string short_number(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.15g", v);
+/// A number as messages show it: at most `digits` significant digits (15 keeps an IJRR timestamp's
+/// microseconds), exponent form for very large or small values (1e+308, not a 309-digit string).
+inline std::string short_number(double v, int digits = 15) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*g", digits < 1 ? 1 : digits > 17 ? 17 : digits, v);
   return b;
 }
 

@@ -34,26 +34,44 @@ struct Dataset {
 /// The most pixels a sensor may have (8192 × 8192): per-pixel counts per slice are allocated from it.
 inline constexpr long long kMaxSensorPixels = 1LL << 26;
 
+/// Refuses a sensor of more than kMaxSensorPixels pixels or a side outside 1 … 65535 (before anything is
+/// allocated per pixel); `where` names what announced the size.
+inline void check_sensor_size(long long w, long long h, const std::string& where, std::size_t line = 0) {
+  if (w <= 0 || h <= 0 || w > 65535 || h > 65535)
+    throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " out of range (1 to 65535 per side)");
+  if (w * h > kMaxSensorPixels)
+    throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " has more than " +
+                                 std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
+}
+
+/// Parses sensor.txt: "width height".
+inline std::pair<int, int> parse_sensor_size(std::string_view text, const std::string& file) {
+  LineScanner s(text, file);
+  if (!s.next_line()) throw Error(file, 0, "empty sensor.txt (expected 'width height')");
+  const long long sw = s.integer("width"), sh = s.integer("height");
+  s.expect_end();
+  check_sensor_size(sw, sh, file, s.line_number());
+  if (s.next_line()) s.fail("unexpected second line in sensor.txt");
+  return {static_cast<int>(sw), static_cast<int>(sh)};
+}
+
 /// Sensor size: explicit, else `sensor.txt` ("width height"), else the first frame's size, else DAVIS240C.
 inline std::pair<int, int> sensor_size(const std::filesystem::path& folder, const Frames& frames, int w, int h) {
-  if (w > 0 && h > 0) return {w, h};
+  if (w > 0 && h > 0) {
+    check_sensor_size(w, h, folder.string() + " (the sensor size given)");
+    return {w, h};
+  }
   if (std::filesystem::exists(folder / "sensor.txt")) {
     const auto path = folder / "sensor.txt";
     const std::string text = read_file(path);
-    LineScanner s(text, path.string());
-    if (!s.next_line()) throw Error(path.string(), 0, "empty sensor.txt (expected 'width height')");
-    const long long sw = s.integer("width"), sh = s.integer("height");
-    s.expect_end();
-    if (sw <= 0 || sh <= 0 || sw > 65535 || sh > 65535)
-      s.fail("sensor size " + std::to_string(sw) + "x" + std::to_string(sh) + " out of range (1 to 65535 per side)");
-    if (sw * sh > kMaxSensorPixels)
-      s.fail("sensor size " + std::to_string(sw) + "x" + std::to_string(sh) + " has more than " +
-             std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
-    return {static_cast<int>(sw), static_cast<int>(sh)};
+    return parse_sensor_size(text, path.string());
   }
   if (frames.size() > 0) {
     int fw = 0, fh = 0, c = 0;
-    if (stbi_info(frames.paths[0].c_str(), &fw, &fh, &c)) return {fw, fh};
+    if (stbi_info(frames.paths[0].c_str(), &fw, &fh, &c)) {
+      check_sensor_size(fw, fh, frames.paths[0].string() + " (the first frame, which gives the sensor size)");
+      return {fw, fh};
+    }
   }
   return {240, 180};
 }

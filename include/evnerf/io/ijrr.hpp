@@ -232,7 +232,7 @@ inline geometry::Trajectory parse_poses(std::string_view text, const std::string
     const double qx = s.real("qx"), qy = s.real("qy"), qz = s.real("qz"), qw = s.real("qw");
     s.expect_end();
     const double n = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
-    if (n < 0.5 || n > 1.5) s.fail("quaternion is far from unit length (norm " + std::to_string(n) + ")");
+    if (n < 0.5 || n > 1.5) s.fail("quaternion is far from unit length (norm " + short_number(n) + ")");
     if (!ts.empty() && !(t > ts.back())) s.fail("pose timestamps must increase strictly");
     p.q = Quat(qw / n, qx / n, qy / n, qz / n);
     ts.push_back(t);

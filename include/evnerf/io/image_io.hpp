@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <string>
+#include <string_view>
 
 #include <stb_image.h>
 #include <stb_image_write.h>
@@ -15,29 +17,42 @@
 
 namespace evnerf::io {
 
-/// Loads a PNG (8 or 16 bit) as float in [0, 1] with `want_channels` channels (0 = as stored).
-inline Image read_png(const std::filesystem::path& path, int want_channels = 0) {
-  const std::string bytes = read_file(path);
+/// The largest image evnerf decodes, in pixels (a header announcing more is refused before decoding).
+inline constexpr long long kMaxImagePixels = 1LL << 26;
+
+/// Decodes a PNG (8 or 16 bit; stb_image also takes JPEG, BMP, TGA) held in memory as float in [0, 1] with
+/// `want_channels` channels (0 = as stored). Errors name `file`: undecodable data, or a header announcing
+/// more than kMaxImagePixels pixels (refused before anything is allocated).
+inline Image decode_png(std::string_view bytes, const std::string& file, int want_channels = 0) {
+  require(want_channels >= 0 && want_channels <= 4, "decode_png: want_channels must be 0 … 4");
+  if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
   int w = 0, h = 0, c = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
+  if (!stbi_info_from_memory(data, len, &w, &h, &c))
+    throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
+  if (w <= 0 || h <= 0 || static_cast<long long>(w) * h > kMaxImagePixels)
+    throw Error(file, 0, "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
+                             std::to_string(kMaxImagePixels) + " are accepted)");
   Image img;
-  if (stbi_is_16_bit_from_memory(data, len)) {
-    stbi_us* px = stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels);
-    if (!px) throw Error(path.string(), 0, std::string("cannot decode image: ") + stbi_failure_reason());
+  auto convert = [&](auto* px, float full_scale) {
+    if (!px) throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
     const int ch = want_channels ? want_channels : c;
     img = Image(w, h, ch);
-    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / 65535.f;
+    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / full_scale;
     stbi_image_free(px);
-  } else {
-    stbi_uc* px = stbi_load_from_memory(data, len, &w, &h, &c, want_channels);
-    if (!px) throw Error(path.string(), 0, std::string("cannot decode image: ") + stbi_failure_reason());
-    const int ch = want_channels ? want_channels : c;
-    img = Image(w, h, ch);
-    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / 255.f;
-    stbi_image_free(px);
-  }
+  };
+  if (stbi_is_16_bit_from_memory(data, len))
+    convert(stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels), 65535.f);
+  else
+    convert(stbi_load_from_memory(data, len, &w, &h, &c, want_channels), 255.f);
   return img;
+}
+
+/// Loads a PNG file (see decode_png).
+inline Image read_png(const std::filesystem::path& path, int want_channels = 0) {
+  return decode_png(read_file(path), path.string(), want_channels);
 }
 
 /// Writes a float image (values clamped to [0, 1]) as an 8-bit PNG, atomically.

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <type_traits>
 #include <filesystem>
@@ -78,63 +79,121 @@ inline std::string_view npy_field(std::string_view header, std::string_view key)
 }
 }  // namespace detail
 
-/// Reads a .npy (format 1.0–3.0, little-endian, C order) of element type T straight into memory: the
-/// header is parsed here and the payload read once, with no intermediate copies (xtensor's reader copies
-/// the file several times, which made cache loads 3× slower). Errors name the file: missing, wrong
-/// type, truncated, trailing bytes or a corrupt header.
+namespace detail {
+/// Where a .npy's payload starts and what it holds.
+struct NpyLayout {
+  std::vector<std::size_t> shape;
+  std::size_t count = 0;   ///< elements (the product of the shape)
+  std::size_t offset = 0;  ///< bytes before the payload
+};
+/// Parses a .npy's preamble and header dictionary; `head` starts at the file's first byte and holds at
+/// least the whole header (it may hold more). Checks the element type against T and the size of the
+/// payload against overflow; errors name `file`.
 template <class T>
-NpyArray<T> load_npy(const std::filesystem::path& path) {
-  static_assert(std::endian::native == std::endian::little, "evnerf's .npy reader assumes a little-endian host");
-  const std::string file = path.string();
+NpyLayout npy_layout(std::string_view head, const std::string& file) {
   auto fail = [&](const std::string& what) -> void { throw Error(file, 0, "cannot read .npy: " + what); };
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
-  unsigned char pre[12];
-  if (std::fread(pre, 1, 8, f.get()) != 8 || std::memcmp(pre, "\x93NUMPY", 6) != 0) fail("not a .npy file (bad magic)");
-  const int major = pre[6];
+  if (head.size() < 10 || head.substr(0, 6) != "\x93NUMPY") fail("not a .npy file (bad magic)");
+  const int major = static_cast<unsigned char>(head[6]);
   if (major < 1 || major > 3) fail("unsupported format version " + std::to_string(major));
   const std::size_t len_bytes = major == 1 ? 2 : 4;
-  if (std::fread(pre + 8, 1, len_bytes, f.get()) != len_bytes) fail("truncated header");
-  std::size_t header_len = pre[8] | (std::size_t{pre[9]} << 8);
-  if (major > 1) header_len |= (std::size_t{pre[10]} << 16) | (std::size_t{pre[11]} << 24);
+  if (head.size() < 8 + len_bytes) fail("truncated header");
+  auto byte = [&](std::size_t i) { return std::size_t{static_cast<unsigned char>(head[i])}; };
+  std::size_t header_len = byte(8) | (byte(9) << 8);
+  if (major > 1) header_len |= (byte(10) << 16) | (byte(11) << 24);
   if (header_len > (1u << 20)) fail("header length " + std::to_string(header_len) + " is implausible");
-  std::string header(header_len, '\0');
-  if (std::fread(header.data(), 1, header_len, f.get()) != header_len) fail("truncated header");
+  NpyLayout out;
+  out.offset = 8 + len_bytes + header_len;
+  if (head.size() < out.offset) fail("truncated header");
+  const std::string_view header = head.substr(8 + len_bytes, header_len);
 
-  std::string_view descr = detail::npy_field(header, "descr");
-  if (descr.size() < 4 || (descr.front() != '\'' && descr.front() != '"')) fail("header has no element type");
+  std::string_view descr = npy_field(header, "descr");
+  if (descr.size() < 4 || (descr.front() != '\'' && descr.front() != '"') || descr.back() != descr.front())
+    fail("header has no element type");
   descr = descr.substr(1, descr.size() - 2);
   const char order = descr[0];
   const std::string_view type = descr.substr(1);
-  if (type != detail::npy_type<T>() || (order == '>' && sizeof(T) > 1) || (order != '<' && order != '|' && order != '=' && order != '>'))
-    fail("element type is '" + std::string(descr) + "', expected '" + (sizeof(T) == 1 ? "|" : "<") +
-         std::string(detail::npy_type<T>()) + "'");
-  NpyArray<T> out;
-  const std::string_view shape = detail::npy_field(header, "shape");
-  if (shape.empty() || shape.front() != '(' || shape.back() != ')') fail("header has no shape");
+  if (type != npy_type<T>() || (order == '>' && sizeof(T) > 1) || (order != '<' && order != '|' && order != '=' && order != '>'))
+    fail("element type is '" + std::string(descr.substr(0, 16)) + "', expected '" + (sizeof(T) == 1 ? "|" : "<") +
+         std::string(npy_type<T>()) + "'");
+  const std::string_view shape = npy_field(header, "shape");
+  if (shape.size() < 2 || shape.front() != '(' || shape.back() != ')') fail("header has no shape");
+  auto shown = [&] { return std::string(shape.substr(0, 64)) + (shape.size() > 64 ? "…" : ""); };
   std::size_t n = 1;
   for (std::size_t i = 1; i + 1 < shape.size();) {
     while (i + 1 < shape.size() && (shape[i] == ' ' || shape[i] == ',')) ++i;
     if (i + 1 >= shape.size()) break;
     std::size_t d = 0;
     auto [q, ec] = std::from_chars(shape.data() + i, shape.data() + shape.size() - 1, d);
-    if (ec != std::errc()) fail("shape '" + std::string(shape) + "' is not a tuple of sizes");
+    if (ec != std::errc()) fail("shape '" + shown() + "' is not a tuple of sizes");
+    if (out.shape.size() == 32) fail("shape '" + shown() + "' has more than 32 dimensions");
+    if (d != 0 && n > (std::numeric_limits<std::size_t>::max() / sizeof(T)) / d)
+      fail("shape '" + shown() + "' is too large to address");
     out.shape.push_back(d);
     n *= d;
     i = static_cast<std::size_t>(q - shape.data());
   }
-  if (detail::npy_field(header, "fortran_order") == "True" && out.shape.size() > 1)
+  if (npy_field(header, "fortran_order") == "True" && out.shape.size() > 1)
     fail("Fortran-ordered arrays are not supported; save with C order");
+  out.count = n;
+  return out;
+}
+inline std::string npy_size_error(std::size_t size, std::size_t expected) {
+  return "corrupt or truncated .npy (size does not match its header: " + std::to_string(size) + " bytes, expected " +
+         std::to_string(expected) + ")";
+}
+}  // namespace detail
 
-  const std::size_t payload = n * sizeof(T);
+/// Parses a whole .npy held in memory (format 1.0–3.0, little-endian, C order, element type T). Errors name
+/// `file`: wrong type, truncated, trailing bytes, a corrupt header or a shape too large to address.
+template <class T>
+NpyArray<T> parse_npy(std::string_view bytes, const std::string& file) {
+  static_assert(std::endian::native == std::endian::little, "evnerf's .npy reader assumes a little-endian host");
+  auto layout = detail::npy_layout<T>(bytes, file);
+  if (bytes.size() - layout.offset != layout.count * sizeof(T))  // count * sizeof(T) cannot overflow (checked)
+    throw Error(file, 0, detail::npy_size_error(bytes.size(), layout.offset + layout.count * sizeof(T)));
+  NpyArray<T> out;
+  out.shape = std::move(layout.shape);
+  out.data.resize(layout.count);
+  if (layout.count) std::memcpy(out.data.data(), bytes.data() + layout.offset, layout.count * sizeof(T));
+  return out;
+}
+
+/// Reads a .npy file straight into memory: the header is read and parsed first (npy_layout), the payload
+/// once, with no intermediate copies (xtensor's reader copies the file several times, which made cache
+/// loads 3× slower). The payload's size is checked against the file's before anything is allocated.
+template <class T>
+NpyArray<T> load_npy(const std::filesystem::path& path) {
+  static_assert(std::endian::native == std::endian::little, "evnerf's .npy reader assumes a little-endian host");
+  const std::string file = path.string();
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
+  std::string head(12, '\0');
+  head.resize(std::fread(head.data(), 1, 12, f.get()));
+  if (head.size() >= 12 && head.substr(0, 6) == "\x93NUMPY") {  // then read the header it announces
+    const std::size_t len_bytes = static_cast<unsigned char>(head[6]) == 1 ? 2 : 4;
+    std::size_t header_len = std::size_t{static_cast<unsigned char>(head[8])} | (std::size_t{static_cast<unsigned char>(head[9])} << 8);
+    if (len_bytes == 4)
+      header_len |= (std::size_t{static_cast<unsigned char>(head[10])} << 16) | (std::size_t{static_cast<unsigned char>(head[11])} << 24);
+    if (header_len <= (1u << 20)) {
+      const std::size_t want = 8 + len_bytes + header_len;
+      const std::size_t had = head.size();
+      if (want > had) {
+        head.resize(want);
+        head.resize(had + std::fread(head.data() + had, 1, want - had, f.get()));
+      }
+    }
+  }
+  auto layout = detail::npy_layout<T>(head, file);
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
-  const std::size_t offset = 6 + 2 + len_bytes + header_len;
-  if (ec || size != offset + payload)
-    throw Error(file, 0, "corrupt or truncated .npy (size does not match its header: " + std::to_string(size) +
-                             " bytes, expected " + std::to_string(offset + payload) + ")");
-  out.data.resize(n);
-  if (n > 0 && std::fread(out.data.data(), sizeof(T), n, f.get()) != n) fail("read error in the payload");
+  if (ec || size < layout.offset || size - layout.offset != layout.count * sizeof(T))
+    throw Error(file, 0, detail::npy_size_error(ec ? 0 : size, layout.offset + layout.count * sizeof(T)));
+  NpyArray<T> out;
+  out.shape = std::move(layout.shape);
+  out.data.resize(layout.count);
+  if (std::fseek(f.get(), static_cast<long>(layout.offset), SEEK_SET) != 0 ||
+      (layout.count > 0 && std::fread(out.data.data(), sizeof(T), layout.count, f.get()) != layout.count))
+    throw Error(file, 0, "cannot read .npy: read error in the payload");
   return out;
 }
 

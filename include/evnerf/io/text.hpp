@@ -39,6 +39,10 @@ class LineScanner {
   std::string_view line() const { return line_; }
   const std::string& file() const { return file_; }
 
+  /// A field as messages show it: at most 40 characters (a megabyte of digits is not echoed back).
+  static std::string shown(std::string_view tok) {
+    return tok.size() <= 40 ? std::string(tok) : std::string(tok.substr(0, 40)) + "… (" + std::to_string(tok.size()) + " characters)";
+  }
   [[noreturn]] void fail(const std::string& what) const {
     std::string shown(line_.substr(0, 80));
     throw Error(file_, line_no_, what + " (line: \"" + shown + "\")");
@@ -55,8 +59,8 @@ class LineScanner {
     auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
     if (ec == std::errc::result_out_of_range) fail(std::string("field '") + name + "' is out of range");
     if (ec != std::errc() || p != tok.data() + tok.size())
-      fail(std::string("field '") + name + "' is not a number: '" + std::string(tok) + "'");
-    if (!std::isfinite(v)) fail(std::string("field '") + name + "' is not finite: '" + std::string(tok) + "'");
+      fail(std::string("field '") + name + "' is not a number: '" + shown(tok) + "'");
+    if (!std::isfinite(v)) fail(std::string("field '") + name + "' is not finite: '" + shown(tok) + "'");
     return v;
   }
   /// Next field as an integer.
@@ -65,7 +69,7 @@ class LineScanner {
     long long v = 0;
     auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
     if (ec != std::errc() || p != tok.data() + tok.size())
-      fail(std::string("field '") + name + "' is not an integer: '" + std::string(tok) + "'");
+      fail(std::string("field '") + name + "' is not an integer: '" + shown(tok) + "'");
     return v;
   }
   /// Next field as raw text.
@@ -80,7 +84,7 @@ class LineScanner {
     return r;
   }
   void expect_end() {
-    if (!at_end_of_line()) fail("unexpected extra field '" + std::string(token("extra")) + "'");
+    if (!at_end_of_line()) fail("unexpected extra field '" + shown(token("extra")) + "'");
   }
 
  private:

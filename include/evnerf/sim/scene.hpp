@@ -268,19 +268,25 @@ inline Texture parse_texture(io::LineScanner& s, const std::filesystem::path& fo
   } else if (kind == "noise") {
     t.kind = Texture::Noise;
     t.scale = s.real("scale");
-    t.octaves = static_cast<int>(s.integer("octaves"));
-    t.seed = static_cast<std::uint64_t>(s.integer("seed"));
+    const long long octaves = s.integer("octaves"), seed = s.integer("seed");
+    if (octaves < 1 || octaves > 16) s.fail("noise octaves must lie in 1 … 16");
+    if (seed < 0) s.fail("noise seed must not be negative");
+    t.octaves = static_cast<int>(octaves);
+    t.seed = static_cast<std::uint64_t>(seed);
   } else if (kind == "image") {
     t.kind = Texture::Picture;
     const std::string path(s.word("image path"));
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(folder / path, ec))
+      s.fail("texture image '" + io::LineScanner::shown(path) + "' is not a file in " + io::LineScanner::shown(folder.string()));
     try {
       t.picture = std::make_shared<Image>(io::read_png(folder / path, 3));
     } catch (const Error& e) {
-      s.fail("cannot load texture: " + std::string(e.what()));
+      s.fail("cannot load texture '" + io::LineScanner::shown(path) + "': " + e.message());
     }
     t.scale = s.real("scale");
   } else {
-    s.fail("unknown texture '" + kind + "' (checker, stripes, noise, image)");
+    s.fail("unknown texture '" + io::LineScanner::shown(kind) + "' (checker, stripes, noise, image)");
   }
   if (!s.at_end_of_line()) {
     if (s.word("colors") != "colors") s.fail("expected 'colors' after the texture");
@@ -303,22 +309,31 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
     v.z() = s.real(n);
     return v;
   };
+  auto direction = [&](const char* n) {
+    const Vec3 v = vec(n);
+    const double len = v.norm();
+    if (!(len > 1e-12) || !std::isfinite(len)) s.fail(std::string(n) + " must be a non-zero vector");
+    return Vec3(v / len);
+  };
   while (s.next_line()) {
     const std::string cmd(s.word("directive"));
     if (cmd == "light") {
-      spec.scene.light_dir = vec("light direction").normalized();
+      spec.scene.light_dir = direction("light direction");
       spec.scene.ambient = s.real("ambient");
       spec.scene.diffuse = s.real("diffuse");
+      if (spec.scene.ambient < 0 || spec.scene.diffuse < 0) s.fail("ambient and diffuse light must not be negative");
     } else if (cmd == "background") {
       spec.scene.background = vec("background");
     } else if (cmd == "plane") {
       Primitive p;
       p.kind = Primitive::Plane;
       p.p = vec("point");
-      p.n = vec("normal").normalized();
-      p.u = vec("u axis").normalized();
+      p.n = direction("normal");
+      p.u = direction("u axis");
+      if (p.n.cross(p.u).norm() < 1e-6) s.fail("the plane's u axis is parallel to its normal");
       p.v = p.n.cross(p.u).normalized();
       p.half = Vec3(s.real("half_u"), s.real("half_v"), 0);
+      if (p.half.x() < 0 || p.half.y() < 0) s.fail("plane half sizes must not be negative (0 = unbounded)");
       p.tex = parse_texture(s, folder);
       spec.scene.prims.push_back(p);
     } else if (cmd == "box") {
@@ -326,6 +341,7 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
       p.kind = Primitive::Box;
       p.p = vec("centre");
       p.half = vec("half extents");
+      if (!(p.half.minCoeff() > 0)) s.fail("box half extents must be positive");
       p.tex = parse_texture(s, folder);
       spec.scene.prims.push_back(p);
     } else if (cmd == "sphere") {
@@ -350,12 +366,12 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
         const double amp = s.real("amplitude");
         spec.path = handheld_path(a, look, amp, s.real("duration"));
       } else {
-        s.fail("unknown path '" + kind + "' (slider, arc, handheld)");
+        s.fail("unknown path '" + io::LineScanner::shown(kind) + "' (slider, arc, handheld)");
       }
-      if (spec.path.duration <= 0) s.fail("path duration must be positive");
+      if (!(spec.path.duration > 0) || spec.path.duration > 3600) s.fail("path duration must lie in (0, 3600] seconds");
       have_path = true;
     } else {
-      s.fail("unknown directive '" + cmd + "'");
+      s.fail("unknown directive '" + io::LineScanner::shown(cmd) + "'");
     }
     s.expect_end();
   }
