@@ -57,6 +57,13 @@ TEST_CASE("events.txt: every kind of bad input names the file, the line and what
   CHECK_CONTAINS(huge, "events.txt:2: timestamp 0.1 goes back in time (previous 1e+308)");
   CHECK(huge.size() < 120);
   CHECK(short_number(1403636581.123456) == "1403636581.12346");
+  CHECK(short_number(0.123456789, 4) == "0.1235");
+  // A field is echoed at most 40 characters long (a megabyte of digits is not copied into the message).
+  const std::string long_field = err("0.1 " + std::string(100000, '7') + "x 2 1\n");
+  CHECK_CONTAINS(long_field, "events.txt:1: field 'x' is not an integer: '7777777777777777777777777777777777777777… (100001 characters)'");
+  CHECK(long_field.size() < 300);
+  const std::string far_pose = error_of([] { io::parse_poses("0 0 0 0 1e100 0 0 1\n", "gt.txt"); });
+  CHECK_CONTAINS(far_pose, "quaternion is far from unit length (norm 1e+100)");
   CHECK_CONTAINS(err("nan 1 2 1\n"), "events.txt:1: field 't' is not finite");
   CHECK_CONTAINS(err("inf 1 2 1\n"), "not finite");
   CHECK_CONTAINS(err("0.1 1 2 1 5\n"), "events.txt:1: unexpected extra field '5'");
@@ -199,6 +206,20 @@ TEST_CASE("npy: round trip, atomic write, and corrupt files are reported") {
   CHECK(io::load_npy<float>(dir / "e.npy").data == std::vector<float>{1.f, 2.5f});
   write(dir / "f.npy", npy(1, "'descr': '>f4', 'fortran_order': False, 'shape': (2,), ", two));
   CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "f.npy"); }), "element type is '>f4', expected '<f4'");
+  // A shape whose product overflows is refused before allocating (the payload's size check would otherwise
+  // compare against a wrapped product); so are 33 dimensions. In memory (parse_npy) as from a file.
+  const std::string huge = npy(1, "'descr': '<f4', 'fortran_order': False, 'shape': (4294967296, 4294967296, 2), ", "");
+  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(huge, "g.npy"); }), "g.npy:0: cannot read .npy: shape '(4294967296, 4294967296, 2)' is too large");
+  write(dir / "g.npy", huge);
+  CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "g.npy"); }), "is too large to address");
+  std::string dims = "(";
+  for (int i = 0; i < 33; ++i) dims += "1, ";
+  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(npy(1, "'descr': '<f4', 'shape': " + dims + "), ", "\1\1\1\1"), "h.npy"); }),
+                 "has more than 32 dimensions");
+  CHECK(io::parse_npy<float>(npy(1, "'descr': '<f4', 'fortran_order': False, 'shape': (2,), ", two), "e.npy").data ==
+        std::vector<float>{1.f, 2.5f});
+  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(bytes + "x", "i.npy"); }), "i.npy:0: corrupt or truncated .npy");
+  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(bytes.substr(0, 9), "j.npy"); }), "j.npy:0: cannot read .npy: not a .npy file");
   for (auto& e : fs::directory_iterator(dir)) CHECK(e.path().string().find(".tmp.") == std::string::npos);
   fs::remove_all(dir);
 }
@@ -243,6 +264,16 @@ TEST_CASE("PNG: write then read back; montage and depth colouring have the right
   CHECK(m.channels == 3);
   CHECK(io::colorize(img, 0, 1).channels == 3);
   CHECK_CONTAINS(error_of([&] { io::read_png(dir / "missing.png"); }), "missing.png:0: cannot open");
+  // A header announcing 10000 × 10000 pixels (within stb's own limit of 2^30 bytes) is refused before
+  // decoding allocates anything.
+  std::string png = read_file(dir / "a.png");
+  REQUIRE(png.substr(12, 4) == "IHDR");
+  for (int k : {16, 20}) {  // width, height: big-endian 10000
+    png[k] = 0, png[k + 1] = 0, png[k + 2] = char(0x27), png[k + 3] = char(0x10);
+  }
+  CHECK_CONTAINS(error_of([&] { io::decode_png(png, "big.png"); }), "big.png:0: image header announces 10000x10000 pixels");
+  CHECK_CONTAINS(error_of([&] { io::decode_png("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image");
+  CHECK_CONTAINS(error_of([&] { io::decode_png("garbage", "x.png"); }), "x.png:0: cannot decode image");
   fs::remove_all(dir);
 }
 

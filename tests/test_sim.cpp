@@ -109,6 +109,26 @@ TEST_CASE("scene descriptions: errors name the file and line") {
   CHECK_THROWS_WITH(sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3\n", "s.txt"), doctest::Contains("no camera path"));
   CHECK_THROWS_WITH(sim::load_scene("nonexistent-scene"), doctest::Contains("not a built-in scene"));
   for (auto& name : sim::builtin_scenes()) CHECK_NOTHROW(sim::load_scene(name));
+  // Degenerate geometry and absurd values are refused rather than simulated as NaN or forever.
+  auto err = [](const std::string& text) -> std::string {
+    try {
+      sim::parse_scene(text, "s.txt", "/nonexistent");
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  CHECK_CONTAINS(err("plane 0 0 2 0 0 0 1 0 0 0 0 checker 3\n"), "s.txt:1: normal must be a non-zero vector");
+  CHECK_CONTAINS(err("plane 0 0 2 0 0 -1 0 0 2 0 0 checker 3\n"), "s.txt:1: the plane's u axis is parallel to its normal");
+  CHECK_CONTAINS(err("plane 0 0 2 0 0 -1 1 0 0 -1 0 checker 3\n"), "plane half sizes must not be negative");
+  CHECK_CONTAINS(err("box 0 0 2 1 0 1 checker 3\n"), "box half extents must be positive");
+  CHECK_CONTAINS(err("light 0 0 0 0.5 0.5\n"), "light direction must be a non-zero vector");
+  CHECK_CONTAINS(err("box 0 0 2 1 1 1 noise 1 1000000 3\n"), "noise octaves must lie in 1 … 16");
+  CHECK_CONTAINS(err("box 0 0 2 1 1 1 image /dev/zero 1\n"), "texture image '/dev/zero' is not a file");
+  CHECK_CONTAINS(err("box 0 0 2 1 1 1 checker 1\npath slider 0 0 0 1 0 0 0 0 1 1e9\n"), "s.txt:2: path duration must lie in (0, 3600] seconds");
+  const std::string long_word = err(std::string(5000, 'q') + " 1 2 3\n");
+  CHECK_CONTAINS(long_word, "unknown directive 'qqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqq… (5000 characters)'");
+  CHECK(long_word.size() < 300);
 }
 
 TEST_CASE("simulator: Bayer mode writes colour frames and events see one channel per pixel") {

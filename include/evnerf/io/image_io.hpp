@@ -32,7 +32,8 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
   const int len = static_cast<int>(bytes.size());
   if (!stbi_info_from_memory(data, len, &w, &h, &c))
     throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
-  if (w <= 0 || h <= 0 || static_cast<long long>(w) * h > kMaxImagePixels)
+  if (w <= 0 || h <= 0) throw Error(file, 0, "cannot decode image: its header gives no size");
+  if (static_cast<long long>(w) * h > kMaxImagePixels)
     throw Error(file, 0, "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
                              std::to_string(kMaxImagePixels) + " are accepted)");
   Image img;
