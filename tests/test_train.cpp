@@ -1,6 +1,10 @@
+#include <csignal>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <set>
+
+#include <sys/resource.h>
 
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
@@ -678,4 +682,98 @@ TEST_CASE("training data: subslices put evenly spaced boundaries between frames 
   CHECK(fine_events == events);  // the same events, cut finer
   cfg.holdout_every = 4;
   CHECK_THROWS_WITH(train::prepare(f.d, cfg), doctest::Contains("subslices and holdout cannot be combined"));
+}
+
+// ---- faults a long run meets (the process-level ones, SIGKILL and SIGINT, are in tests/faults.sh) ----
+
+namespace {
+/// The files of a folder whose names hold ".tmp." (left behind by an interrupted atomic write).
+std::vector<std::string> temporaries(const fs::path& dir) {
+  std::vector<std::string> t;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) t.push_back(e.path().string());
+  return t;
+}
+}  // namespace
+
+TEST_CASE("faults: a NaN in the parameters stops the run with a message and keeps the last good checkpoint") {
+  Fixture f;
+  const fs::path base = fs::temp_directory_path() / ("evnerf_nan_" + std::to_string(::getpid()));
+  // Injected after step 3 into every parameter, or after step 4 into one: the checkpoint due at step 4 finds
+  // them (a NaN parameter need not make the loss NaN: ReLU and clamps absorb it, so the loss check alone
+  // would miss it) and the run stops there.
+  for (const long inject : {3L, 4L}) {
+    CAPTURE(inject);
+    train::Config cfg = f.run_config(10, 64);
+    cfg.threads = 1;
+    cfg.checkpoint_every = 2;
+    const fs::path out = base / std::to_string(inject);
+    train::Trainer<Tiny> t(f.td, cfg, out, "tiny", "meta");
+    std::string good;
+    const auto r = t.run([&](const train::StepReport& rep) {
+      if (rep.step == 3) good = read_file(out / "model.ckpt");  // written at step 2
+      auto& v = t.model().params().values;
+      if (rep.step == inject && inject == 3) std::fill(v.begin(), v.end(), std::numeric_limits<float>::quiet_NaN());
+      if (rep.step == inject && inject == 4) v[v.size() / 3] = std::numeric_limits<float>::quiet_NaN();
+      return true;
+    });
+    CHECK(r.diverged);
+    CHECK(t.model().step() == 4);
+    REQUIRE_FALSE(good.empty());
+    CHECK(read_file(out / "model.ckpt") == good);
+    CHECK(temporaries(out).empty());
+    Tiny back;  // the kept checkpoint loads and is finite
+    train::load_checkpoint(out / "model.ckpt", back, "tiny");
+    CHECK(back.step() == 2);
+    CHECK(std::all_of(back.params().values.begin(), back.params().values.end(), [](float x) { return std::isfinite(x); }));
+  }
+  fs::remove_all(base);
+}
+
+TEST_CASE("faults: a full disk or an unwritable folder is a clear error; no partial file, the earlier checkpoint intact") {
+  Fixture f;
+  const fs::path base = fs::temp_directory_path() / ("evnerf_full_" + std::to_string(::getpid()));
+  const fs::path out = base / "run";
+  train::Config cfg = f.run_config(4, 64);
+  cfg.threads = 1;
+  cfg.checkpoint_every = 2;
+  train::Trainer<Tiny>(f.td, cfg, out, "tiny", "meta").run();
+  const std::string good = read_file(out / "model.ckpt");
+  REQUIRE(good.size() > 128 * 1024);
+
+  // A disk that takes at most 64 KB per file: RLIMIT_FSIZE makes write() fail with EFBIG as a full disk
+  // fails with ENOSPC (SIGXFSZ ignored), in this process only.
+  cfg.iterations = 8;
+  train::Trainer<Tiny> more(f.td, cfg, out, "tiny", "meta");
+  REQUIRE(more.resume());
+  rlimit old{};
+  REQUIRE(::getrlimit(RLIMIT_FSIZE, &old) == 0);
+  auto* old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  rlimit small = old;
+  small.rlim_cur = 64 * 1024;
+  REQUIRE(::setrlimit(RLIMIT_FSIZE, &small) == 0);
+  std::string error;
+  try {
+    more.run();
+  } catch (const Error& e) {
+    error = e.what();
+  }
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, old_handler);
+  CHECK_CONTAINS(error, (out / "model.ckpt").string() + ":0: write failed after");
+  CHECK_CONTAINS(error, std::strerror(EFBIG));
+  CHECK_CONTAINS(error, "the previous file, if any, is unchanged");
+  CHECK(read_file(out / "model.ckpt") == good);
+  CHECK(temporaries(out).empty());
+
+  // An output folder that cannot exist (a file stands in its path), and a checkpoint path that is a folder.
+  write_file_atomic(base / "plain", "x");
+  train::Trainer<Tiny> nowhere(f.td, cfg, base / "plain" / "run", "tiny", "meta");
+  const std::string nowhere_error = (base / "plain" / "run").string() + ":0: cannot create the output folder";
+  CHECK_THROWS_WITH(nowhere.run(), doctest::Contains(nowhere_error.c_str()));
+  fs::create_directories(base / "blocked" / "model.ckpt");
+  train::Trainer<Tiny> blocked(f.td, cfg, base / "blocked", "tiny", "meta");
+  CHECK_THROWS_WITH(blocked.run(), doctest::Contains("cannot rename the temporary file into place"));
+  CHECK(temporaries(base / "blocked").empty());
+  fs::remove_all(base);
 }

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -79,6 +80,39 @@ std::string checkpoint_variant(const fs::path& path) {
 }
 
 namespace detail {
+
+/// While alive, SIGINT and SIGTERM only record that a stop was asked for (the first one; the handler then
+/// restores the default action, so a second signal ends the process at once). The previous handlers come
+/// back on destruction.
+class StopOnSignal {
+ public:
+  StopOnSignal() {
+    received() = 0;
+    old_int_ = std::signal(SIGINT, &StopOnSignal::handle);
+    old_term_ = std::signal(SIGTERM, &StopOnSignal::handle);
+  }
+  ~StopOnSignal() {
+    std::signal(SIGINT, old_int_ == SIG_ERR ? SIG_DFL : old_int_);
+    std::signal(SIGTERM, old_term_ == SIG_ERR ? SIG_DFL : old_term_);
+  }
+  StopOnSignal(const StopOnSignal&) = delete;
+  StopOnSignal& operator=(const StopOnSignal&) = delete;
+  bool requested() const { return received() != 0; }
+  int signal_number() const { return static_cast<int>(received()); }
+  const char* signal_name() const { return received() == SIGTERM ? "SIGTERM" : "SIGINT"; }
+
+ private:
+  static volatile std::sig_atomic_t& received() {
+    static volatile std::sig_atomic_t s = 0;
+    return s;
+  }
+  static void handle(int sig) {
+    received() = sig;
+    std::signal(sig, SIG_DFL);
+  }
+  void (*old_int_)(int) = SIG_DFL;
+  void (*old_term_)(int) = SIG_DFL;
+};
 
 /// Frames of a recording that lie strictly inside (lo, hi] (where event methods can work).
 inline std::vector<std::size_t> frames_inside(const io::Dataset& d, double lo, double hi) {
@@ -389,10 +423,18 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         }
         fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), d.events.size(),
                    cfg.threads > 0 ? cfg.threads : thread_count());
-        const auto r = trainer.run();
+        // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
+        // checkpoint; a second signal kills at once (the handler restores the default action).
+        const StopOnSignal stop_request;
+        const auto r = trainer.run([&](const train::StepReport&) { return !stop_request.requested(); });
         fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
                    r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (out / "model.ckpt").string());
         if (r.diverged) return 3;
+        if (r.stopped) {
+          fmt::print(stderr, "train: stopped by {} at step {}; the checkpoint is written, continue with --resume\n",
+                     stop_request.signal_name(), trainer.model().step());
+          return 128 + stop_request.signal_number();
+        }
         if (r.collapsed && !cfg.allow_collapse) {
           fmt::print(stderr, "train: the run collapsed ({}); the checkpoint is kept, but this is not a usable model\n",
                      r.checks.back().describe());

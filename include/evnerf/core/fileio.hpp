@@ -1,8 +1,10 @@
 // core/fileio.hpp — whole-file reads and atomic writes (write to a temporary, fsync, rename), checksums.
 // Depends on the standard library and POSIX only.
 #pragma once
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -36,29 +38,51 @@ inline std::string read_file(const std::filesystem::path& path) {
 }
 
 /// Writes `bytes` to `path` atomically: a reader sees the old file or the complete new one, never a part.
+/// The bytes go to `<path>.tmp.<pid>`, are flushed to the disk (fsync), and the temporary is renamed over
+/// `path`. On any failure (no such folder, no permission, disk full, quota) the temporary is removed, the
+/// old file stays as it was, and the Error names `path` and the system's reason.
 inline void write_file_atomic(const std::filesystem::path& path, std::string_view bytes) {
   namespace fs = std::filesystem;
-  if (path.has_parent_path()) fs::create_directories(path.parent_path());
+  auto reason = [](int err) { return std::string(std::strerror(err)); };
+  if (path.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(path.parent_path(), ec);
+    if (ec) throw Error(path.string(), 0, "cannot create the folder " + path.parent_path().string() + ": " + ec.message());
+  }
   const fs::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd < 0) throw Error(tmp.string(), 0, "cannot create file for writing");
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(path.string(), 0, "cannot create a file in its folder: " + reason(errno));
+  auto give_up = [&](const std::string& what, int err) {
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw Error(path.string(), 0, what + ": " + reason(err) + " (the previous file, if any, is unchanged)");
+  };
   std::size_t off = 0;
   while (off < bytes.size()) {
-    ssize_t w = ::write(fd, bytes.data() + off, bytes.size() - off);
+    const ssize_t w = ::write(fd, bytes.data() + off, bytes.size() - off);
+    if (w < 0 && errno == EINTR) continue;
     if (w <= 0) {
-      ::close(fd);
-      fs::remove(tmp);
-      throw Error(tmp.string(), 0, "write failed (disk full?)");
+      const int err = w < 0 ? errno : ENOSPC;
+      give_up("write failed after " + std::to_string(off) + " of " + std::to_string(bytes.size()) + " bytes", err);
     }
     off += static_cast<std::size_t>(w);
   }
-  ::fsync(fd);
-  ::close(fd);
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp);
-    throw Error(path.string(), 0, "cannot rename temporary file into place: " + ec.message());
+  if (::fsync(fd) != 0) give_up("cannot flush the file to the disk", errno);
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    throw Error(path.string(), 0, "cannot close the file: " + reason(err) + " (the previous file, if any, is unchanged)");
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    throw Error(path.string(), 0, "cannot rename the temporary file into place: " + reason(err));
+  }
+  // The rename itself reaches the disk when the folder is flushed (best effort: some filesystems refuse).
+  const std::string dir = path.has_parent_path() ? path.parent_path().string() : std::string(".");
+  if (const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
   }
 }
 

@@ -2,6 +2,7 @@
 // log, atomic checksummed checkpoints, exact resume, divergence stop) and evaluation against frames.
 // Depends on model.hpp, io/ and eval/.
 #pragma once
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -62,13 +63,13 @@ struct CollapseCheck {
   bool collapsed() const { return flat_renders || loss_stuck; }
   std::string describe() const {
     std::string d = "at step " + std::to_string(step) + ": ";
-    if (flat_renders) d += "the renders are almost constant (log-luminance spread " + std::to_string(log_spread) + " nats < " +
-                           std::to_string(kMinLogSpread) + ")";
+    if (flat_renders) d += "the renders are almost constant (log-luminance spread " + short_number(log_spread, 4) + " nats < " +
+                           short_number(kMinLogSpread, 4) + ")";
     if (flat_renders && loss_stuck) d += "; ";
     if (loss_stuck)
-      d += "the event loss is not improving (" + std::to_string(recent_loss) + " now, " + std::to_string(start_loss) +
+      d += "the event loss is not improving (" + short_number(recent_loss, 4) + " now, " + short_number(start_loss, 4) +
            " over the first steps)";
-    if (!collapsed()) d += "healthy (log-luminance spread " + std::to_string(log_spread) + " nats)";
+    if (!collapsed()) d += "healthy (log-luminance spread " + short_number(log_spread, 4) + " nats)";
     return d;
   }
 };
@@ -251,16 +252,32 @@ inline constexpr long kLogEvery = 50;
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
 /// `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
-/// every checkpoint_every steps and at the end. On a NaN/Inf loss it stops with a message and leaves the
-/// last good checkpoint in place. `on_step`, when given, is called after every step and may return false
-/// to stop the run (a checkpoint is written first). The caller's thread count is restored on return.
+/// every checkpoint_every steps and at the end. On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
+/// is due, it stops with a message (RunResult::diverged) and leaves the last good checkpoint in place. A
+/// resumed run first drops the log's lines past the checkpoint's step (written before the process died),
+/// so the log reads as one run. `on_step`, when given, is called after every step and may return false to
+/// stop the run (a checkpoint is written first). The caller's thread count is restored on return.
 template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
-  fs::create_directories(out);
+  {
+    std::error_code ec;
+    fs::create_directories(out, ec);
+    if (ec) throw Error(out.string(), 0, "cannot create the output folder: " + ec.message());
+  }
   const ScopedThreadCount threads(cfg.threads);
+  if (model.step() > 0 && fs::exists(out / "log.jsonl")) {
+    std::string kept, line;
+    std::istringstream in(read_file(out / "log.jsonl"));
+    while (std::getline(in, line)) {
+      const auto j = nlohmann::json::parse(line, nullptr, false);
+      if (!j.is_discarded() && j.contains("step") && j["step"].is_number() && j["step"].get<long>() <= model.step())
+        kept += line + "\n";
+    }
+    write_file_atomic(out / "log.jsonl", kept);
+  }
   std::ofstream log(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
   if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
   Progress bar(cfg.iterations, "train", cfg.progress);
@@ -271,12 +288,31 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   long start_steps = 0;
   long window = 0;
   std::size_t rays = 0;
+  const fs::path ckpt = out / "model.ckpt";
+  auto diverged = [&](const std::string& what) {
+    std::error_code ec;
+    std::fprintf(stderr, "\ntraining diverged at step %ld (%s); %s\n", model.step(), what.c_str(),
+                 fs::exists(ckpt, ec) ? ("the last good checkpoint is " + ckpt.string() + ", unchanged").c_str()
+                                      : "no checkpoint was written");
+    r.diverged = true;
+  };
+  // A checkpoint is written only of finite parameters: a NaN or Inf in them stops the run as a divergence
+  // and leaves the previous checkpoint as it was.
+  auto save = [&] {
+    const auto& v = model.params().values;
+    const auto bad = std::find_if(v.begin(), v.end(), [](auto x) { return !std::isfinite(static_cast<double>(x)); });
+    if (bad != v.end()) {
+      diverged("parameter " + std::to_string(bad - v.begin()) + " of " + std::to_string(v.size()) + " is " +
+               short_number(static_cast<double>(*bad)));
+      return false;
+    }
+    save_checkpoint(ckpt, model, name, meta);
+    return true;
+  };
   while (model.step() < cfg.iterations) {
     const auto st = model.train_step(td, cfg.pixels_per_step, cfg.seed);
     if (!std::isfinite(st.loss)) {
-      std::fprintf(stderr, "\ntraining diverged at step %ld (loss %g); the last good checkpoint is %s\n", model.step(), st.loss,
-                   (out / "model.ckpt").c_str());
-      r.diverged = true;
+      diverged("loss " + short_number(st.loss));
       break;
     }
     rays += st.rays;
@@ -341,7 +377,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       window = 0;
       if (r.collapsed && !cfg.allow_collapse) {
         ++r.steps;
-        save_checkpoint(out / "model.ckpt", model, name, meta);
+        save();
         break;
       }
     }
@@ -353,7 +389,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     }
     ++r.steps;
     if ((cfg.checkpoint_every > 0 && s % cfg.checkpoint_every == 0) || s == cfg.iterations || !go_on)
-      save_checkpoint(out / "model.ckpt", model, name, meta);
+      if (!save()) break;
     if (!go_on) {
       r.stopped = true;
       break;
