@@ -1,0 +1,45 @@
+// tests/fuzz/fuzz.hpp — what every libFuzzer harness shares. A harness hands the input to one reader;
+// evnerf::Error (a clear refusal) is the only acceptable failure. Any other exception escapes and libFuzzer
+// reports it as a crash, as it does every sanitizer report, leak, timeout and allocation above its limit.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+#include <evnerf/core/error.hpp>
+
+namespace evfuzz {
+
+inline std::string_view text(const std::uint8_t* data, std::size_t size) {
+  return {reinterpret_cast<const char*>(data), size};
+}
+
+/// Stops the run with a message when an invariant of a successful read does not hold.
+[[noreturn]] inline void broken(const char* what) {
+  std::fprintf(stderr, "fuzz invariant broken: %s\n", what);
+  std::abort();
+}
+inline void expect(bool ok, const char* what) {
+  if (!ok) broken(what);
+}
+
+/// Runs `read`; an evnerf::Error is a refusal and must say where and what briefly (the file name given to the
+/// reader plus at most a few hundred characters: numbers and fields are echoed short).
+template <class Fn>
+int run(Fn&& read) {
+  try {
+    read();
+  } catch (const evnerf::Error& e) {
+    if (std::strlen(e.what()) > 700) {
+      std::fprintf(stderr, "error message of %zu characters: %.300s…\n", std::strlen(e.what()), e.what());
+      std::abort();
+    }
+    if (e.message().empty()) broken("an error without a message");
+  }
+  return 0;
+}
+
+}  // namespace evfuzz

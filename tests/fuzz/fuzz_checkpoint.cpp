@@ -1,0 +1,23 @@
+// The checkpoint loader (EvNerf::deserialize, which reads the header through io::read_checkpoint_header).
+// A checkpoint ends in a checksum that random bytes almost never match, so the first input byte picks the
+// mode: odd, the harness appends the right checksum to the rest (the fuzzer explores the parser behind
+// it); even, the rest is read as it is (the checksum and magic checks themselves).
+#include <evnerf/io/checkpoint.hpp>
+
+#include "fuzz.hpp"
+#include "fuzz_model.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size == 0) return 0;
+  std::string bytes(reinterpret_cast<const char*>(data) + 1, size - 1);
+  if (data[0] & 1) {
+    const std::uint64_t sum = evnerf::fnv1a64(bytes);
+    bytes.append(reinterpret_cast<const char*>(&sum), 8);
+  }
+  static evfuzz::FuzzModel model(3, evnerf::render::SceneBox{}, 1);
+  return evfuzz::run([&] {
+    model.deserialize(bytes, "", "model.ckpt");
+    evfuzz::expect(model.params().size() == evfuzz::FuzzModel::n_fields * evfuzz::FuzzModel::field_params + 2 * model.n_slices(),
+                   "parameter count does not match the slices");
+  });
+}
