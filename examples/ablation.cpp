@@ -22,7 +22,7 @@ std::array<eval::Scores, 2> train_and_score(const io::Dataset& d, const train::C
     const double t = d.frames.t[i];
     if (!(t > td.slices.boundaries.front() && t <= td.slices.boundaries.back())) continue;
     preds.push_back(eval::to_grey(model.render(d.camera, td.pixel_dirs, d.trajectory.pose_at(t)).luminance));
-    gts.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+    gts.push_back(eval::to_grey(io::frame_image(d.frames, i)));
   }
   return {eval::mean(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)),
           eval::mean(eval::score_sequence(preds, gts, eval::Alignment::MinMax))};

@@ -166,7 +166,7 @@ inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& id
   const bool linear = d.linear.size() == d.frames.size() && !d.linear.empty();
   for (auto i : ids) {
     if (!linear) {
-      t.images.push_back(eval::to_grey(io::read_png(d.frames.paths[i])));
+      t.images.push_back(eval::to_grey(io::frame_image(d.frames, i)));
       continue;
     }
     const auto a = io::load_npy<float>(d.linear[i]);
@@ -240,8 +240,16 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
 
   // inspect
   std::string folder;
-  auto* inspect = app.add_subcommand("inspect", "summary of a recording (IJRR layout): sensor, events, frames, poses, warnings");
-  inspect->add_option("folder", folder, "recording folder")->required();
+  auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
+  inspect->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
+
+  // convert
+  fs::path convert_out;
+  auto* convert = app.add_subcommand("convert", "write a recording in another format: an IJRR-layout folder, or HDF5 (event_utils/HQF layout) "
+                                                "when the output ends in .h5 or .hdf5");
+  convert->add_option("recording", folder, "recording to read (any format evnerf reads)")->required();
+  convert->add_option("output", convert_out, "output folder (IJRR layout) or file.h5 (calib.txt, groundtruth.txt written beside it)")
+      ->required();
 
   // simulate
   std::string scene;
@@ -281,7 +289,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   double contrast = 0.2;
   fs::path baselines_out;
   auto* baselines = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
-  baselines->add_option("folder", folder, "recording folder")->required();
+  baselines->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
   baselines->add_option("--out", baselines_out, "output folder (default: <folder>/baselines)");
   baselines->add_option("--align", align, kAlignHelp)->capture_default_str();
   baselines->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
@@ -293,7 +301,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   std::string variant = default_variant;
   bool resume = false, quiet = false;
   auto* trainc = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
-  trainc->add_option("folder", folder, "recording folder")->required();
+  trainc->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
   trainc->add_option("--out", out, "output folder")->required();
   trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
   trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
@@ -340,7 +348,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   int holdout = 0;
   auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
   evalc->add_option("checkpoint", ckpt, "model.ckpt")->required();
-  evalc->add_option("folder", folder, "recording folder")->required();
+  evalc->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
   evalc->add_option("--out", out, "output folder")->required();
   evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
   evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
@@ -356,9 +364,24 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   const std::string cmd = app.get_subcommands().front()->get_name();
   try {
     if (*inspect) {
-      auto d = io::load_ijrr(folder);
+      auto d = io::load(folder);
       fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
       std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
+      return 0;
+    }
+    if (*convert) {
+      const auto d = io::load(folder);
+      const std::string ext = convert_out.extension().string();
+      if (ext == ".h5" || ext == ".hdf5") {
+#ifdef EVNERF_HAVE_HDF5
+        io::write_hdf5_recording(convert_out, d);
+#else
+        throw Error(convert_out.string(), 0, "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)");
+#endif
+      } else {
+        io::write_ijrr(convert_out, d);
+      }
+      fmt::print("wrote {} events, {} frames, {} poses → {}\n", d.events.size(), d.frames.size(), d.trajectory.size(), convert_out.string());
       return 0;
     }
     if (*simulate) {
@@ -393,7 +416,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       return 0;
     }
     if (*baselines) {
-      const auto d = io::load_ijrr(folder);
+      const auto d = io::load(folder);
       const auto als = alignments_from(align);
       const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
       require(!ids.empty(), folder + ": no frames inside the events' time span");
@@ -411,7 +434,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       cfg.progress = !quiet;
       cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
-      const auto d = io::load_ijrr(folder);
+      const auto d = io::load(folder);
       const auto td = train::prepare(d, cfg);
       const std::string meta = train::describe(td, fs::absolute(folder).string());
       return with_variant<V...>(variant, [&]<class Model>(const std::string& name) {
@@ -460,7 +483,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       });
     }
     if (*evalc) {
-      const auto d = io::load_ijrr(folder);
+      const auto d = io::load(folder);
       const auto als = alignments_from(align);
       return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
         Model model;

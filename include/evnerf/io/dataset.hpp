@@ -9,7 +9,11 @@
 #include <stb_image.h>
 
 #include "ijrr.hpp"
+#include "image_io.hpp"
 #include "npy.hpp"
+#ifdef EVNERF_HAVE_HDF5
+#include "hdf5.hpp"
+#endif
 
 namespace evnerf::io {
 
@@ -17,6 +21,9 @@ struct LoadOptions {
   int width = 0, height = 0;  ///< sensor size; 0 = from sensor.txt, else the first frame, else 240×180
   bool use_cache = true;      ///< cache the parsed events.txt as .npy for the next load
   std::filesystem::path cache_root = default_cache_root();
+  /// For a recording in one file (HDF5): its calibration and poses, in the IJRR text formats. Empty: the
+  /// file's folder's calib.txt (required) and groundtruth.txt (optional).
+  std::filesystem::path calib, poses;
 };
 
 struct Dataset {
@@ -141,6 +148,101 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");
   }
   return d;
+}
+
+/// Frame i of a recording, from memory or from its PNG file.
+inline Image frame_image(const Frames& f, std::size_t i) {
+  require(i < f.size(), "frame_image: frame " + std::to_string(i) + " of " + std::to_string(f.size()));
+  return f.images.empty() ? read_png(f.paths[i]) : f.images[i];
+}
+
+/// The calibration as calib.txt holds it (fx fy cx cy k1 k2 p1 p2 k3).
+inline std::string calib_text(const geometry::Camera& c) {
+  const auto& k = c.distortion();
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", c.fx(), c.fy(), c.cx(), c.cy(), k[0], k[1],
+                k[2], k[3], k[4]);
+  return buf;
+}
+
+/// Writes a recording as an IJRR-layout folder: events.txt (9 decimals of seconds), calib.txt, sensor.txt,
+/// groundtruth.txt when there are poses, images.txt and images/frame_*.png when there are frames. Every
+/// file is written atomically.
+inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
+  namespace fs = std::filesystem;
+  std::string ev;
+  ev.reserve(d.events.size() * 24);
+  char buf[160];
+  for (std::size_t i = 0; i < d.events.size(); ++i) {
+    const int k = std::snprintf(buf, sizeof buf, "%.9f %d %d %d\n", d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i] > 0 ? 1 : 0);
+    ev.append(buf, static_cast<std::size_t>(k));
+  }
+  write_file_atomic(dir / "events.txt", ev);
+  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
+  write_file_atomic(dir / "sensor.txt", std::to_string(d.camera.width()) + " " + std::to_string(d.camera.height()) + "\n");
+  if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+  if (d.frames.size() > 0) {
+    std::string list;
+    for (std::size_t f = 0; f < d.frames.size(); ++f) {
+      char name[64];
+      std::snprintf(name, sizeof name, "images/frame_%08zu.png", f);
+      write_png(dir / name, frame_image(d.frames, f));
+      std::snprintf(buf, sizeof buf, "%.9f %s\n", d.frames.t[f], name);
+      list += buf;
+    }
+    write_file_atomic(dir / "images.txt", list);
+  }
+}
+
+#ifdef EVNERF_HAVE_HDF5
+/// Loads an event HDF5 file (io/hdf5.hpp: event_utils/HQF or DSEC layout) with the calibration and poses
+/// LoadOptions names, or calib.txt and groundtruth.txt beside it. Frames, when the file has them, are
+/// kept in memory.
+inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  namespace fs = std::filesystem;
+  auto rec = read_hdf5(path, opt.width, opt.height);
+  check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
+  Dataset d;
+  d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  const fs::path calib = opt.calib.empty() ? d.folder / "calib.txt" : opt.calib;
+  if (!fs::exists(calib))
+    throw Error(calib.string(), 0, "missing: an HDF5 recording takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]])");
+  d.camera = read_calib_txt(calib, rec.width, rec.height);
+  const fs::path poses = opt.poses.empty() ? d.folder / "groundtruth.txt" : opt.poses;
+  if (!opt.poses.empty() || fs::exists(poses)) d.trajectory = read_poses_txt(poses);
+  d.events = std::move(rec.events);
+  d.frames.t = std::move(rec.frame_times);
+  d.frames.images = std::move(rec.frames);
+  return d;
+}
+#endif
+
+#ifdef EVNERF_HAVE_HDF5
+/// Writes a recording as an event_utils/HQF HDF5 file (write_hdf5) with calib.txt and, when there are
+/// poses, groundtruth.txt beside it, so that io::load reads it back.
+inline void write_hdf5_recording(const std::filesystem::path& path, const Dataset& d) {
+  std::vector<double> times = d.frames.t;
+  std::vector<Image> frames;
+  for (std::size_t f = 0; f < d.frames.size(); ++f) frames.push_back(frame_image(d.frames, f));
+  write_hdf5(path, d.events, d.camera.width(), d.camera.height(), times, frames);
+  const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
+  if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+}
+#endif
+
+/// Loads a recording whatever its format: an IJRR-layout folder, or (where built with HDF5) an event HDF5
+/// file. The reader is picked from the content, not the name.
+inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  namespace fs = std::filesystem;
+  if (fs::is_directory(path)) return load_ijrr(path, opt);
+  if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder or an event HDF5 file)");
+#ifdef EVNERF_HAVE_HDF5
+  if (is_hdf5(path)) return load_hdf5(path, opt);
+  throw Error(path.string(), 0, "not a recording evnerf reads (an IJRR-layout folder or an event HDF5 file)");
+#else
+  throw Error(path.string(), 0, "not an IJRR-layout folder (this build of evnerf has no HDF5 support: install libhdf5-dev and rebuild)");
+#endif
 }
 
 }  // namespace evnerf::io

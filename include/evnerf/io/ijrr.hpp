@@ -10,6 +10,7 @@
 
 #include "../core/fileio.hpp"
 #include "../core/parallel.hpp"
+#include "../core/types.hpp"
 #include "../events/event_stream.hpp"
 #include "../geometry/camera.hpp"
 #include "../geometry/trajectory.hpp"
@@ -276,10 +277,12 @@ inline geometry::Camera read_calib_txt(const fs::path& path, int width, int heig
   return parse_calib(read_file(path), path.string(), width, height);
 }
 
-/// Intensity frames listed in images.txt (`t relative/path.png`); evaluation only, never training.
+/// Intensity frames: listed in images.txt (`t relative/path.png`), or held in memory when the recording's
+/// file holds them (HDF5); evaluation only, never training.
 struct Frames {
   std::vector<double> t;
-  std::vector<fs::path> paths;  ///< absolute
+  std::vector<fs::path> paths;  ///< absolute; empty when the frames are in memory
+  std::vector<Image> images;    ///< in memory; empty when the frames are files
   std::size_t size() const { return t.size(); }
 };
 inline Frames parse_frames(std::string_view text, const std::string& file, const fs::path& folder) {

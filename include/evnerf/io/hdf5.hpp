@@ -1,0 +1,397 @@
+// io/hdf5.hpp — event recordings in HDF5, through the HDF5 C library (Debian's libhdf5-dev). Two layouts:
+//   event_utils / HQF:  events/xs, events/ys (integers), events/ts (seconds), events/ps (0/1 or ±1 or bool);
+//                       frames images/imageNNNNNNNNN (H×W or H×W×C, uint8) with a `timestamp` attribute in
+//                       seconds; the root attribute `sensor_resolution` = (height, width) when present.
+//   DSEC:               events/x, events/y, events/t (µs, added to the root dataset `t_offset` when present),
+//                       events/p; `ms_to_idx` (the first event of every millisecond) is checked when present.
+// Events are read in blocks of kHdf5Block, converted and checked as they come, into vectors sized once from
+// the dataset's extent: the peak memory is the stream itself plus one block, whatever the file's size.
+// Every error names the file and the dataset. Compiled only where CMake found HDF5 (EVNERF_HAVE_HDF5).
+// Depends on core/, events/ and io/ only.
+#pragma once
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "../core/error.hpp"
+#include "../core/types.hpp"
+#include "../events/event_stream.hpp"
+#include "ijrr.hpp"
+
+namespace evnerf::io {
+
+inline constexpr std::size_t kHdf5Block = std::size_t{1} << 20;
+
+/// What an event HDF5 file holds.
+struct Hdf5Recording {
+  std::string layout;                ///< "event_utils" or "dsec"
+  events::EventStream events;
+  int width = 0, height = 0;         ///< from `sensor_resolution` or the frames; 0 when the file does not say
+  std::vector<double> frame_times;   ///< seconds
+  std::vector<Image> frames;         ///< float in [0, 1]
+};
+
+namespace detail {
+
+/// An HDF5 identifier closed on scope exit.
+class H5Id {
+ public:
+  H5Id(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~H5Id() {
+    if (id_ >= 0) close_(id_);
+  }
+  H5Id(const H5Id&) = delete;
+  H5Id& operator=(const H5Id&) = delete;
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+/// HDF5's own error printing off for a scope (our errors say what went wrong), restored after.
+class H5Quiet {
+ public:
+  H5Quiet() { H5Eget_auto2(H5E_DEFAULT, &fn_, &data_); H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+  ~H5Quiet() { H5Eset_auto2(H5E_DEFAULT, fn_, data_); }
+  H5Quiet(const H5Quiet&) = delete;
+  H5Quiet& operator=(const H5Quiet&) = delete;
+
+ private:
+  H5E_auto2_t fn_ = nullptr;
+  void* data_ = nullptr;
+};
+
+/// Whether every component of `path` ("a/b/c") exists as a link.
+inline bool h5_exists(hid_t file, const std::string& path) {
+  std::size_t pos = 0;
+  while (true) {
+    pos = path.find('/', pos + 1);
+    const std::string part = path.substr(0, pos);
+    if (H5Lexists(file, part.c_str(), H5P_DEFAULT) <= 0) return false;
+    if (pos == std::string::npos) return true;
+  }
+}
+
+/// A one-dimensional numeric dataset, read block by block.
+class H5Vector {
+ public:
+  H5Vector(hid_t file, const std::string& name, const std::string& where)
+      : where_(where + ": dataset '" + name + "'"), set_(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose),
+        space_(set_.ok() ? H5Dget_space(set_.get()) : -1, H5Sclose) {
+    if (!set_.ok()) throw Error(where_ + " cannot be opened");
+    if (!space_.ok()) throw Error(where_ + " has no readable shape");
+    const int rank = H5Sget_simple_extent_ndims(space_.get());
+    hsize_t dims[2] = {0, 0};
+    if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space_.get(), dims, nullptr) < 0 || (rank == 2 && dims[1] != 1))
+      throw Error(where_ + " is not a one-dimensional array");
+    size_ = dims[0];
+    const H5Id type(H5Dget_type(set_.get()), H5Tclose);
+    const H5T_class_t cls = type.ok() ? H5Tget_class(type.get()) : H5T_NO_CLASS;
+    if (cls != H5T_INTEGER && cls != H5T_FLOAT && cls != H5T_ENUM)  // h5py stores bool as an enum of int8
+      throw Error(where_ + " does not hold numbers");
+    floating_ = cls == H5T_FLOAT;
+    if (cls == H5T_ENUM) {
+      const H5Id base(H5Tget_super(type.get()), H5Tclose);
+      if (!base.ok() || H5Tget_size(base.get()) != 1) throw Error(where_ + " is an enumeration other than h5py's bool");
+      byte_enum_ = true;
+    }
+  }
+  std::size_t size() const { return static_cast<std::size_t>(size_); }
+  bool floating() const { return floating_; }
+  const std::string& where() const { return where_; }
+  /// Elements [begin, begin + n) converted to T by HDF5 (integers are range-checked by the caller).
+  template <class T>
+  void read(std::size_t begin, std::size_t n, T* out) const {
+    if (n == 0) return;
+    const hsize_t start[1] = {begin}, count[1] = {n};
+    const int rank = H5Sget_simple_extent_ndims(space_.get());
+    hsize_t start2[2] = {begin, 0}, count2[2] = {n, 1};
+    if (H5Sselect_hyperslab(space_.get(), H5S_SELECT_SET, rank == 2 ? start2 : start, nullptr, rank == 2 ? count2 : count, nullptr) < 0)
+      throw Error(where_ + ": cannot select elements " + std::to_string(begin) + " … " + std::to_string(begin + n));
+    const H5Id mem(H5Screate_simple(1, count, nullptr), H5Sclose);
+    if (byte_enum_) {  // h5py's bool: the enumeration's one-byte values as stored, then widened
+      std::vector<signed char> raw(n);
+      const H5Id type(H5Dget_type(set_.get()), H5Tclose);
+      if (H5Dread(set_.get(), type.get(), mem.get(), space_.get(), H5P_DEFAULT, raw.data()) < 0)
+        throw Error(where_ + ": read error at elements " + std::to_string(begin) + " … " + std::to_string(begin + n));
+      for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<T>(raw[i]);
+      return;
+    }
+    if (H5Dread(set_.get(), native<T>(), mem.get(), space_.get(), H5P_DEFAULT, out) < 0)
+      throw Error(where_ + ": read error at elements " + std::to_string(begin) + " … " + std::to_string(begin + n) +
+                  " (truncated or corrupt file?)");
+  }
+  template <class T>
+  static hid_t native() {
+    if constexpr (std::is_same_v<T, double>) return H5T_NATIVE_DOUBLE;
+    else if constexpr (std::is_same_v<T, std::int64_t>) return H5T_NATIVE_INT64;
+    else if constexpr (std::is_same_v<T, std::uint64_t>) return H5T_NATIVE_UINT64;
+    else static_assert(sizeof(T) == 0, "H5Vector::read: double, int64 or uint64");
+  }
+
+ private:
+  std::string where_;
+  H5Id set_, space_;
+  hsize_t size_ = 0;
+  bool floating_ = false, byte_enum_ = false;
+};
+
+/// A numeric attribute of `object` with up to `max` elements, as doubles; empty when absent.
+inline std::vector<double> h5_attribute(hid_t object, const char* name, std::size_t max = 16) {
+  if (H5Aexists(object, name) <= 0) return {};
+  const H5Id attr(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok()) return {};
+  const H5Id space(H5Aget_space(attr.get()), H5Sclose);
+  const hssize_t n = H5Sget_simple_extent_npoints(space.get());
+  if (n <= 0 || static_cast<std::size_t>(n) > max) return {};
+  std::vector<double> v(static_cast<std::size_t>(n));
+  if (H5Aread(attr.get(), H5T_NATIVE_DOUBLE, v.data()) < 0) return {};
+  return v;
+}
+
+}  // namespace detail
+
+/// Whether `path` starts with the HDF5 signature (at offset 0; files with a user block are not recognised).
+inline bool is_hdf5(const std::filesystem::path& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return false;
+  char sig[8] = {};
+  const bool ok = std::fread(sig, 1, 8, f) == 8 && std::memcmp(sig, "\x89HDF\r\n\x1a\n", 8) == 0;
+  std::fclose(f);
+  return ok;
+}
+
+/// Reads an event HDF5 file of either layout. `width`/`height` (when > 0) bound the pixel coordinates;
+/// otherwise the file's `sensor_resolution` or first frame does, else the largest coordinate + 1.
+inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0, int height = 0) {
+  const std::string file = path.string();
+  const detail::H5Quiet quiet;
+  if (!std::filesystem::is_regular_file(path)) throw Error(file, 0, "cannot open file (missing or not a file)");
+  if (!is_hdf5(path)) throw Error(file, 0, "not an HDF5 file (no HDF5 signature at its start)");
+  const detail::H5Id h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!h5.ok()) throw Error(file, 0, "the HDF5 library cannot open this file (truncated or corrupt?)");
+  const hid_t f = h5.get();
+  Hdf5Recording rec;
+  const bool eu = detail::h5_exists(f, "events/xs"), dsec = detail::h5_exists(f, "events/x");
+  if (!eu && !dsec)
+    throw Error(file, 0, "no events: expected datasets events/xs, events/ys, events/ts, events/ps (event_utils, HQF) or "
+                         "events/x, events/y, events/t, events/p (DSEC)");
+  rec.layout = eu ? "event_utils" : "dsec";
+  const std::string px = eu ? "events/xs" : "events/x", py = eu ? "events/ys" : "events/y", pt = eu ? "events/ts" : "events/t",
+                    pp = eu ? "events/ps" : "events/p";
+  for (const auto& name : {py, pt, pp})
+    if (!detail::h5_exists(f, name)) throw Error(file, 0, "dataset '" + name + "' is missing (" + rec.layout + " layout)");
+
+  // Frames (event_utils): images/image*, each with a timestamp.
+  if (eu && detail::h5_exists(f, "images")) {
+    const detail::H5Id group(H5Gopen2(f, "images", H5P_DEFAULT), H5Gclose);
+    hsize_t count = 0;
+    if (!group.ok() || H5Gget_num_objs(group.get(), &count) < 0) throw Error(file, 0, "group 'images' cannot be read");
+    std::vector<std::pair<double, std::string>> named;
+    for (hsize_t i = 0; i < count; ++i) {
+      char name[256] = {};
+      if (H5Gget_objname_by_idx(group.get(), i, name, sizeof name) <= 0) continue;
+      if (std::strncmp(name, "image", 5) != 0) continue;
+      const std::string full = std::string("images/") + name;
+      const detail::H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
+      if (!set.ok()) throw Error(file, 0, "dataset '" + full + "' cannot be opened");
+      const auto ts = detail::h5_attribute(set.get(), "timestamp", 1);
+      if (ts.size() != 1 || !std::isfinite(ts[0])) throw Error(file, 0, "dataset '" + full + "' has no numeric 'timestamp' attribute");
+      named.emplace_back(ts[0], full);
+    }
+    std::sort(named.begin(), named.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    for (const auto& [t, full] : named) {
+      const detail::H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
+      const detail::H5Id space(H5Dget_space(set.get()), H5Sclose);
+      const int rank = H5Sget_simple_extent_ndims(space.get());
+      hsize_t dims[3] = {0, 0, 1};
+      if (rank < 2 || rank > 3 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
+        throw Error(file, 0, "dataset '" + full + "' is not an H×W or H×W×C image");
+      if (dims[0] == 0 || dims[1] == 0 || dims[0] > 65535 || dims[1] > 65535 || dims[0] * dims[1] > std::uint64_t{1} << 26 ||
+          (dims[2] != 1 && dims[2] != 3))
+        throw Error(file, 0, "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" +
+                                 std::to_string(dims[1]) + "x" + std::to_string(dims[2]) + ")");
+      if (!rec.frame_times.empty() && t < rec.frame_times.back())
+        throw Error(file, 0, "dataset '" + full + "': frame timestamps go back in time");
+      std::vector<unsigned char> px8(dims[0] * dims[1] * dims[2]);
+      if (H5Dread(set.get(), H5T_NATIVE_UCHAR, H5S_ALL, H5S_ALL, H5P_DEFAULT, px8.data()) < 0)
+        throw Error(file, 0, "dataset '" + full + "': read error (an image must hold 8-bit values)");
+      Image img(static_cast<int>(dims[1]), static_cast<int>(dims[0]), static_cast<int>(dims[2]));
+      for (std::size_t i = 0; i < px8.size(); ++i) img.data[i] = px8[i] / 255.f;
+      rec.frame_times.push_back(t);
+      rec.frames.push_back(std::move(img));
+    }
+  }
+  if (const auto res = detail::h5_attribute(f, "sensor_resolution", 2); res.size() == 2) {
+    rec.height = static_cast<int>(res[0]);
+    rec.width = static_cast<int>(res[1]);
+  } else if (!rec.frames.empty()) {
+    rec.width = rec.frames[0].width;
+    rec.height = rec.frames[0].height;
+  }
+  if (width > 0 && height > 0) rec.width = width, rec.height = height;
+
+  const detail::H5Vector xs(f, px, file), ys(f, py, file), ts(f, pt, file), ps(f, pp, file);
+  for (const auto* v : {&xs, &ys, &ps})
+    if (v->floating()) throw Error(v->where() + " holds floating-point values (pixel coordinates and polarities are integers)");
+  const std::size_t n = xs.size();
+  if (ys.size() != n || ts.size() != n || ps.size() != n)
+    throw Error(file, 0, "the event datasets differ in length (" + px + " " + std::to_string(n) + ", " + py + " " +
+                             std::to_string(ys.size()) + ", " + pt + " " + std::to_string(ts.size()) + ", " + pp + " " +
+                             std::to_string(ps.size()) + ")");
+  if (n == 0) throw Error(file, 0, "no events (the event datasets are empty)");
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec || n > 16 * static_cast<std::size_t>(bytes))  // refuse an absurd extent before allocating for it
+    throw Error(file, 0, "dataset '" + px + "' claims " + std::to_string(n) + " events in a file of " + std::to_string(bytes) + " bytes");
+  double t_offset = 0;  // DSEC: microseconds since t_offset
+  if (dsec && detail::h5_exists(f, "t_offset")) {
+    const detail::H5Id set(H5Dopen2(f, "t_offset", H5P_DEFAULT), H5Dclose);
+    std::int64_t v = 0;
+    if (!set.ok() || H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
+      throw Error(file, 0, "dataset 't_offset' cannot be read as an integer (microseconds)");
+    t_offset = static_cast<double>(v);
+  }
+  const double t_scale = eu ? 1.0 : 1e-6;
+
+  auto& ev = rec.events;
+  ev.t.resize(n);
+  ev.x.resize(n);
+  ev.y.resize(n);
+  ev.polarity.resize(n);
+  std::vector<std::int64_t> bx(std::min(n, kHdf5Block)), by(bx.size()), bp(bx.size());
+  std::vector<double> bt(bx.size());
+  std::int64_t max_x = -1, max_y = -1;
+  const std::int64_t lim_x = rec.width > 0 ? rec.width : 65535, lim_y = rec.height > 0 ? rec.height : 65535;
+  double last = -INFINITY;
+  for (std::size_t b = 0; b < n; b += kHdf5Block) {
+    const std::size_t m = std::min(kHdf5Block, n - b);
+    xs.read(b, m, bx.data());
+    ys.read(b, m, by.data());
+    ps.read(b, m, bp.data());
+    if (ts.floating()) {
+      ts.read(b, m, bt.data());
+    } else {  // integer timestamps (DSEC's µs): read exactly, then scale
+      std::vector<std::int64_t> ti(m);
+      ts.read(b, m, ti.data());
+      for (std::size_t i = 0; i < m; ++i) bt[i] = static_cast<double>(ti[i]);
+    }
+    for (std::size_t i = 0; i < m; ++i) {
+      const std::size_t k = b + i;
+      const double t = (bt[i] + t_offset) * t_scale;
+      if (!std::isfinite(t)) throw Error(file, 0, "dataset '" + pt + "', event " + std::to_string(k) + ": time is not finite");
+      if (t < last)
+        throw Error(file, 0, "dataset '" + pt + "', event " + std::to_string(k) + ": time " + short_number(t) +
+                                 " s goes back (previous " + short_number(last) + " s)");
+      if (bx[i] < 0 || by[i] < 0 || bx[i] >= lim_x || by[i] >= lim_y)
+        throw Error(file, 0, "event " + std::to_string(k) + ": pixel (" + std::to_string(bx[i]) + ", " + std::to_string(by[i]) +
+                                 ") lies outside the " + std::to_string(lim_x) + "x" + std::to_string(lim_y) + " sensor");
+      if (bp[i] != 0 && bp[i] != 1 && bp[i] != -1)
+        throw Error(file, 0, "dataset '" + pp + "', event " + std::to_string(k) + ": unknown polarity " + std::to_string(bp[i]) +
+                                 " (expected 0/1 or -1/1)");
+      last = t;
+      max_x = std::max(max_x, bx[i]);
+      max_y = std::max(max_y, by[i]);
+      ev.t[k] = t;
+      ev.x[k] = static_cast<std::uint16_t>(bx[i]);
+      ev.y[k] = static_cast<std::uint16_t>(by[i]);
+      ev.polarity[k] = static_cast<std::int8_t>(bp[i] == 1 ? 1 : -1);
+    }
+  }
+  if (rec.width <= 0 || rec.height <= 0) {
+    rec.width = static_cast<int>(max_x + 1);
+    rec.height = static_cast<int>(max_y + 1);
+  }
+  ev.width = rec.width;
+  ev.height = rec.height;
+
+  // DSEC: ms_to_idx[k] is the first event at or after k ms; a file whose index disagrees is refused.
+  if (dsec && detail::h5_exists(f, "ms_to_idx")) {
+    const detail::H5Vector idx(f, "ms_to_idx", file);
+    std::vector<std::uint64_t> v(idx.size());
+    idx.read(0, v.size(), v.data());
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      const bool bad = v[k] > n || (k > 0 && v[k] < v[k - 1]) || (v[k] < n && (ev.t[v[k]] - t_offset * 1e-6) * 1e3 < double(k) - 1e-6) ||
+                       (v[k] > 0 && (ev.t[v[k] - 1] - t_offset * 1e-6) * 1e3 >= double(k) + 1e-6);
+      if (bad) throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
+    }
+  }
+  return rec;
+}
+
+/// Writes events (and frames, 8-bit, with their times) as an event_utils/HQF HDF5 file: events/xs, ys
+/// (int16), ts (float64 seconds), ps (int8, 1 ON, 0 OFF), images/imageNNNNNNNNN with a `timestamp`
+/// attribute, and the root attribute `sensor_resolution` = (height, width). Written to a temporary file and
+/// renamed into place, so `path` is the old file or the complete new one.
+inline void write_hdf5(const std::filesystem::path& path, const events::EventStream& ev, int width, int height,
+                       const std::vector<double>& frame_times, const std::vector<Image>& frames) {
+  const std::string file = path.string();
+  require(width > 0 && height > 0 && width <= 32767 && height <= 32767, file + ": write_hdf5 stores pixels as int16 (sides up to 32767)");
+  require(frame_times.size() == frames.size(), file + ": write_hdf5: one time per frame");
+  const detail::H5Quiet quiet;
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
+  const std::string tmp = file + ".tmp." + std::to_string(::getpid());
+  auto fail = [&](const std::string& what) {
+    std::filesystem::remove(tmp);
+    throw Error(file, 0, "cannot write HDF5: " + what);
+  };
+  {
+    const detail::H5Id f(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    if (!f.ok()) fail("cannot create the file");
+    const detail::H5Id lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+    H5Pset_create_intermediate_group(lcpl.get(), 1);
+    auto put = [&](const std::string& name, hid_t file_type, hid_t mem_type, const void* data, int rank, const hsize_t* dims) {
+      const detail::H5Id space(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+      const detail::H5Id set(H5Dcreate2(f.get(), name.c_str(), file_type, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+      if (!set.ok() || H5Dwrite(set.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) fail("dataset '" + name + "' (disk full?)");
+    };
+    const std::size_t n = ev.size();
+    std::vector<std::int16_t> xs(n), ys(n);
+    std::vector<std::int8_t> ps(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      xs[i] = static_cast<std::int16_t>(ev.x[i]);
+      ys[i] = static_cast<std::int16_t>(ev.y[i]);
+      ps[i] = ev.polarity[i] > 0 ? 1 : 0;
+    }
+    const hsize_t dn[1] = {n};
+    put("events/xs", H5T_STD_I16LE, H5T_NATIVE_INT16, xs.data(), 1, dn);
+    put("events/ys", H5T_STD_I16LE, H5T_NATIVE_INT16, ys.data(), 1, dn);
+    put("events/ts", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, ev.t.data(), 1, dn);
+    put("events/ps", H5T_STD_I8LE, H5T_NATIVE_INT8, ps.data(), 1, dn);
+    for (std::size_t k = 0; k < frames.size(); ++k) {
+      const Image& im = frames[k];
+      std::vector<unsigned char> px(im.data.size());
+      for (std::size_t i = 0; i < px.size(); ++i)
+        px[i] = static_cast<unsigned char>(std::lround(std::clamp(std::isfinite(im.data[i]) ? im.data[i] : 0.f, 0.f, 1.f) * 255.f));
+      const hsize_t dims[3] = {static_cast<hsize_t>(im.height), static_cast<hsize_t>(im.width), static_cast<hsize_t>(im.channels)};
+      char name[64];
+      std::snprintf(name, sizeof name, "images/image%09zu", k);
+      put(name, H5T_STD_U8LE, H5T_NATIVE_UCHAR, px.data(), im.channels == 1 ? 2 : 3, dims);
+      const detail::H5Id set(H5Dopen2(f.get(), name, H5P_DEFAULT), H5Dclose);
+      const detail::H5Id scalar(H5Screate(H5S_SCALAR), H5Sclose);
+      const detail::H5Id attr(H5Acreate2(set.get(), "timestamp", H5T_IEEE_F64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+      if (!attr.ok() || H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &frame_times[k]) < 0) fail(std::string("attribute timestamp of ") + name);
+    }
+    const hsize_t two[1] = {2};
+    const std::int64_t res[2] = {height, width};
+    const detail::H5Id space(H5Screate_simple(1, two, nullptr), H5Sclose);
+    const detail::H5Id attr(H5Acreate2(f.get(), "sensor_resolution", H5T_STD_I64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (!attr.ok() || H5Awrite(attr.get(), H5T_NATIVE_INT64, res) < 0) fail("attribute sensor_resolution");
+    if (H5Fflush(f.get(), H5F_SCOPE_GLOBAL) < 0) fail("flush (disk full?)");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) fail("cannot rename the temporary file into place: " + ec.message());
+}
+
+}  // namespace evnerf::io
