@@ -447,6 +447,20 @@ TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wr
     H5Fclose(f);
   }
   CHECK_CONTAINS(err(dir / "float.h5"), "dataset 'events/xs' holds floating-point values");
+  // Found by tests/fuzz (fuzz_hdf5): a sensor_resolution of 6.3e16 was cast to int (undefined behaviour).
+  h5_events(dir / "res.h5", {1}, {1}, {0.1}, {1});
+  {
+    const hid_t f = H5Fopen((dir / "res.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    const hsize_t two[1] = {2};
+    const double res[2] = {6.3e16, 8};
+    const hid_t space = H5Screate_simple(1, two, nullptr);
+    const hid_t attr = H5Acreate2(f, "sensor_resolution", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+    H5Awrite(attr, H5T_NATIVE_DOUBLE, res);
+    H5Aclose(attr);
+    H5Sclose(space);
+    H5Fclose(f);
+  }
+  CHECK_CONTAINS(err(dir / "res.h5"), "res.h5:0: attribute 'sensor_resolution' (6.3e+16, 8) is not a height and width");
   // A sensor size given by the caller bounds the pixels.
   h5_events(dir / "wide.h5", {1, 9}, {1, 1}, {0.1, 0.2}, {1, 0});
   CHECK_CONTAINS(error_of([&] { io::read_hdf5(dir / "wide.h5", 8, 6); }), "event 1: pixel (9, 1) lies outside the 8x6 sensor");

@@ -266,6 +266,18 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   OtherSampler other;
   CHECK_THROWS_WITH(other.deserialize(bytes, "tiny", "x.ckpt"), doctest::Contains("sampler stratified 24"));
   CHECK_THROWS_WITH(b.deserialize("hello", "tiny", "x.ckpt"), doctest::Contains("not an evnerf checkpoint"));
+  // Found by tests/fuzz (fuzz_checkpoint): a header whose slice and parameter counts agree with each other
+  // but not with the file's size made the loader allocate 64 GB. Now refused before allocating.
+  {
+    std::string huge = bytes.substr(0, bytes.size() - 8);
+    const std::uint64_t slices = std::uint64_t{1} << 33, n = Tiny::n_fields * Tiny::field_params + 2 * slices;
+    const std::size_t at = 16 + 8 + 4;  // after the magic, the version and the name "tiny" (length, bytes)
+    std::memcpy(huge.data() + at, &n, 8);
+    std::memcpy(huge.data() + at + 8, &slices, 8);
+    const std::uint64_t sum = fnv1a64(huge);
+    huge.append(reinterpret_cast<const char*>(&sum), 8);
+    CHECK_THROWS_WITH(b.deserialize(huge, "tiny", "x.ckpt"), doctest::Contains("x.ckpt:0: corrupt or mismatched checkpoint: truncated: 171799"));
+  }
   // The trainer's file path: atomic write and load.
   const fs::path dir = fs::temp_directory_path() / ("evnerf_ck_" + std::to_string(::getpid()));
   fs::create_directories(dir);

@@ -278,6 +278,9 @@ class EvNerf {
     if (h.n_slices > n || n != n_fields * field_params + 2 * h.n_slices)
       r.fail("parameter count does not match this model (" + std::to_string(n) + " in the file, " +
              std::to_string(n_fields * field_params) + " + 2 per slice here)");
+    if (n > r.remaining() / 12)  // parameters and Adam's two moments, 4 bytes each: refuse before allocating
+      r.fail("truncated: " + std::to_string(n) + " parameters need " + std::to_string(n * 12) + " bytes, " +
+             std::to_string(r.remaining()) + " remain");
     std::string note;
     if (h.version >= 4) {
       if (h.loss != loss_description())

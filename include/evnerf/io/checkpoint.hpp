@@ -54,6 +54,8 @@ class CheckpointReader {
     return s;
   }
   const std::string& file() const { return file_; }
+  /// Bytes left before the checksum.
+  std::size_t remaining() const { return b_.size() - 8 - pos_; }
 
  private:
   const std::string& b_;

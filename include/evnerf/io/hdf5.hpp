@@ -100,6 +100,8 @@ class H5Vector {
     if (cls != H5T_INTEGER && cls != H5T_FLOAT && cls != H5T_ENUM)  // h5py stores bool as an enum of int8
       throw Error(where_ + " does not hold numbers");
     floating_ = cls == H5T_FLOAT;
+    const std::size_t element = H5Tget_size(type.get());  // a corrupt type can claim gigabytes per element
+    if (element == 0 || element > 8) throw Error(where_ + " has elements of " + std::to_string(element) + " bytes (numbers of 1 to 8 expected)");
     if (cls == H5T_ENUM) {
       const H5Id base(H5Tget_super(type.get()), H5Tclose);
       if (!base.ok() || H5Tget_size(base.get()) != 1) throw Error(where_ + " is an enumeration other than h5py's bool");
@@ -217,6 +219,9 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
       hsize_t dims[3] = {0, 0, 1};
       if (rank < 2 || rank > 3 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
         throw Error(file, 0, "dataset '" + full + "' is not an H×W or H×W×C image");
+      const detail::H5Id type(H5Dget_type(set.get()), H5Tclose);
+      if (!type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) != 1)
+        throw Error(file, 0, "dataset '" + full + "' is not an 8-bit image");
       if (dims[0] == 0 || dims[1] == 0 || dims[0] > 65535 || dims[1] > 65535 || dims[0] * dims[1] > std::uint64_t{1} << 26 ||
           (dims[2] != 1 && dims[2] != 3))
         throw Error(file, 0, "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" +
@@ -233,6 +238,10 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
     }
   }
   if (const auto res = detail::h5_attribute(f, "sensor_resolution", 2); res.size() == 2) {
+    for (double v : res)
+      if (!(v >= 1 && v <= 65535) || v != std::floor(v))
+        throw Error(file, 0, "attribute 'sensor_resolution' (" + short_number(res[0]) + ", " + short_number(res[1]) +
+                                 ") is not a height and width of 1 to 65535 pixels");
     rec.height = static_cast<int>(res[0]);
     rec.width = static_cast<int>(res[1]);
   } else if (!rec.frames.empty()) {
@@ -257,8 +266,12 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   double t_offset = 0;  // DSEC: microseconds since t_offset
   if (dsec && detail::h5_exists(f, "t_offset")) {
     const detail::H5Id set(H5Dopen2(f, "t_offset", H5P_DEFAULT), H5Dclose);
+    const detail::H5Id type(set.ok() ? H5Dget_type(set.get()) : -1, H5Tclose);
+    const detail::H5Id space(set.ok() ? H5Dget_space(set.get()) : -1, H5Sclose);
     std::int64_t v = 0;
-    if (!set.ok() || H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
+    if (!set.ok() || !type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) > 8 || !space.ok() ||
+        H5Sget_simple_extent_npoints(space.get()) != 1 ||
+        H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
       throw Error(file, 0, "dataset 't_offset' cannot be read as an integer (microseconds)");
     t_offset = static_cast<double>(v);
   }
@@ -318,6 +331,8 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   // DSEC: ms_to_idx[k] is the first event at or after k ms; a file whose index disagrees is refused.
   if (dsec && detail::h5_exists(f, "ms_to_idx")) {
     const detail::H5Vector idx(f, "ms_to_idx", file);
+    if (idx.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
+      throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(idx.size()) + " entries, more than the events' milliseconds");
     std::vector<std::uint64_t> v(idx.size());
     idx.read(0, v.size(), v.data());
     for (std::size_t k = 0; k < v.size(); ++k) {
