@@ -1,4 +1,5 @@
 #include <evnerf/core/rng.hpp>
+#include <evnerf/io/colmap.hpp>
 #include <evnerf/io/dataset.hpp>
 #include <evnerf/io/image_io.hpp>
 #include <evnerf/io/inspect.hpp>
@@ -163,6 +164,9 @@ TEST_CASE("calib.txt, groundtruth.txt and images.txt: parsing and bad input") {
   CHECK(tr.size() == 2);
   CHECK(tr.poses()[1].q.z() == doctest::Approx(0.7071068));
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0\n", "gt.txt"); }), "gt.txt:1: line is truncated: field 'qw' is missing");
+  // Found by tests/fuzz (fuzz_colmap): a zero quaternion in images.txt gave a NaN pose.
+  CHECK_CONTAINS(error_of([] { io::parse_colmap_images("1 0 0 0 0 7 3.2 1 1 a.png\n\n", "images.txt"); }),
+                 "images.txt:1: quaternion is far from unit length (norm 0)");
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 1\n0.1 1 2 3 0 0 0 1\n", "gt.txt"); }), "gt.txt:2: pose timestamps must increase strictly");
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 0\n", "gt.txt"); }), "gt.txt:1: quaternion is far from unit length");
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 nan 0 0 0 1\n", "gt.txt"); }), "'pz' is not finite");
@@ -254,6 +258,7 @@ TEST_CASE("dataset: a folder loads, the event cache is used on the second load a
 
 TEST_CASE("PNG: write then read back; montage and depth colouring have the right shape") {
   const auto dir = temp_dir("png");
+  auto good_png_for_lengths = [&] { return read_file(dir / "a.png"); };
   Image img(5, 4, 1);
   for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = static_cast<float>(i) / 19.f;
   io::write_png(dir / "a.png", img);
@@ -275,6 +280,13 @@ TEST_CASE("PNG: write then read back; montage and depth colouring have the right
   CHECK_CONTAINS(error_of([&] { io::decode_png(png, "big.png"); }), "big.png:0: image header announces 10000x10000 pixels");
   CHECK_CONTAINS(error_of([&] { io::decode_png("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image");
   CHECK_CONTAINS(error_of([&] { io::decode_png("garbage", "x.png"); }), "x.png:0: cannot decode image");
+  // Found by tests/fuzz (fuzz_png): an IDAT chunk announcing 1 GB in a small file made stb_image allocate
+  // 2 GB before noticing the data was missing. The chunk lengths are now checked against the file first.
+  std::string liar = good_png_for_lengths();
+  const std::size_t idat_at = liar.find("IDAT") - 4;
+  liar[idat_at] = 0x40;  // 0x40xxxxxx bytes
+  CHECK_CONTAINS(error_of([&] { io::decode_png(liar, "liar.png"); }), "liar.png:0: cannot decode image: truncated or corrupt PNG (a chunk of 10");
+  CHECK_CONTAINS(error_of([&] { io::decode_png(good_png_for_lengths().substr(0, 60), "cut.png"); }), "cut.png:0: cannot decode image: truncated or corrupt PNG");
   // Found by tests/fuzz (fuzz_png): an empty IDAT chunk before the data made stb_image call memcpy with a null
   // destination (undefined behaviour; the fuzz build now tolerates only that, in stb's code). Such a file is
   // valid and decodes to the same pixels.

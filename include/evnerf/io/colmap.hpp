@@ -1,6 +1,7 @@
 // io/colmap.hpp — COLMAP's text model (cameras.txt, images.txt): cameras and world-to-camera poses,
 // converted to evnerf's camera-to-world. Depends on core/, geometry/ and io/text.hpp only.
 #pragma once
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -88,8 +89,10 @@ inline std::vector<ColmapImage> parse_colmap_images(std::string_view text, const
         const double tx = s.real("TX"), ty = s.real("TY"), tz = s.real("TZ");
         im.camera_id = static_cast<int>(s.integer("CAMERA_ID"));
         im.name = std::string(s.rest("NAME"));
+        const double norm = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
+        if (!(norm > 0.5 && norm < 1.5)) s.fail("quaternion is far from unit length (norm " + short_number(norm) + ")");
         geometry::Pose w2c;
-        w2c.q = Quat(qw, qx, qy, qz).normalized();
+        w2c.q = Quat(qw / norm, qx / norm, qy / norm, qz / norm);
         w2c.t = Vec3(tx, ty, tz);
         im.c2w = w2c.inverse();
       } catch (const Error& e) {

@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <string>
@@ -27,6 +28,19 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
   require(want_channels >= 0 && want_channels <= 4, "decode_png: want_channels must be 0 … 4");
   if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
     throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
+  // A PNG's chunks must fit in the file: stb_image grows its buffer to a chunk's announced length before it
+  // finds the data missing (2 GB for a 100-byte file).
+  if (bytes.size() >= 8 && bytes.substr(0, 8) == "\x89PNG\r\n\x1a\n") {
+    for (std::size_t at = 8; at + 8 <= bytes.size();) {
+      const auto byte = [&](std::size_t i) { return std::uint32_t{static_cast<unsigned char>(bytes[at + i])}; };
+      const std::uint64_t len = (byte(0) << 24) | (byte(1) << 16) | (byte(2) << 8) | byte(3);
+      if (len + 12 > bytes.size() - at)
+        throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (a chunk of " + std::to_string(len) + " bytes at byte " +
+                                 std::to_string(at) + ", " + std::to_string(bytes.size() - at) + " bytes remain)");
+      if (bytes.substr(at + 4, 4) == "IEND") break;
+      at += 12 + len;
+    }
+  }
   int w = 0, h = 0, c = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
