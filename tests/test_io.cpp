@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <csignal>
+#include <cstdlib>
 #include <fstream>
 
 #include "common.hpp"
@@ -277,6 +279,15 @@ TEST_CASE("PNG: write then read back; montage and depth colouring have the right
   for (int k : {16, 20}) {  // width, height: big-endian 10000
     png[k] = 0, png[k + 1] = 0, png[k + 2] = char(0x27), png[k + 3] = char(0x10);
   }
+  // Its 27 bytes of compressed pixels cannot hold 10^8 (deflate compresses at most 1032:1) …
+  CHECK_CONTAINS(error_of([&] { io::decode_png(png, "big.png"); }),
+                 "big.png:0: cannot decode image: truncated or corrupt PNG (27 bytes of compressed pixels cannot hold the 100010000 bytes");
+  // … and with 100 kB more of them, the pixel limit refuses it.
+  const std::size_t iend = png.rfind("IEND") - 4;
+  std::string more(12 + 100000, '\0');
+  more[1] = char(0x01), more[2] = char(0x86), more[3] = char(0xa0);  // 100000, big-endian
+  more.replace(4, 4, "IDAT");
+  png.insert(iend, more);
   CHECK_CONTAINS(error_of([&] { io::decode_png(png, "big.png"); }), "big.png:0: image header announces 10000x10000 pixels");
   CHECK_CONTAINS(error_of([&] { io::decode_png("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image");
   CHECK_CONTAINS(error_of([&] { io::decode_png("garbage", "x.png"); }), "x.png:0: cannot decode image");
@@ -473,6 +484,16 @@ TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wr
     H5Fclose(f);
   }
   CHECK_CONTAINS(err(dir / "res.h5"), "res.h5:0: attribute 'sensor_resolution' (6.3e+16, 8) is not a height and width");
+  // Checked in a child first (what io::load does): the same result, the same refusals, and a crash of the
+  // library (here forced in the child) is an Error in this process.
+  const auto checked = io::read_hdf5_checked(fs::path(EVNERF_FIXTURES) / "hqf.h5");
+  CHECK(checked.events.t == io::read_hdf5(fs::path(EVNERF_FIXTURES) / "hqf.h5").events.t);
+  CHECK(error_of([&] { io::read_hdf5_checked(dir / "back.h5"); }) == err(dir / "back.h5"));
+  io::detail::hdf5_probe_hook() = [] { std::raise(SIGKILL); };  // no handler (the test framework's) can intercept it
+  const std::string crashed = error_of([&] { io::read_hdf5_checked(fs::path(EVNERF_FIXTURES) / "hqf.h5"); });
+  io::detail::hdf5_probe_hook() = nullptr;
+  CHECK_CONTAINS(crashed, "hqf.h5:0: the HDF5 library crashed (signal 9, ");
+  CHECK_CONTAINS(crashed, "nothing was loaded");
   // A sensor size given by the caller bounds the pixels.
   h5_events(dir / "wide.h5", {1, 9}, {1, 1}, {0.1, 0.2}, {1, 0});
   CHECK_CONTAINS(error_of([&] { io::read_hdf5(dir / "wide.h5", 8, 6); }), "event 1: pixel (9, 1) lies outside the 8x6 sensor");

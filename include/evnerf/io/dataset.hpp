@@ -24,6 +24,9 @@ struct LoadOptions {
   /// For a recording in one file (HDF5): its calibration and poses, in the IJRR text formats. Empty: the
   /// file's folder's calib.txt (required) and groundtruth.txt (optional).
   std::filesystem::path calib, poses;
+  /// Read an HDF5 file in a child process first, so that a crash of the HDF5 library on a corrupt file is
+  /// an Error (io::read_hdf5_checked; costs a second read of the file).
+  bool hdf5_check_in_child = true;
 };
 
 struct Dataset {
@@ -200,7 +203,7 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
 /// kept in memory.
 inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
-  auto rec = read_hdf5(path, opt.width, opt.height);
+  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height) : read_hdf5(path, opt.width, opt.height);
   check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
   Dataset d;
   d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();

@@ -30,16 +30,31 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
     throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
   // A PNG's chunks must fit in the file: stb_image grows its buffer to a chunk's announced length before it
   // finds the data missing (2 GB for a 100-byte file).
+  // Nor can the compressed pixels be fewer than deflate's best ratio (1032:1) allows for the size the header
+  // announces: a 1 kB file that claims 8000x8000 pixels is refused before 256 MB are allocated for them.
   if (bytes.size() >= 8 && bytes.substr(0, 8) == "\x89PNG\r\n\x1a\n") {
+    std::uint64_t idat = 0, raw = 0;
     for (std::size_t at = 8; at + 8 <= bytes.size();) {
-      const auto byte = [&](std::size_t i) { return std::uint32_t{static_cast<unsigned char>(bytes[at + i])}; };
+      const auto byte = [&](std::size_t i) { return std::uint64_t{static_cast<unsigned char>(bytes[at + i])}; };
       const std::uint64_t len = (byte(0) << 24) | (byte(1) << 16) | (byte(2) << 8) | byte(3);
       if (len + 12 > bytes.size() - at)
         throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (a chunk of " + std::to_string(len) + " bytes at byte " +
                                  std::to_string(at) + ", " + std::to_string(bytes.size() - at) + " bytes remain)");
-      if (bytes.substr(at + 4, 4) == "IEND") break;
+      const std::string_view type = bytes.substr(at + 4, 4);
+      if (type == "IHDR" && len >= 10) {
+        const std::uint64_t w = (byte(8) << 24) | (byte(9) << 16) | (byte(10) << 8) | byte(11);
+        const std::uint64_t h = (byte(12) << 24) | (byte(13) << 16) | (byte(14) << 8) | byte(15);
+        const std::uint64_t depth = byte(16), colour = byte(17);
+        const std::uint64_t samples = colour == 2 ? 3 : colour == 4 ? 2 : colour == 6 ? 4 : 1;
+        raw = h * (1 + (w * samples * std::max<std::uint64_t>(depth, 1) + 7) / 8);
+      }
+      if (type == "IDAT") idat += len;
+      if (type == "IEND") break;
       at += 12 + len;
     }
+    if (raw > 0 && raw > 1032 * idat + 4096)
+      throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (" + std::to_string(idat) + " bytes of compressed pixels cannot " +
+                               "hold the " + std::to_string(raw) + " bytes its header announces)");
   }
   int w = 0, h = 0, c = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
