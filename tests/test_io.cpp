@@ -289,7 +289,10 @@ TEST_CASE("PNG: write then read back; montage and depth colouring have the right
   more.replace(4, 4, "IDAT");
   png.insert(iend, more);
   CHECK_CONTAINS(error_of([&] { io::decode_png(png, "big.png"); }), "big.png:0: image header announces 10000x10000 pixels");
-  CHECK_CONTAINS(error_of([&] { io::decode_png("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image");
+  CHECK_CONTAINS(error_of([&] { io::decode_png("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image: not a PNG file");
+  // Found by tests/fuzz (fuzz_png): 34 bytes that stb_image's TGA decoder spent 10 s on. Only PNG is decoded.
+  CHECK_CONTAINS(error_of([&] { io::decode_png(std::string("\x02\x00\x0a\x96\x18\x18\x18\x18", 8) + std::string(26, '\x18'), "t.tga"); }),
+                 "t.tga:0: cannot decode image: not a PNG file");
   CHECK_CONTAINS(error_of([&] { io::decode_png("garbage", "x.png"); }), "x.png:0: cannot decode image");
   // Found by tests/fuzz (fuzz_png): an IDAT chunk announcing 1 GB in a small file made stb_image allocate
   // 2 GB before noticing the data was missing. The chunk lengths are now checked against the file first.

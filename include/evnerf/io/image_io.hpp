@@ -21,13 +21,17 @@ namespace evnerf::io {
 /// The largest image evnerf decodes, in pixels (a header announcing more is refused before decoding).
 inline constexpr long long kMaxImagePixels = 1LL << 26;
 
-/// Decodes a PNG (8 or 16 bit; stb_image also takes JPEG, BMP, TGA) held in memory as float in [0, 1] with
+/// Decodes a PNG (8 or 16 bit) held in memory as float in [0, 1] with
 /// `want_channels` channels (0 = as stored). Errors name `file`: undecodable data, or a header announcing
 /// more than kMaxImagePixels pixels (refused before anything is allocated).
 inline Image decode_png(std::string_view bytes, const std::string& file, int want_channels = 0) {
   require(want_channels >= 0 && want_channels <= 4, "decode_png: want_channels must be 0 … 4");
   if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
     throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
+  // PNG only: stb_image's other decoders (TGA, PIC, PSD, …) trust headers of a few bytes (a 34-byte input took
+  // 10 s in its TGA path, found by tests/fuzz), and no recording or texture uses them.
+  if (bytes.size() < 8 || bytes.substr(0, 8) != "\x89PNG\r\n\x1a\n")
+    throw Error(file, 0, "cannot decode image: not a PNG file (no PNG signature)");
   // A PNG's chunks must fit in the file: stb_image grows its buffer to a chunk's announced length before it
   // finds the data missing (2 GB for a 100-byte file).
   // Nor can the compressed pixels be fewer than deflate's best ratio (1032:1) allows for the size the header
