@@ -21,10 +21,10 @@ OUT=$(realpath -m "$OUT")
 cmake -S tests/fuzz -B "$BUILD" -G Ninja -DCMAKE_CXX_COMPILER=clang++ >/dev/null
 cmake --build "$BUILD" -j"$(nproc)"
 HARNESSES=("$@")
-if [ ${#HARNESSES[@]} -eq 0 ]; then
-  HARNESSES=(events calib images poses colmap npy png scene checkpoint)
-  [ -x "$BUILD/fuzz_hdf5" ] && HARNESSES+=(hdf5)
-fi
+# fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
+# itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
+# fix; io::load isolates the library's crashes in a child process (README, Reliability).
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
