@@ -3,7 +3,8 @@
 # consumer). Installs missing Debian packages first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/deps.sh
+# python3-rosbag and friends write the ROS bag of the cli.rosbag test (an independent writer).
+scripts/deps.sh python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil
 BUILD=${BUILD:-build}
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_TESTS=ON -DEVNERF_BUILD_EXAMPLES=ON \
   -DCMAKE_INSTALL_PREFIX="$PWD/$BUILD/install" >/dev/null

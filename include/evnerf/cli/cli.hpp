@@ -238,16 +238,32 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   app.require_subcommand(1);
   app.fallthrough(false);
 
-  // inspect
+  // The recording every verb reads, and how to read it (any format io::load reads).
   std::string folder;
+  io::LoadOptions load_opt;
+  auto add_recording = [&](CLI::App* sub, const std::string& help) {
+    sub->add_option("recording", folder, help)->required();
+    sub->add_option("--calib", load_opt.calib, "calibration file (fx fy cx cy [k1 k2 p1 p2 [k3]]) instead of the recording's own");
+    sub->add_option("--poses", load_opt.poses,
+                    "pose file (t px py pz qx qy qz qw, camera to world) instead of the recording's own; for a ROS bag in its clock (ROS time)");
+    sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
+    sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
+    sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
+    sub->add_option("--poses-topic", load_opt.poses_topic,
+                    "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
+  };
+  const std::string rec_help =
+      "recording: an IJRR-layout folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a file when it lacks them)";
+
+  // inspect
   auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
-  inspect->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
+  add_recording(inspect, rec_help);
 
   // convert
   fs::path convert_out;
   auto* convert = app.add_subcommand("convert", "write a recording in another format: an IJRR-layout folder, or HDF5 (event_utils/HQF layout) "
                                                 "when the output ends in .h5 or .hdf5");
-  convert->add_option("recording", folder, "recording to read (any format evnerf reads)")->required();
+  add_recording(convert, "recording to read (any format evnerf reads)");
   convert->add_option("output", convert_out, "output folder (IJRR layout) or file.h5 (calib.txt, groundtruth.txt written beside it)")
       ->required();
 
@@ -289,7 +305,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   double contrast = 0.2;
   fs::path baselines_out;
   auto* baselines = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
-  baselines->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
+  add_recording(baselines, rec_help);
   baselines->add_option("--out", baselines_out, "output folder (default: <folder>/baselines)");
   baselines->add_option("--align", align, kAlignHelp)->capture_default_str();
   baselines->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
@@ -301,7 +317,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   std::string variant = default_variant;
   bool resume = false, quiet = false;
   auto* trainc = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
-  trainc->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
+  add_recording(trainc, rec_help);
   trainc->add_option("--out", out, "output folder")->required();
   trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
   trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
@@ -348,7 +364,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   int holdout = 0;
   auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
   evalc->add_option("checkpoint", ckpt, "model.ckpt")->required();
-  evalc->add_option("recording", folder, "recording: an IJRR-layout folder or an event HDF5 file (calib.txt, groundtruth.txt beside it)")->required();
+  add_recording(evalc, rec_help);
   evalc->add_option("--out", out, "output folder")->required();
   evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
   evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
@@ -364,13 +380,20 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   const std::string cmd = app.get_subcommands().front()->get_name();
   try {
     if (*inspect) {
-      auto d = io::load(folder);
+#ifdef EVNERF_HAVE_ROSBAG
+      if (fs::is_regular_file(folder) && io::is_rosbag(folder)) {
+        fmt::print("ROS bag topics (messages, type):\n");
+        for (const auto& t : io::rosbag_topics(folder)) fmt::print("  {:<32} {:>9}  {}\n", t.topic, t.messages, t.type);
+      }
+#endif
+      auto d = io::load(folder, load_opt);
       fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
+      if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
       std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
       return 0;
     }
     if (*convert) {
-      const auto d = io::load(folder);
+      const auto d = io::load(folder, load_opt);
       const std::string ext = convert_out.extension().string();
       if (ext == ".h5" || ext == ".hdf5") {
 #ifdef EVNERF_HAVE_HDF5
@@ -416,14 +439,17 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       return 0;
     }
     if (*baselines) {
-      const auto d = io::load(folder);
+      const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
       const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
       require(!ids.empty(), folder + ": no frames inside the events' time span");
       const Truth truth = load_truth(d, ids);
       eval::AlignedScores primary;
       const auto j = score_and_report(baseline_methods(d, ids, contrast), truth, als, ids, primary);
-      const fs::path bo = baselines_out.empty() ? fs::path(folder) / "baselines" : baselines_out;
+      const fs::path rec_path(folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
+      const fs::path bo = !baselines_out.empty()          ? baselines_out
+                          : fs::is_directory(rec_path) ? rec_path / "baselines"
+                                                       : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
       write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
       const std::size_t mid = ids.size() / 2;
       io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}));
@@ -434,7 +460,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       cfg.progress = !quiet;
       cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
-      const auto d = io::load(folder);
+      const auto d = io::load(folder, load_opt);
       const auto td = train::prepare(d, cfg);
       const std::string meta = train::describe(td, fs::absolute(folder).string());
       return with_variant<V...>(variant, [&]<class Model>(const std::string& name) {
@@ -483,7 +509,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       });
     }
     if (*evalc) {
-      const auto d = io::load(folder);
+      const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
       return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
         Model model;

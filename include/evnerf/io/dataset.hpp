@@ -14,6 +14,9 @@
 #ifdef EVNERF_HAVE_HDF5
 #include "hdf5.hpp"
 #endif
+#ifdef EVNERF_HAVE_ROSBAG
+#include "rosbag.hpp"
+#endif
 
 namespace evnerf::io {
 
@@ -21,9 +24,13 @@ struct LoadOptions {
   int width = 0, height = 0;  ///< sensor size; 0 = from sensor.txt, else the first frame, else 240×180
   bool use_cache = true;      ///< cache the parsed events.txt as .npy for the next load
   std::filesystem::path cache_root = default_cache_root();
-  /// For a recording in one file (HDF5): its calibration and poses, in the IJRR text formats. Empty: the
-  /// file's folder's calib.txt (required) and groundtruth.txt (optional).
+  /// Calibration and poses in the IJRR text formats, used instead of the recording's own. Empty: the
+  /// recording's (an IJRR folder's files; a bag's camera info and pose topic), else, for a recording in
+  /// one file (HDF5, bag), calib.txt (required) and groundtruth.txt (optional) in its folder.
   std::filesystem::path calib, poses;
+  /// ROS bags: the topics to read (empty: the one topic of each role; "none": skip frames, camera info or
+  /// poses). See io/rosbag.hpp.
+  std::string events_topic, images_topic, camera_info_topic, poses_topic;
   /// Read an HDF5 file in a child process first, so that a crash of the HDF5 library on a corrupt file is
   /// an Error (io::read_hdf5_checked; costs a second read of the file).
   bool hdf5_check_in_child = true;
@@ -38,6 +45,9 @@ struct Dataset {
   std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
   std::vector<std::filesystem::path> linear; ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
   double linear_log_offset = 0;              ///< the sensor's dark end, log(I + offset), with `linear`
+  /// The recording's own clock at t = 0, in seconds: 0 for IJRR folders and HDF5 files (their times are
+  /// kept); a bag's times are relative to the whole second of its first message read (ROS time).
+  std::int64_t time_origin = 0;
   bool from_cache = false;
 };
 
@@ -95,7 +105,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
   d.folder = folder;
   if (fs::exists(folder / "images.txt")) d.frames = read_frames_txt(folder / "images.txt");
   const auto [w, h] = sensor_size(folder, d.frames, opt.width, opt.height);
-  d.camera = read_calib_txt(folder / "calib.txt", w, h);
+  d.camera = read_calib_txt(opt.calib.empty() ? folder / "calib.txt" : opt.calib, w, h);
   const fs::path ev_path = folder / "events.txt";
   if (!fs::exists(ev_path)) throw Error(ev_path.string(), 0, "missing events file");
   bool loaded = false;
@@ -126,7 +136,10 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     }
   }
   d.from_cache = loaded;
-  if (fs::exists(folder / "groundtruth.txt")) d.trajectory = read_poses_txt(folder / "groundtruth.txt");
+  if (!opt.poses.empty())
+    d.trajectory = read_poses_txt(opt.poses);
+  else if (fs::exists(folder / "groundtruth.txt"))
+    d.trajectory = read_poses_txt(folder / "groundtruth.txt");
   if (fs::is_directory(folder / "depth"))
     for (std::size_t i = 0; i < d.frames.size(); ++i) {
       char name[64];
@@ -234,18 +247,91 @@ inline void write_hdf5_recording(const std::filesystem::path& path, const Datase
 }
 #endif
 
-/// Loads a recording whatever its format: an IJRR-layout folder, or (where built with HDF5) an event HDF5
-/// file. The reader is picked from the content, not the name.
+#ifdef EVNERF_HAVE_ROSBAG
+/// Loads a ROS bag (io/rosbag.hpp). The sensor size is the one given, else the camera info's, else the
+/// event messages' own, else the first frame's, else the events' extent. Calibration: LoadOptions::calib,
+/// else the camera info, else calib.txt beside the bag. Poses: LoadOptions::poses, else the pose topic,
+/// else groundtruth.txt beside the bag (when present); a pose file's times are read in the bag's clock
+/// (ROS time, seconds) and moved to the recording's origin like the bag's own.
+inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  namespace fs = std::filesystem;
+  auto rec = read_rosbag(path, BagOptions{opt.events_topic, opt.images_topic, opt.camera_info_topic, opt.poses_topic});
+  const std::string file = path.string();
+  int w = opt.width, h = opt.height;
+  std::string from = "the size given";
+  if (w <= 0 || h <= 0) {
+    if (rec.has_camera_info && rec.info_width > 0 && rec.info_height > 0)
+      w = rec.info_width, h = rec.info_height, from = "the camera info on " + rec.camera_info_topic;
+    else if (rec.array_width > 0 && rec.array_height > 0)
+      w = rec.array_width, h = rec.array_height, from = "the event messages on " + rec.events_topic;
+    else if (!rec.frames.empty())
+      w = rec.frames[0].width, h = rec.frames[0].height, from = "the first frame on " + rec.images_topic;
+    else
+      w = static_cast<int>(rec.max_x + 1), h = static_cast<int>(rec.max_y + 1), from = "the events' extent";
+  }
+  check_sensor_size(w, h, file + " (" + from + ")");
+  if (rec.max_x >= w || rec.max_y >= h) {
+    for (std::size_t i = 0; i < rec.events.size(); ++i)
+      if (rec.events.x[i] >= w || rec.events.y[i] >= h)
+        throw Error(file, 0, "event " + std::to_string(i) + " of topic " + rec.events_topic + ": pixel (" + std::to_string(rec.events.x[i]) +
+                                 ", " + std::to_string(rec.events.y[i]) + ") lies outside the " + std::to_string(w) + "x" + std::to_string(h) +
+                                 " sensor (" + from + ")");
+  }
+  Dataset d;
+  d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  d.time_origin = rec.origin_sec;
+  if (!opt.calib.empty()) {
+    d.camera = read_calib_txt(opt.calib, w, h);
+  } else if (rec.has_camera_info) {
+    d.camera = geometry::Camera(w, h, rec.fx, rec.fy, rec.cx, rec.cy, rec.distortion);
+  } else {
+    const fs::path calib = d.folder / "calib.txt";
+    if (!fs::exists(calib))
+      throw Error(file, 0, "no camera info topic and no " + calib.string() + " beside the bag: give the calibration (fx fy cx cy [k1 k2 p1 p2 [k3]])");
+    d.camera = read_calib_txt(calib, w, h);
+  }
+  auto shifted = [&](const fs::path& poses) {
+    const auto tr = read_poses_txt(poses);
+    std::vector<double> t = tr.times();
+    for (double& v : t) v -= static_cast<double>(rec.origin_sec);
+    return geometry::Trajectory(std::move(t), tr.poses(), poses.string() + " (moved to the bag's origin, " + std::to_string(rec.origin_sec) + " s)");
+  };
+  if (!opt.poses.empty()) {
+    d.trajectory = shifted(opt.poses);
+  } else if (!rec.poses.empty()) {
+    d.trajectory = geometry::Trajectory(std::move(rec.pose_times), std::move(rec.poses), file + " (topic " + rec.poses_topic + ")");
+  } else if (fs::exists(d.folder / "groundtruth.txt")) {
+    d.trajectory = shifted(d.folder / "groundtruth.txt");
+  }
+  rec.events.width = w;
+  rec.events.height = h;
+  d.events = std::move(rec.events);
+  d.frames.t = std::move(rec.frame_times);
+  d.frames.images = std::move(rec.frames);
+  return d;
+}
+#endif
+
+/// Loads a recording whatever its format: an IJRR-layout folder, an event HDF5 file or a ROS bag (where
+/// built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
 inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
   if (fs::is_directory(path)) return load_ijrr(path, opt);
-  if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder or an event HDF5 file)");
+  if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder, an event HDF5 file or a ROS bag)");
 #ifdef EVNERF_HAVE_HDF5
   if (is_hdf5(path)) return load_hdf5(path, opt);
-  throw Error(path.string(), 0, "not a recording evnerf reads (an IJRR-layout folder or an event HDF5 file)");
-#else
-  throw Error(path.string(), 0, "not an IJRR-layout folder (this build of evnerf has no HDF5 support: install libhdf5-dev and rebuild)");
 #endif
+#ifdef EVNERF_HAVE_ROSBAG
+  if (is_rosbag(path)) return load_rosbag(path, opt);
+#endif
+  std::string missing;
+#ifndef EVNERF_HAVE_HDF5
+  missing += " This build reads no HDF5 (install libhdf5-dev and rebuild).";
+#endif
+#ifndef EVNERF_HAVE_ROSBAG
+  missing += " This build reads no ROS bags (install libbz2-dev and liblz4-dev and rebuild).";
+#endif
+  throw Error(path.string(), 0, "not a recording evnerf reads (an IJRR-layout folder, an event HDF5 file or a ROS bag 2.0)." + missing);
 }
 
 }  // namespace evnerf::io
