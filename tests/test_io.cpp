@@ -660,6 +660,7 @@ TEST_CASE("ROS bag: damaged and strange bags are refused with the file and the r
     return error_of([&] { io::load(dir / "b.bag"); });
   };
   CHECK_CONTAINS(err("#ROSBAG V1.2\nxxxx"), "b.bag:0: ROS bag version '1.2' is not read (only 2.0");
+  CHECK_CONTAINS(err("#ROSBAG V9999"), "b.bag:0: ROS bag version '9999' is not read");  // no newline (found by fuzz_rosbag)
   CHECK_CONTAINS(err("#ROSBAG V2.0\n"), "record header length at byte 13 runs past the end of the file");
   const std::string header = bag_record({{"op", "\x03"}, {"index_pos", bytes_of<std::uint64_t>(0)}, {"conn_count", bytes_of<std::uint32_t>(0)},
                                          {"chunk_count", bytes_of<std::uint32_t>(0)}},
@@ -754,6 +755,17 @@ TEST_CASE("ROS bag: message definitions (constants, arrays, nested and implicit 
   CHECK(s.root().fixed == -1);
   CHECK_CONTAINS(error_of([] { parse_msg_definition("a/B", "a/B self\n", "w"); }), "contains itself");
   CHECK_CONTAINS(error_of([] { parse_msg_definition("a/B", "uint8[x] v\n", "w"); }), "bad array length");
+
+  // An empty variable-length array (a CameraInfo's D without distortion; found by fuzz_rosbag).
+  const std::string msg_where = "msg";
+  const unsigned char zero_count[4] = {0, 0, 0, 0};
+  MsgField d_field;
+  d_field.name = "D";
+  d_field.prim = Prim::Float64;
+  d_field.array = -1;
+  MsgCursor cur{zero_count, zero_count + 4, &msg_where};
+  CHECK(msg_read_f64s(d_field, cur, -1, "sensor_msgs/CameraInfo").empty());
+  CHECK(cur.p == zero_count + 4);
 
   const std::string where = "img";
   const unsigned char rgb[] = {10, 20, 30, 40, 50, 60, 0, 0};  // 2x1 rgb8, step 8 (padding)

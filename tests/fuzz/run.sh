@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=$PWD
-scripts/deps.sh clang libomp-dev libstb-dev libhdf5-dev
+scripts/deps.sh clang libomp-dev libstb-dev libhdf5-dev libbz2-dev liblz4-dev
 SECONDS_EACH=${1:-60}
 shift || true
 BUILD=${BUILD:-build-fuzz}
@@ -24,7 +24,7 @@ HARNESSES=("$@")
 # fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
 # itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
 # fix; io::load isolates the library's crashes in a child process (README, Reliability).
-[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint)
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
@@ -38,7 +38,7 @@ for h in "${HARNESSES[@]}"; do
   mkdir -p "$dir/corpus" "$SEEDS/$h"
   dict=()
   case $h in
-    scene | colmap | npy | png) dict=(-dict="$ROOT/tests/fuzz/$h.dict") ;;
+    scene | colmap | npy | png | rosbag) dict=(-dict="$ROOT/tests/fuzz/$h.dict") ;;
   esac
   limit=(-max_total_time="$SECONDS_EACH")
   [ -n "${RUNS:-}" ] && limit+=(-runs="$RUNS")
@@ -57,6 +57,10 @@ for h in "${HARNESSES[@]}"; do
     memory=(-malloc_limit_mb=1000000)
     asan="$ASAN_OPTIONS:allocator_may_return_null=1:max_allocation_size_mb=2048:exitcode=99"
     max_len=32768  # the h5py fixtures are 6 and 20 kB
+  fi
+  if [ "$h" = rosbag ]; then
+    for b in "$ROOT"/tests/fixtures/*.bag; do cp "$b" "$SEEDS/$h/"; done  # bags written by python3-rosbag
+    max_len=40000  # the fixtures are 20 to 33 kB
   fi
   (cd "$dir" && ASAN_OPTIONS=$asan "$BUILD/fuzz_$h" corpus "$SEEDS/$h" "${regressions[@]}" "${dict[@]}" "${limit[@]}" \
       -timeout=10 -rss_limit_mb=2048 "${memory[@]}" -max_len=$max_len -print_final_stats=1 > log.txt 2>&1)

@@ -80,6 +80,9 @@ struct BagRecording {
 
 namespace detail {
 
+/// A name from the file (topic, type, field) as errors show it: at most 48 characters.
+inline std::string bag_shown(std::string_view s) { return s.size() <= 48 ? std::string(s) : std::string(s.substr(0, 45)) + "..."; }
+
 // ---- bytes ------------------------------------------------------------------------------------------
 
 inline std::uint32_t bag_u32(const unsigned char* p) {
@@ -434,13 +437,13 @@ inline MsgSchema parse_msg_definition(std::string_view root_type, std::string_vi
             const auto& n = s.types[j].name;
             const auto slash = n.find('/');
             if (slash != std::string::npos && n.substr(slash + 1) == f.type_name) {
-              if (k >= 0) throw Error(where + ": message definition: type '" + f.type_name + "' is ambiguous");
+              if (k >= 0) throw Error(where + ": message definition: type '" + bag_shown(f.type_name) + "' is ambiguous");
               k = static_cast<int>(j);
             }
           }
       }
       if (k < 0)
-        throw Error(where + ": message definition: field '" + f.name + "' of " + owner + " has type '" + f.type_name +
+        throw Error(where + ": message definition: field '" + bag_shown(f.name) + "' of " + bag_shown(owner) + " has type '" + bag_shown(f.type_name) +
                     "', whose definition is not included");
       f.type = k;
     }
@@ -453,13 +456,13 @@ inline MsgSchema parse_msg_definition(std::string_view root_type, std::string_vi
 inline std::int64_t msg_fixed_size(MsgSchema& s, int type, int depth) {
   auto& t = s.types[static_cast<std::size_t>(type)];
   if (t.fixed != -2) return t.fixed;
-  if (depth > 64) throw Error(s.where + ": message definition: type " + t.name + " contains itself");
+  if (depth > 64) throw Error(s.where + ": message definition: type " + bag_shown(t.name) + " contains itself");
   std::int64_t total = 0;
   for (const auto& f : t.fields) {
     std::int64_t one = f.prim == Prim::Struct ? msg_fixed_size(s, f.type, depth + 1) : prim_size(f.prim);
     if (one < 0 || f.array < 0) return t.fixed = -1;
     total += one * (f.array > 0 ? f.array : 1);
-    if (total > (std::int64_t{1} << 40)) throw Error(s.where + ": message definition: type " + t.name + " is absurdly large");
+    if (total > (std::int64_t{1} << 40)) throw Error(s.where + ": message definition: type " + bag_shown(t.name) + " is absurdly large");
   }
   return t.fixed = total;
 }
@@ -544,7 +547,7 @@ inline double msg_read_number(const MsgField& f, MsgCursor& c) {
       std::memcpy(&v, p, 8);
       return v;
     }
-    default: throw Error(*c.where + ": field '" + f.name + "' is not a number");
+    default: throw Error(*c.where + ": field '" + bag_shown(f.name) + "' is not a number");
   }
 }
 
@@ -581,11 +584,11 @@ inline RosTime msg_read_time(const MsgField& f, MsgCursor& c) {
 /// Reads an array of float64 (fixed length `n`, or any length when n < 0) at a field.
 inline std::vector<double> msg_read_f64s(const MsgField& f, MsgCursor& c, std::int64_t n, const std::string& type) {
   if (f.prim != Prim::Float64 || f.array == 0 || (n >= 0 && f.array != n))
-    throw Error(*c.where + ": field '" + f.name + "' of " + type + " is not float64[" + (n >= 0 ? std::to_string(n) : "") + "]");
+    throw Error(*c.where + ": field '" + bag_shown(f.name) + "' of " + type + " is not float64[" + (n >= 0 ? std::to_string(n) : "") + "]");
   const std::uint64_t count = f.array > 0 ? static_cast<std::uint64_t>(f.array) : c.u32();
   c.need(8 * count);
   std::vector<double> v(count);
-  std::memcpy(v.data(), c.p, 8 * count);
+  if (count) std::memcpy(v.data(), c.p, 8 * count);  // (an empty vector's data() may be null)
   c.p += 8 * count;
   return v;
 }
@@ -611,7 +614,7 @@ inline bool event_layout(const MsgSchema& s, EventLayout& L, std::string& why) {
   if (!ev) return why = "it has no field 'events'", false;
   if (ev->prim != Prim::Struct || ev->array != -1) return why = "its field 'events' is not a variable-length array of structs", false;
   const auto& t = s.types[static_cast<std::size_t>(ev->type)];
-  if (t.fixed <= 0) return why = "its events (" + t.name + ") have no fixed size", false;
+  if (t.fixed <= 0) return why = "its events (" + bag_shown(t.name) + ") have no fixed size", false;
   L.stride = t.fixed;
   bool got[4] = {false, false, false, false};
   std::int64_t off = 0;
@@ -627,7 +630,7 @@ inline bool event_layout(const MsgSchema& s, EventLayout& L, std::string& why) {
     off += size;
   }
   if (!(got[0] && got[1] && got[2] && got[3]))
-    return why = "its events (" + t.name + ") lack integer 'x', 'y', 'polarity' or a 'time ts'", false;
+    return why = "its events (" + bag_shown(t.name) + ") lack integer 'x', 'y', 'polarity' or a 'time ts'", false;
   return true;
 }
 
@@ -678,9 +681,10 @@ inline BagIndex read_bag_index(BagFile& f) {
   if (f.size() < kBagMagic.size()) throw Error(f.name(), 0, "not a ROS bag (shorter than the '#ROSBAG V2.0' line)");
   f.read(0, magic, 13, "bag magic");
   if (std::string_view(magic, 13) != kBagMagic) {
-    if (std::string_view(magic, 9) == "#ROSBAG V")
-      throw Error(f.name(), 0, "ROS bag version '" + std::string(magic + 9, std::strcspn(magic + 9, "\n") < 4 ? std::strcspn(magic + 9, "\n") : 4) +
-                                   "' is not read (only 2.0; 'rosbag fix' converts older bags)");
+    if (std::string_view(magic, 9) == "#ROSBAG V") {
+      const std::string_view v(magic + 9, 4);
+      throw Error(f.name(), 0, "ROS bag version '" + bag_shown(v.substr(0, v.find('\n'))) + "' is not read (only 2.0; 'rosbag fix' converts older bags)");
+    }
     throw Error(f.name(), 0, "not a ROS bag (no '#ROSBAG V2.0' line at its start)");
   }
   std::string hb;
@@ -836,7 +840,7 @@ inline std::vector<BagTopic> rosbag_topics(const std::filesystem::path& path) {
   for (const auto& [id, c] : idx.conns) {
     auto& t = topics[c.topic];
     if (!t.type.empty() && t.type != c.type)
-      throw Error(f.name(), 0, "topic " + c.topic + " carries two types (" + t.type + ", " + c.type + ")");
+      throw Error(f.name(), 0, "topic " + detail::bag_shown(c.topic) + " carries two types (" + detail::bag_shown(t.type) + ", " + detail::bag_shown(c.type) + ")");
     t.topic = c.topic;
     t.type = c.type;
     t.messages += counts[id];
@@ -866,7 +870,7 @@ inline void msg_read_xyzw(const MsgSchema& s, const MsgField& f, MsgCursor& c, d
     got[k] = true;
     return true;
   });
-  if (!(got[0] && got[1] && got[2] && got[3])) throw Error(*c.where + ": field '" + f.name + "' lacks x, y, z" + (quat ? ", w" : ""));
+  if (!(got[0] && got[1] && got[2] && got[3])) throw Error(*c.where + ": field '" + bag_shown(f.name) + "' lacks x, y, z" + (quat ? ", w" : ""));
 }
 
 inline RosTime msg_read_header_stamp(const MsgSchema& s, const MsgField& f, MsgCursor& c, bool& got) {
@@ -950,8 +954,8 @@ inline Image bag_image(std::uint64_t w, std::uint64_t h, const std::string& enc,
 
 inline std::string join_topics(const std::vector<std::string>& v) {
   std::string s;
-  for (std::size_t i = 0; i < v.size() && i < 20; ++i) s += (i ? ", " : "") + v[i];
-  if (v.size() > 20) s += ", ... (" + std::to_string(v.size()) + " in all)";
+  for (std::size_t i = 0; i < v.size() && i < 5; ++i) s += (i ? ", " : "") + v[i];
+  if (v.size() > 5) s += ", ... (" + std::to_string(v.size()) + " in all)";
   return s;
 }
 
@@ -971,11 +975,11 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
   for (const auto& [id, c] : idx.conns) {
     auto& v = topic_conns[c.topic];
     if (!v.empty() && idx.conns.at(v.front()).type != c.type)
-      throw Error(f.name(), 0, "topic " + c.topic + " carries two types (" + idx.conns.at(v.front()).type + ", " + c.type + ")");
+      throw Error(f.name(), 0, "topic " + bag_shown(c.topic) + " carries two types (" + bag_shown(idx.conns.at(v.front()).type) + ", " + bag_shown(c.type) + ")");
     v.push_back(id);
   }
   std::vector<std::string> listing;
-  for (const auto& [topic, ids] : topic_conns) listing.push_back(topic + " (" + idx.conns.at(ids.front()).type + ")");
+  for (const auto& [topic, ids] : topic_conns) listing.push_back(bag_shown(topic) + " (" + bag_shown(idx.conns.at(ids.front()).type) + ")");
 
   std::map<std::uint32_t, MsgSchema> schemas;
   std::map<std::uint32_t, std::string> schema_errors;
@@ -984,7 +988,7 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
     if (schema_errors.count(id)) return nullptr;
     const auto& c = idx.conns.at(id);
     try {
-      return &schemas.emplace(id, parse_msg_definition(c.type, c.definition, f.name() + ": topic " + c.topic + " (" + c.type + ")")).first->second;
+      return &schemas.emplace(id, parse_msg_definition(c.type, c.definition, f.name() + ": topic " + bag_shown(c.topic) + " (" + bag_shown(c.type) + ")")).first->second;
     } catch (const Error& e) {
       schema_errors[id] = e.what();
       return nullptr;
@@ -1015,20 +1019,20 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
     std::string why;
     if (!requested.empty()) {
       if (!topic_conns.count(requested))
-        throw Error(f.name(), 0, "no topic '" + requested.substr(0, 200) + "' (" + flag + "); the bag's topics: " + join_topics(listing));
-      if (!fits(requested, why)) throw Error(f.name(), 0, "topic " + requested + " (" + type_of(requested) + ") cannot be the " + role + ": " + why);
+        throw Error(f.name(), 0, "no topic '" + bag_shown(requested) + "' (" + flag + "); the bag's topics: " + join_topics(listing));
+      if (!fits(requested, why)) throw Error(f.name(), 0, "topic " + bag_shown(requested) + " (" + bag_shown(type_of(requested)) + ") cannot be the " + role + ": " + why);
       return requested;
     }
-    std::vector<std::string> c;
+    std::vector<std::string> c, shown;
     for (const auto& [topic, ids] : topic_conns)
-      if (fits(topic, why)) c.push_back(topic);
+      if (fits(topic, why)) c.push_back(topic), shown.push_back(bag_shown(topic));
     if (c.size() > 1)
-      throw Error(f.name(), 0, "several topics could be the " + role + " (" + join_topics(c) + "): choose one with " + flag +
+      throw Error(f.name(), 0, "several topics could be the " + role + " (" + join_topics(shown) + "): choose one with " + flag +
                                    (required ? "" : " (or 'none')"));
     if (c.empty()) {
       if (required) {
         std::string unread;  // definitions that could not be parsed may hide the topic looked for
-        for (const auto& [id, e] : schema_errors) unread += "; " + e;
+        if (!schema_errors.empty()) unread = "; " + schema_errors.begin()->second;
         throw Error(f.name(), 0, "no " + role + " topic (an array of events with x, y, ts, polarity); the bag's topics: " + join_topics(listing) + unread);
       }
       return std::string();
@@ -1076,7 +1080,7 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
       [&](std::uint32_t conn, RosTime record_time, std::string_view body, const std::string& at) {
         const Role r = role.at(conn);
         const MsgSchema& s = *schema(conn);
-        const std::string where = at + " (topic " + idx.conns.at(conn).topic + ", message " + std::to_string(counts[r]) + ")";
+        const std::string where = at + " (topic " + bag_shown(idx.conns.at(conn).topic) + ", message " + std::to_string(counts[r]) + ")";
         ++counts[r];
         MsgCursor c{reinterpret_cast<const unsigned char*>(body.data()), reinterpret_cast<const unsigned char*>(body.data()) + body.size(), &where};
         if (r == kEvents) {
@@ -1086,7 +1090,7 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
           msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
             if ((fl.name == "width" || fl.name == "height") && is_number_field(fl)) {
               const double v = msg_read_number(fl, cc);
-              if (v < 0 || v > 65535) throw Error(where + ": field '" + fl.name + "' is " + short_number(v) + " (expected 0 to 65535)");
+              if (v < 0 || v > 65535) throw Error(where + ": field '" + bag_shown(fl.name) + "' is " + short_number(v) + " (expected 0 to 65535)");
               (fl.name == "width" ? rec.array_width : rec.array_height) = static_cast<int>(v);
               return true;
             }
@@ -1212,7 +1216,7 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
         }
       });
 
-  if (ev.empty()) throw Error(f.name(), 0, "topic " + rec.events_topic + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
+  if (ev.empty()) throw Error(f.name(), 0, "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
   if (unsorted) {  // messages out of time order (two connections, or a recorder that reordered them)
     std::vector<std::size_t> order(ev.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
