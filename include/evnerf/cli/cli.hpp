@@ -261,11 +261,16 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
 
   // convert
   fs::path convert_out;
-  auto* convert = app.add_subcommand("convert", "write a recording in another format: an IJRR-layout folder, or HDF5 (event_utils/HQF layout) "
-                                                "when the output ends in .h5 or .hdf5");
+  auto* convert = app.add_subcommand("convert", "write a recording in another format: an IJRR-layout folder, HDF5 (event_utils/HQF layout) "
+                                                "when the output ends in .h5 or .hdf5, a ROS bag when it ends in .bag");
   add_recording(convert, "recording to read (any format evnerf reads)");
-  convert->add_option("output", convert_out, "output folder (IJRR layout) or file.h5 (calib.txt, groundtruth.txt written beside it)")
+  convert->add_option("output", convert_out,
+                      "output folder (IJRR layout), file.h5 (calib.txt, groundtruth.txt written beside it) or file.bag (ROS bag, DAVIS topics)")
       ->required();
+  std::string bag_compression = "lz4";
+  convert->add_option("--compression", bag_compression, "ROS bag output: chunk compression")
+      ->check(CLI::IsMember({"none", "bz2", "lz4"}))
+      ->capture_default_str();
 
   // simulate
   std::string scene;
@@ -400,6 +405,12 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         io::write_hdf5_recording(convert_out, d);
 #else
         throw Error(convert_out.string(), 0, "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)");
+#endif
+      } else if (ext == ".bag") {
+#ifdef EVNERF_HAVE_ROSBAG
+        io::write_rosbag_recording(convert_out, d, bag_compression);
+#else
+        throw Error(convert_out.string(), 0, "this build of evnerf has no ROS bag support (install libbz2-dev and liblz4-dev and rebuild)");
 #endif
       } else {
         io::write_ijrr(convert_out, d);

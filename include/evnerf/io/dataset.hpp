@@ -312,6 +312,19 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
 }
 #endif
 
+#ifdef EVNERF_HAVE_ROSBAG
+/// Writes a recording as a ROS bag (io::write_rosbag: DAVIS topics, `compression` chunks), stamped at the
+/// recording's time origin, so that io::load reads it back.
+inline void write_rosbag_recording(const std::filesystem::path& path, const Dataset& d, const std::string& compression = "lz4") {
+  std::vector<Image> frames;
+  for (std::size_t f = 0; f < d.frames.size(); ++f) frames.push_back(frame_image(d.frames, f));
+  BagWriteOptions o;
+  o.compression = compression;
+  o.origin_sec = d.time_origin;
+  write_rosbag(path, d.events, d.camera, d.trajectory, d.frames.t, frames, o);
+}
+#endif
+
 /// Loads a recording whatever its format: an IJRR-layout folder, an event HDF5 file or a ROS bag (where
 /// built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
 inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
