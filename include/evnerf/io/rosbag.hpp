@@ -214,10 +214,34 @@ inline std::pair<std::uint64_t, std::uint32_t> read_bag_record(BagFile& f, std::
   return {data_off, dl};
 }
 
+/// An LZ4 frame decompression context, kept from chunk to chunk (creating one per chunk costs allocations
+/// of its block buffers).
+class Lz4Context {
+ public:
+  Lz4Context() = default;
+  ~Lz4Context() {
+    if (ctx_) LZ4F_freeDecompressionContext(ctx_);
+  }
+  Lz4Context(const Lz4Context&) = delete;
+  Lz4Context& operator=(const Lz4Context&) = delete;
+  /// A context ready for a new frame.
+  LZ4F_dctx* fresh(const std::string& where) {
+    if (!ctx_) {
+      if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx_, LZ4F_VERSION))) throw Error(where + ": cannot start lz4 decompression");
+    } else {
+      LZ4F_resetDecompressionContext(ctx_);
+    }
+    return ctx_;
+  }
+
+ private:
+  LZ4F_dctx* ctx_ = nullptr;
+};
+
 /// A chunk's records, decompressed. The output grows only as decompressed bytes arrive (a header that
 /// claims gigabytes for a few compressed bytes allocates nothing for them).
 inline std::string_view decompress_bag_chunk(std::string_view compression, std::string_view src, std::uint64_t size,
-                                             std::vector<char>& out, const std::string& where) {
+                                             std::vector<char>& out, const std::string& where, Lz4Context& lz4) {
   if (size > kBagMaxChunk)
     throw Error(where + ": chunk claims " + std::to_string(size) + " uncompressed bytes (limit " + std::to_string(kBagMaxChunk) + ")");
   if (compression == "none") {
@@ -261,12 +285,10 @@ inline std::string_view decompress_bag_chunk(std::string_view compression, std::
       if (s.avail_in == 0 && s.avail_out != 0) throw Error(where + ": bz2 chunk ends before its stream does (truncated?)");
     }
   } else if (compression == "lz4") {
-    LZ4F_dctx* ctx = nullptr;
-    if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) throw Error(where + ": cannot start lz4 decompression");
-    struct End {
-      LZ4F_dctx* c;
-      ~End() { LZ4F_freeDecompressionContext(c); }
-    } end{ctx};
+    // LZ4 expands at most 255-fold: a buffer of the claimed size within that bound is allocated at once,
+    // so that whole blocks decompress straight into it.
+    out.resize(static_cast<std::size_t>(std::min<std::uint64_t>(size, 255 * std::uint64_t{src.size()} + 65536)));
+    LZ4F_dctx* ctx = lz4.fresh(where);
     std::size_t consumed = 0;
     bool finished = false;
     while (!finished) {
@@ -748,6 +770,7 @@ template <class Want, class Fn>
 void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn) {
   std::string hb, data;
   std::vector<char> raw;
+  Lz4Context lz4;
   BagHeader h;
   auto chunk = [&](std::uint64_t pos, const BagHeader& ch, std::uint64_t doff, std::uint32_t len) {
     const std::string at = f.name() + ": chunk at byte " + std::to_string(pos);
@@ -755,7 +778,7 @@ void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn) {
     const std::uint64_t size = bag_field_u32(ch, "size", at);
     data.resize(len);
     f.read(doff, data.data(), len, "chunk");
-    const std::string_view records = decompress_bag_chunk(compression, data, size, raw, at);
+    const std::string_view records = decompress_bag_chunk(compression, data, size, raw, at, lz4);
     std::size_t p = 0;
     BagHeader rh;
     std::string_view body;
@@ -1101,10 +1124,11 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
             const std::uint64_t n = cc.u32();
             cc.need(n * static_cast<std::uint64_t>(L.stride));
             const std::size_t base = ev.size();
-            if (base + n > ev.t.capacity()) {
-              std::size_t want = std::max<std::size_t>(base + n, 2 * ev.t.capacity());
-              if (base == 0 && event_messages > 1)  // the index's message count times this message's events
-                want = std::max<std::size_t>(want, std::min<std::uint64_t>(n * event_messages + n, f.size() / static_cast<std::uint64_t>(L.stride) + 1));
+            if (base + n > ev.t.capacity()) {  // grown rarely: every reallocation copies the stream
+              std::size_t want = std::max<std::size_t>(base + n, ev.t.capacity() + ev.t.capacity() / 2);
+              if (base == 0 && event_messages > 1)  // the index's message count times this message's events, and a margin
+                want = std::max<std::size_t>(want, std::min<std::uint64_t>(n * event_messages + n * event_messages / 4,
+                                                                           f.size() / static_cast<std::uint64_t>(L.stride) + 1));
               ev.reserve(want);
             }
             ev.t.resize(base + n);
@@ -1229,10 +1253,12 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
     for (auto i : order) sorted.push_back(ev.t[i], ev.x[i], ev.y[i], ev.polarity[i]);
     ev = std::move(sorted);
   }
-  ev.t.shrink_to_fit();
-  ev.x.shrink_to_fit();
-  ev.y.shrink_to_fit();
-  ev.polarity.shrink_to_fit();
+  if (ev.t.capacity() > ev.size() + ev.size() / 2) {  // only a wasteful estimate is worth a copy
+    ev.t.shrink_to_fit();
+    ev.x.shrink_to_fit();
+    ev.y.shrink_to_fit();
+    ev.polarity.shrink_to_fit();
+  }
   // Frames and poses in time order (stable: by time, then as read). Sorted through an index: a stable
   // sort's temporary buffer would not respect the alignment of Eigen's types.
   auto by_time = [](const auto& v) {
@@ -1415,7 +1441,7 @@ class BagWriter {
       packed.resize(n);
     } else {
       LZ4F_preferences_t prefs{};
-      prefs.frameInfo.blockSizeID = LZ4F_max4MB;
+      prefs.frameInfo.blockSizeID = LZ4F_max1MB;  // as roslz4 writes: 1 MB independent blocks, a content checksum
       prefs.frameInfo.blockMode = LZ4F_blockIndependent;
       prefs.frameInfo.contentChecksumFlag = LZ4F_contentChecksumEnabled;
       packed.resize(LZ4F_compressFrameBound(chunk_.size(), &prefs));
