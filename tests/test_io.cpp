@@ -798,3 +798,94 @@ TEST_CASE("ROS bag: message definitions (constants, arrays, nested and implicit 
   CHECK(!geometry::BayerPattern::parse("rggbx", q));
 }
 #endif
+
+// ---- EventNeRF's layout: fixtures written by numpy and PIL (tests/fixtures/make_eventnerf.py) ----
+TEST_CASE("EventNeRF layout: events from .npz (deflated or stored), poses spread over the events' time, frames, intrinsics") {
+  const fs::path fx = EVNERF_FIXTURES;
+  CHECK(io::is_eventnerf(fx / "eventnerf"));
+  CHECK(!io::is_eventnerf(fx));
+  const auto d = io::load(fx / "eventnerf");
+  CHECK(d.camera.width() == 8);  // the frames' size
+  CHECK(d.camera.height() == 6);
+  CHECK(d.camera.fx() == 20);
+  CHECK(d.camera.fy() == 21);
+  CHECK(d.camera.cx() == 3.5);
+  CHECK(d.camera.cy() == 2.5);
+  CHECK(!d.camera.distorted());
+  REQUIRE(d.events.size() == 40);
+  for (std::size_t k = 0; k < 40; ++k) {
+    CHECK(d.events.x[k] == k % 8);
+    CHECK(d.events.y[k] == k % 6);
+    CHECK(d.events.polarity[k] == (k % 2 == 0 ? 1 : -1));
+    CHECK(d.events.t[k] == 1e-4 * double(k));
+  }
+  REQUIRE(d.trajectory.size() == 5);  // view i at i / 4 · max(t)
+  CHECK(d.trajectory.times()[2] == doctest::Approx(0.5 * 0.0039));
+  CHECK(d.trajectory.times()[4] == d.events.t.back());
+  const auto& p2 = d.trajectory.poses()[2];
+  CHECK(p2.t.x() == doctest::Approx(0.2));
+  CHECK(p2.t.z() == doctest::Approx(1.02));
+  CHECK(std::abs(p2.q.y()) == doctest::Approx(std::sin(0.05)));
+  CHECK(std::abs(p2.q.w()) == doctest::Approx(std::cos(0.05)));
+  REQUIRE(d.frames.size() == 5);
+  CHECK(d.frames.t == d.trajectory.times());
+  CHECK(io::frame_image(d.frames, 1).data[5] == doctest::Approx(10 / 255.0));
+
+  // Stored members, bool polarities, no frames (the sensor is EventNeRF's 346x260), and a division-model
+  // distortion turned into radial coefficients that move every pixel where EventNeRF's model does.
+  const auto e = io::load(fx / "eventnerf_dist");
+  CHECK(e.camera.width() == 346);
+  CHECK(e.events.polarity == d.events.polarity);
+  CHECK(e.events.t == d.events.t);
+  CHECK(e.frames.size() == 0);
+  REQUIRE(e.camera.distorted());
+  double worst = 0;
+  for (double u : {0.0, 100.0, 345.0})
+    for (double v : {0.0, 130.0, 259.0}) {
+      const double xd = (u - 173) / 250, yd = (v - 130) / 250, r2 = xd * xd + yd * yd, D = 1 - 0.1 * r2 + 0.02 * r2 * r2;
+      const Vec2 back = e.camera.project_normalized({xd / D, yd / D});
+      worst = std::max({worst, std::abs(back.x() - u), std::abs(back.y() - v)});
+    }
+  CHECK(worst < 0.05);
+}
+
+TEST_CASE("EventNeRF layout and .npz: bad archives and folders are refused with the file and what is wrong") {
+  const fs::path fx = EVNERF_FIXTURES;
+  const auto dir = temp_dir("enf");
+  fs::copy(fx / "eventnerf", dir / "s", fs::copy_options::recursive);
+  const auto npz = dir / "s" / "train" / "events" / "events.npz";
+  const std::string good = read_file(npz);
+  auto err = [&] { return error_of([&] { io::load(dir / "s"); }); };
+  // Every truncation and many single-byte changes of the archive: an evnerf::Error, never a crash.
+  int refused = 0;
+  for (std::size_t n = 0; n < good.size(); n += 7) {
+    write(npz, good.substr(0, n));
+    refused += err().find("events.npz:0: ") != std::string::npos;
+  }
+  CHECK(refused == static_cast<int>((good.size() + 6) / 7));
+  for (std::size_t i = 0; i < good.size(); i += 3) {
+    std::string f = good;
+    f[i] = static_cast<char>(f[i] ^ 0x20);
+    write(npz, f);
+    const std::string e = err();
+    CHECK((e == "no error" || e.find("events.npz") != std::string::npos));
+  }
+  // A flipped byte inside a deflated member is caught by deflate or by the CRC.
+  std::string f = good;
+  const std::size_t data = f.find("x.npy") + 5 + 20;
+  f[data] = static_cast<char>(f[data] ^ 0x01);
+  write(npz, f);
+  CHECK_CONTAINS(err(), "events.npz:0: cannot read .npz: member 'x.npy'");
+  write(npz, good);
+  fs::copy_file(npz, npz.parent_path() / "more.npz");
+  CHECK_CONTAINS(err(), "expected one .npz archive of events, found 2");
+  fs::remove(npz.parent_path() / "more.npz");
+  write(dir / "s" / "train" / "pose" / "r_00003.txt", "1 0 0 0\n0 2 0 0\n0 0 1 0\n0 0 0 1\n");
+  CHECK_CONTAINS(err(), "r_00003.txt:0: the upper-left 3x3 is not a rotation");
+  fs::copy_file(fx / "eventnerf" / "train" / "pose" / "r_00003.txt", dir / "s" / "train" / "pose" / "r_00003.txt", fs::copy_options::overwrite_existing);
+  write(dir / "s" / "train" / "intrinsics" / "r_00002.txt", "21 0 3.5 0\n0 21 2.5 0\n0 0 1 0\n0 0 0 1\n");
+  CHECK_CONTAINS(err(), "r_00002.txt:0: differs from r_00000.txt (one camera is read)");
+  fs::remove(dir / "s" / "train" / "rgb" / "r_00004.png");
+  CHECK_CONTAINS(err(), "rgb:0: 4 frames for 5 poses");
+  fs::remove_all(dir);
+}

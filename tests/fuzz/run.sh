@@ -24,7 +24,7 @@ HARNESSES=("$@")
 # fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
 # itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
 # fix; io::load isolates the library's crashes in a child process (README, Reliability).
-[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag)
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
@@ -57,6 +57,9 @@ for h in "${HARNESSES[@]}"; do
     memory=(-malloc_limit_mb=1000000)
     asan="$ASAN_OPTIONS:allocator_may_return_null=1:max_allocation_size_mb=2048:exitcode=99"
     max_len=32768  # the h5py fixtures are 6 and 20 kB
+  fi
+  if [ "$h" = npz ]; then
+    for z in "$ROOT"/tests/fixtures/eventnerf*/train/events/*.npz; do cp "$z" "$SEEDS/$h/$(basename "$(dirname "$(dirname "$(dirname "$z")")")").npz"; done  # numpy's
   fi
   if [ "$h" = rosbag ]; then
     for b in "$ROOT"/tests/fixtures/*.bag; do cp "$b" "$SEEDS/$h/"; done  # bags written by python3-rosbag

@@ -253,7 +253,8 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                     "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
   };
   const std::string rec_help =
-      "recording: an IJRR-layout folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a file when it lacks them)";
+      "recording: an IJRR-layout folder, an EventNeRF scene folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a "
+      "file when it lacks them)";
 
   // inspect
   auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");

@@ -8,6 +8,7 @@
 
 #include <stb_image.h>
 
+#include "eventnerf.hpp"
 #include "ijrr.hpp"
 #include "image_io.hpp"
 #include "npy.hpp"
@@ -325,11 +326,25 @@ inline void write_rosbag_recording(const std::filesystem::path& path, const Data
 }
 #endif
 
-/// Loads a recording whatever its format: an IJRR-layout folder, an event HDF5 file or a ROS bag (where
-/// built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
+/// Loads an EventNeRF scene (io/eventnerf.hpp: its train split, views spread evenly over the events' time),
+/// with the calibration and poses LoadOptions names instead of the scene's own where given.
+inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
+  auto s = read_eventnerf(folder, opt.width, opt.height);
+  Dataset d;
+  d.folder = folder;
+  d.camera = opt.calib.empty() ? s.camera : read_calib_txt(opt.calib, s.camera.width(), s.camera.height());
+  d.events = std::move(s.events);
+  d.trajectory = opt.poses.empty() ? std::move(s.trajectory) : read_poses_txt(opt.poses);
+  d.frames.t = std::move(s.frame_times);
+  d.frames.paths = std::move(s.frames);
+  return d;
+}
+
+/// Loads a recording whatever its format: an IJRR-layout folder, an EventNeRF scene folder, an event HDF5
+/// file or a ROS bag (where built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
 inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
-  if (fs::is_directory(path)) return load_ijrr(path, opt);
+  if (fs::is_directory(path)) return !fs::exists(path / "events.txt") && is_eventnerf(path) ? load_eventnerf(path, opt) : load_ijrr(path, opt);
   if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder, an event HDF5 file or a ROS bag)");
 #ifdef EVNERF_HAVE_HDF5
   if (is_hdf5(path)) return load_hdf5(path, opt);

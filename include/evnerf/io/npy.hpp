@@ -89,8 +89,17 @@ struct NpyLayout {
 /// Parses a .npy's preamble and header dictionary; `head` starts at the file's first byte and holds at
 /// least the whole header (it may hold more). Checks the element type against T and the size of the
 /// payload against overflow; errors name `file`.
+/// The preamble and header dictionary without the element type's check: `descr` receives the type text
+/// (e.g. "<f8") and `item` its size in bytes.
+inline NpyLayout npy_layout_untyped(std::string_view head, const std::string& file, std::string& descr_out, std::size_t item,
+                                    std::string_view want);
 template <class T>
 NpyLayout npy_layout(std::string_view head, const std::string& file) {
+  std::string descr;
+  return npy_layout_untyped(head, file, descr, sizeof(T), npy_type<T>());
+}
+inline NpyLayout npy_layout_untyped(std::string_view head, const std::string& file, std::string& descr_out, std::size_t item,
+                                    std::string_view want) {
   auto fail = [&](const std::string& what) -> void { throw Error(file, 0, "cannot read .npy: " + what); };
   if (head.size() < 10 || head.substr(0, 6) != "\x93NUMPY") fail("not a .npy file (bad magic)");
   const int major = static_cast<unsigned char>(head[6]);
@@ -112,9 +121,17 @@ NpyLayout npy_layout(std::string_view head, const std::string& file) {
   descr = descr.substr(1, descr.size() - 2);
   const char order = descr[0];
   const std::string_view type = descr.substr(1);
-  if (type != npy_type<T>() || (order == '>' && sizeof(T) > 1) || (order != '<' && order != '|' && order != '=' && order != '>'))
-    fail("element type is '" + std::string(descr.substr(0, 16)) + "', expected '" + (sizeof(T) == 1 ? "|" : "<") +
-         std::string(npy_type<T>()) + "'");
+  descr_out = std::string(descr.substr(0, 16));
+  if (want.empty()) {  // any type the caller converts: its size decides the payload's
+    const int bytes = type.size() == 2 && type[1] >= '1' && type[1] <= '8' ? type[1] - '0' : 0;
+    if ((type[0] != 'b' && type[0] != 'i' && type[0] != 'u' && type[0] != 'f') || (bytes != 1 && bytes != 2 && bytes != 4 && bytes != 8) ||
+        (type[0] == 'f' && bytes < 4) || (type[0] == 'b' && bytes != 1) || (order == '>' && bytes > 1) ||
+        (order != '<' && order != '|' && order != '=' && order != '>'))
+      fail("element type is '" + descr_out + "', not a little-endian number (b1, i1-i8, u1-u8, f4, f8)");
+    item = static_cast<std::size_t>(bytes);
+  } else if (type != want || (order == '>' && item > 1) || (order != '<' && order != '|' && order != '=' && order != '>')) {
+    fail("element type is '" + descr_out + "', expected '" + (item == 1 ? "|" : "<") + std::string(want) + "'");
+  }
   const std::string_view shape = npy_field(header, "shape");
   if (shape.size() < 2 || shape.front() != '(' || shape.back() != ')') fail("header has no shape");
   auto shown = [&] { return std::string(shape.substr(0, 64)) + (shape.size() > 64 ? "…" : ""); };
@@ -126,7 +143,7 @@ NpyLayout npy_layout(std::string_view head, const std::string& file) {
     auto [q, ec] = std::from_chars(shape.data() + i, shape.data() + shape.size() - 1, d);
     if (ec != std::errc()) fail("shape '" + shown() + "' is not a tuple of sizes");
     if (out.shape.size() == 32) fail("shape '" + shown() + "' has more than 32 dimensions");
-    if (d != 0 && n > (std::numeric_limits<std::size_t>::max() / sizeof(T)) / d)
+    if (d != 0 && n > (std::numeric_limits<std::size_t>::max() / item) / d)
       fail("shape '" + shown() + "' is too large to address");
     out.shape.push_back(d);
     n *= d;
@@ -155,6 +172,32 @@ NpyArray<T> parse_npy(std::string_view bytes, const std::string& file) {
   out.shape = std::move(layout.shape);
   out.data.resize(layout.count);
   if (layout.count) std::memcpy(out.data.data(), bytes.data() + layout.offset, layout.count * sizeof(T));
+  return out;
+}
+
+/// Parses a whole .npy held in memory whatever its numeric element type (bool, integers, float32/64,
+/// little-endian), converted to double (integers above 2^53 lose their low bits). Errors name `file`.
+inline NpyArray<double> parse_npy_numeric(std::string_view bytes, const std::string& file) {
+  std::string descr;
+  auto layout = detail::npy_layout_untyped(bytes, file, descr, 0, {});
+  const char kind = descr[1];
+  const std::size_t item = static_cast<std::size_t>(descr[2] - '0');
+  if (bytes.size() - layout.offset != layout.count * item)
+    throw Error(file, 0, detail::npy_size_error(bytes.size(), layout.offset + layout.count * item));
+  NpyArray<double> out;
+  out.shape = std::move(layout.shape);
+  out.data.resize(layout.count);
+  const char* p = bytes.data() + layout.offset;
+  auto convert = [&]<class T>(T) {
+    for (std::size_t i = 0; i < layout.count; ++i) {
+      T v;
+      std::memcpy(&v, p + i * sizeof(T), sizeof(T));
+      out.data[i] = static_cast<double>(v);
+    }
+  };
+  if (kind == 'f') item == 4 ? convert(float{}) : convert(double{});
+  else if (kind == 'b' || kind == 'u') item == 1 ? convert(std::uint8_t{}) : item == 2 ? convert(std::uint16_t{}) : item == 4 ? convert(std::uint32_t{}) : convert(std::uint64_t{});
+  else item == 1 ? convert(std::int8_t{}) : item == 2 ? convert(std::int16_t{}) : item == 4 ? convert(std::int32_t{}) : convert(std::int64_t{});
   return out;
 }
 

@@ -1,0 +1,33 @@
+// .npz archives (io::read_npz: zip members stored or deflated by stb's inflater, zip64, CRC-32) and the
+// numeric .npy members in them (io::parse_npy_numeric), as EventNeRF scenes are read. The input is written
+// to a file in /dev/shm (the reader opens paths).
+#include <unistd.h>
+
+#include <cstdio>
+#include <string>
+
+#include <evnerf/io/eventnerf.hpp>
+
+#include "fuzz.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  static const std::string path = "/dev/shm/evnerf_fuzz_npz_" + std::to_string(::getpid()) + ".npz";
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) return 0;
+  std::fwrite(data, 1, size, f);
+  std::fclose(f);
+  evfuzz::run([&] {
+    const auto members = evnerf::io::read_npz(path);
+    for (const auto& member : members) {
+      const std::string& name = member.first;
+      const std::string& bytes = member.second;
+      evfuzz::run([&] {
+        const auto a = evnerf::io::parse_npy_numeric(bytes, path + " (" + name + ")");
+        std::size_t n = 1;
+        for (auto d : a.shape) n *= d;
+        evfuzz::expect(n == a.data.size(), "an array whose size differs from its shape");
+      });
+    }
+  });
+  return 0;
+}
