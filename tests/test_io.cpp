@@ -889,3 +889,46 @@ TEST_CASE("EventNeRF layout and .npz: bad archives and folders are refused with 
   CHECK_CONTAINS(err(), "rgb:0: 4 frames for 5 poses");
   fs::remove_all(dir);
 }
+
+// ---- Robust e-NeRF's layout: a fixture written by numpy (tests/fixtures/make_robust_e_nerf.py) ----
+TEST_CASE("Robust e-NeRF layout: events, poses and calibration from its numpy archives, times exact in ns") {
+  const fs::path fx = EVNERF_FIXTURES;
+  CHECK(io::is_robust_e_nerf(fx / "robust_e_nerf"));
+  const auto d = io::load(fx / "robust_e_nerf");
+  CHECK(d.time_origin == 1600000000);
+  CHECK(d.bayer_pattern == "rggb");
+  CHECK(d.camera.width() == 8);
+  CHECK(d.camera.height() == 6);
+  CHECK(d.camera.fx() == 20);
+  CHECK(d.camera.cy() == 2.5);
+  CHECK(d.camera.distortion()[0] == doctest::Approx(0.1));
+  CHECK(d.camera.distortion()[3] == doctest::Approx(0.002));
+  REQUIRE(d.events.size() == 40);
+  for (std::size_t k = 0; k < 40; ++k) {
+    CHECK(d.events.x[k] == k % 8);
+    CHECK(d.events.y[k] == k % 6);
+    CHECK(d.events.polarity[k] == (k % 2 == 0 ? 1 : -1));
+    CHECK(d.events.t[k] == static_cast<double>(250000000 + 100000 * k) / 1e9);  // exact: integers all the way
+  }
+  REQUIRE(d.trajectory.size() == 5);
+  CHECK(d.trajectory.times()[3] == 0.253);
+  CHECK(d.trajectory.poses()[4].t.x() == doctest::Approx(0.4));
+  CHECK(d.trajectory.poses()[4].q.z() == doctest::Approx(std::sin(0.1)).epsilon(1e-6));
+
+  // Damaged: a missing array, an unreadable model string, a time that goes back.
+  const auto dir = temp_dir("ren");
+  fs::copy(fx / "robust_e_nerf", dir / "s", fs::copy_options::recursive);
+  const auto bad = dir / "s" / "raw_events.npz";
+  std::string zip = read_file(bad);
+  const auto at = zip.rfind("polarity.npy");  // the central directory's name of the member
+  REQUIRE(at != std::string::npos);
+  zip.replace(at, 8, "polarizd");
+  write(bad, zip);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "raw_events.npz:0: no array 'polarity'");
+  CHECK(io::parse_npy_string(std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<U2', 'fortran_order': False, 'shape': (), }      \n", 64) +
+                                 std::string("o\0\0\0k\0\0\0", 8),
+                             "s") == "ok");
+  CHECK_CONTAINS(error_of([] { io::parse_npy_string(std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<f8', 'fortran_order': False, 'shape': (), }      \n", 64), "s"); }),
+                 "not a string ('<U') array");
+  fs::remove_all(dir);
+}

@@ -60,6 +60,7 @@ for h in "${HARNESSES[@]}"; do
   fi
   if [ "$h" = npz ]; then
     for z in "$ROOT"/tests/fixtures/eventnerf*/train/events/*.npz; do cp "$z" "$SEEDS/$h/$(basename "$(dirname "$(dirname "$(dirname "$z")")")").npz"; done  # numpy's
+    for z in "$ROOT"/tests/fixtures/robust_e_nerf/*.npz; do cp "$z" "$SEEDS/$h/ren_$(basename "$z")"; done
   fi
   if [ "$h" = rosbag ]; then
     for b in "$ROOT"/tests/fixtures/*.bag; do cp "$b" "$SEEDS/$h/"; done  # bags written by python3-rosbag

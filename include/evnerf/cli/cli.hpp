@@ -253,7 +253,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                     "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
   };
   const std::string rec_help =
-      "recording: an IJRR-layout folder, an EventNeRF scene folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a "
+      "recording: an IJRR-layout folder, an EventNeRF scene or Robust e-NeRF sequence folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a "
       "file when it lacks them)";
 
   // inspect
@@ -395,6 +395,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       auto d = io::load(folder, load_opt);
       fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
       if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
+      if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
       std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
       return 0;
     }

@@ -2,6 +2,7 @@
 // layout folder, as written by the real dataset and by evnerf's simulator. Depends on core/, geometry/,
 // events/ and io/ only.
 #pragma once
+#include <cctype>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include <stb_image.h>
 
 #include "eventnerf.hpp"
+#include "robust_e_nerf.hpp"
 #include "ijrr.hpp"
 #include "image_io.hpp"
 #include "npy.hpp"
@@ -49,6 +51,8 @@ struct Dataset {
   /// The recording's own clock at t = 0, in seconds: 0 for IJRR folders and HDF5 files (their times are
   /// kept); a bag's times are relative to the whole second of its first message read (ROS time).
   std::int64_t time_origin = 0;
+  /// The colour filter the events come through ("rggb", ...), where the recording says; "" otherwise.
+  std::string bayer_pattern;
   bool from_cache = false;
 };
 
@@ -340,11 +344,37 @@ inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOpt
   return d;
 }
 
-/// Loads a recording whatever its format: an IJRR-layout folder, an EventNeRF scene folder, an event HDF5
-/// file or a ROS bag (where built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
+/// Loads a Robust e-NeRF sequence folder (io/robust_e_nerf.hpp), with the calibration and poses LoadOptions
+/// names instead of its own where given (a pose file's times in the sequence's clock, seconds).
+inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
+  auto s = read_robust_e_nerf(folder, opt.width, opt.height);
+  Dataset d;
+  d.folder = folder;
+  d.time_origin = s.origin_sec;
+  d.bayer_pattern = s.bayer_pattern;
+  for (auto& c : d.bayer_pattern) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  d.camera = opt.calib.empty() ? s.camera : read_calib_txt(opt.calib, s.camera.width(), s.camera.height());
+  d.events = std::move(s.events);
+  if (!opt.poses.empty()) {
+    const auto tr = read_poses_txt(opt.poses);
+    std::vector<double> t = tr.times();
+    for (double& v : t) v -= static_cast<double>(s.origin_sec);
+    d.trajectory = geometry::Trajectory(std::move(t), tr.poses(), opt.poses.string());
+  } else {
+    d.trajectory = std::move(s.trajectory);
+  }
+  return d;
+}
+
+/// Loads a recording whatever its format: an IJRR-layout folder, an EventNeRF scene folder, a Robust e-NeRF
+/// sequence folder, an event HDF5 file or a ROS bag (where built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
 inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
-  if (fs::is_directory(path)) return !fs::exists(path / "events.txt") && is_eventnerf(path) ? load_eventnerf(path, opt) : load_ijrr(path, opt);
+  if (fs::is_directory(path)) {
+    if (!fs::exists(path / "events.txt") && is_robust_e_nerf(path)) return load_robust_e_nerf(path, opt);
+    if (!fs::exists(path / "events.txt") && is_eventnerf(path)) return load_eventnerf(path, opt);
+    return load_ijrr(path, opt);
+  }
   if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder, an event HDF5 file or a ROS bag)");
 #ifdef EVNERF_HAVE_HDF5
   if (is_hdf5(path)) return load_hdf5(path, opt);

@@ -176,15 +176,17 @@ NpyArray<T> parse_npy(std::string_view bytes, const std::string& file) {
 }
 
 /// Parses a whole .npy held in memory whatever its numeric element type (bool, integers, float32/64,
-/// little-endian), converted to double (integers above 2^53 lose their low bits). Errors name `file`.
-inline NpyArray<double> parse_npy_numeric(std::string_view bytes, const std::string& file) {
+/// little-endian), converted to Out: double (integers above 2^53 lose their low bits) or std::int64_t
+/// (exact for integers; floating-point values must be whole and in range). Errors name `file`.
+template <class Out = double>
+NpyArray<Out> parse_npy_numeric(std::string_view bytes, const std::string& file) {
   std::string descr;
   auto layout = detail::npy_layout_untyped(bytes, file, descr, 0, {});
   const char kind = descr[1];
   const std::size_t item = static_cast<std::size_t>(descr[2] - '0');
   if (bytes.size() - layout.offset != layout.count * item)
     throw Error(file, 0, detail::npy_size_error(bytes.size(), layout.offset + layout.count * item));
-  NpyArray<double> out;
+  NpyArray<Out> out;
   out.shape = std::move(layout.shape);
   out.data.resize(layout.count);
   const char* p = bytes.data() + layout.offset;
@@ -192,13 +194,52 @@ inline NpyArray<double> parse_npy_numeric(std::string_view bytes, const std::str
     for (std::size_t i = 0; i < layout.count; ++i) {
       T v;
       std::memcpy(&v, p + i * sizeof(T), sizeof(T));
-      out.data[i] = static_cast<double>(v);
+      if constexpr (std::is_floating_point_v<T> && std::is_integral_v<Out>) {
+        if (!(v >= -9.2e18 && v <= 9.2e18) || v != std::floor(v))
+          throw Error(file, 0, "element " + std::to_string(i) + " (" + short_number(static_cast<double>(v)) + ") is not a whole number in range");
+      } else if constexpr (std::is_same_v<T, std::uint64_t> && std::is_integral_v<Out>) {
+        if (v > static_cast<std::uint64_t>(INT64_MAX)) throw Error(file, 0, "element " + std::to_string(i) + " does not fit a signed 64-bit integer");
+      }
+      out.data[i] = static_cast<Out>(v);
     }
   };
   if (kind == 'f') item == 4 ? convert(float{}) : convert(double{});
   else if (kind == 'b' || kind == 'u') item == 1 ? convert(std::uint8_t{}) : item == 2 ? convert(std::uint16_t{}) : item == 4 ? convert(std::uint32_t{}) : convert(std::uint64_t{});
   else item == 1 ? convert(std::int8_t{}) : item == 2 ? convert(std::int16_t{}) : item == 4 ? convert(std::int32_t{}) : convert(std::int64_t{});
   return out;
+}
+
+/// Parses a .npy holding one string (numpy's '<U' type, UTF-32; a 0-d array as np.savez writes a str).
+/// Characters outside ASCII are refused.
+inline std::string parse_npy_string(std::string_view bytes, const std::string& file) {
+  auto fail = [&](const std::string& what) -> void { throw Error(file, 0, "cannot read .npy string: " + what); };
+  if (bytes.size() < 10 || bytes.substr(0, 6) != "\x93NUMPY") fail("not a .npy file (bad magic)");
+  const int major = static_cast<unsigned char>(bytes[6]);
+  const std::size_t len_bytes = major == 1 ? 2 : 4;
+  if ((major < 1 || major > 3) || bytes.size() < 8 + len_bytes) fail("unsupported or truncated header");
+  std::size_t header_len = std::size_t{static_cast<unsigned char>(bytes[8])} | (std::size_t{static_cast<unsigned char>(bytes[9])} << 8);
+  if (major > 1) header_len |= (std::size_t{static_cast<unsigned char>(bytes[10])} << 16) | (std::size_t{static_cast<unsigned char>(bytes[11])} << 24);
+  if (header_len > bytes.size() - 8 - len_bytes) fail("truncated header");
+  const std::string_view header = bytes.substr(8 + len_bytes, header_len);
+  std::string_view descr = detail::npy_field(header, "descr");
+  if (descr.size() < 5 || descr.substr(1, 2) != "<U" || descr.back() != descr.front()) fail("not a string ('<U') array");
+  std::size_t chars = 0;
+  for (char c : descr.substr(3, descr.size() - 4)) {
+    if (c < '0' || c > '9' || chars > 1000000) fail("bad string length in '" + std::string(descr.substr(0, 16)) + "'");
+    chars = chars * 10 + static_cast<std::size_t>(c - '0');
+  }
+  if (detail::npy_field(header, "shape") != "()") fail("not a single string (shape ())");
+  const std::string_view payload = bytes.substr(8 + len_bytes + header_len);
+  if (payload.size() != 4 * chars) fail(detail::npy_size_error(bytes.size(), 8 + len_bytes + header_len + 4 * chars));
+  std::string s;
+  for (std::size_t i = 0; i < chars; ++i) {
+    std::uint32_t c = 0;
+    std::memcpy(&c, payload.data() + 4 * i, 4);
+    if (c == 0) break;  // numpy pads with NULs
+    if (c > 127) fail("a character outside ASCII");
+    s += static_cast<char>(c);
+  }
+  return s;
 }
 
 /// Reads a .npy file straight into memory: the header is read and parsed first (npy_layout), the payload
