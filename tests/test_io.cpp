@@ -932,3 +932,35 @@ TEST_CASE("Robust e-NeRF layout: events, poses and calibration from its numpy ar
                  "not a string ('<U') array");
   fs::remove_all(dir);
 }
+
+TEST_CASE("COLMAP text model as a recording's pose source: images get the times of the frames of their file names") {
+  const auto dir = temp_dir("colsrc");
+  write(dir / "events.txt", "0.01 1 1 1\n0.02 2 2 0\n");
+  write(dir / "calib.txt", "20 20 4 3\n");
+  write(dir / "sensor.txt", "8 6\n");
+  write(dir / "images.txt", "0.000 images/frame_0.png\n0.010 images/frame_1.png\n0.020 images/frame_2.png\n");
+  fs::create_directories(dir / "sparse");
+  // World-to-camera: image b is frame_2 (t = 0.02) translated by (0, 0, 1); a is frame_0 at the identity;
+  // c names no frame of the recording and is left out.
+  write(dir / "sparse" / "images.txt",
+        "# IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME\n1 1 0 0 0 0 0 1 1 frame_2.png\n\n2 1 0 0 0 0 0 0 1 frame_0.png\n\n"
+        "3 1 0 0 0 0 0 0 1 other.png\n\n");
+  write(dir / "sparse" / "cameras.txt", "1 PINHOLE 8 6 30 31 4 3\n");
+  io::LoadOptions o;
+  o.poses = dir / "sparse";
+  o.calib = dir / "sparse" / "cameras.txt";
+  const auto d = io::load(dir, o);
+  REQUIRE(d.trajectory.size() == 2);
+  CHECK(d.trajectory.times() == std::vector<double>{0.0, 0.02});
+  CHECK(d.trajectory.poses()[1].t.z() == doctest::Approx(-1));  // camera-to-world: the inverse of COLMAP's
+  CHECK(d.camera.fx() == 30);
+  CHECK(d.camera.fy() == 31);
+  o.poses = dir / "sparse" / "images.txt";  // the file works as the folder does
+  CHECK(io::load(dir, o).trajectory.size() == 2);
+  write(dir / "sparse" / "images.txt", "1 1 0 0 0 0 0 1 1 nothing.png\n\n");
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "images.txt:0: 0 of its 1 images match a frame of the recording by file name");
+  write(dir / "sparse" / "cameras.txt", "1 PINHOLE 16 12 30 31 4 3\n");
+  o.poses.clear();
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "cameras.txt:0: camera of 16x12 for a 8x6 sensor");
+  fs::remove_all(dir);
+}

@@ -243,9 +243,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   io::LoadOptions load_opt;
   auto add_recording = [&](CLI::App* sub, const std::string& help) {
     sub->add_option("recording", folder, help)->required();
-    sub->add_option("--calib", load_opt.calib, "calibration file (fx fy cx cy [k1 k2 p1 p2 [k3]]) instead of the recording's own");
+    sub->add_option("--calib", load_opt.calib,
+                    "calibration instead of the recording's own: a calib.txt file (fx fy cx cy [k1 k2 p1 p2 [k3]]) or COLMAP's cameras.txt");
     sub->add_option("--poses", load_opt.poses,
-                    "pose file (t px py pz qx qy qz qw, camera to world) instead of the recording's own; for a ROS bag in its clock (ROS time)");
+                    "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
+                    "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
     sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
     sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
     sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");

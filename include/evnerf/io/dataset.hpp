@@ -9,6 +9,7 @@
 
 #include <stb_image.h>
 
+#include "colmap.hpp"
 #include "eventnerf.hpp"
 #include "robust_e_nerf.hpp"
 #include "ijrr.hpp"
@@ -69,6 +70,68 @@ inline void check_sensor_size(long long w, long long h, const std::string& where
                                  std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
 }
 
+/// The poses a user names (LoadOptions::poses): a pose text file (`t px py pz qx qy qz qw`, camera to world;
+/// its times moved by `shift` seconds), or a COLMAP text model (its folder, or its images.txt). COLMAP's
+/// images have no times: each gets the time of the recording's frame whose file name (or path ending) is
+/// the image's NAME, so COLMAP run on the recording's frames gives a trajectory through the frames' times.
+/// Images that match no frame are left out (and counted in the error when none match).
+inline geometry::Trajectory read_pose_source(const std::filesystem::path& p, const Frames& frames, double shift = 0) {
+  namespace fs = std::filesystem;
+  const bool colmap = fs::is_directory(p) || p.filename() == "images.txt";
+  if (!colmap) {
+    const auto tr = read_poses_txt(p);
+    if (shift == 0) return tr;
+    std::vector<double> t = tr.times();
+    for (double& v : t) v -= shift;
+    return geometry::Trajectory(std::move(t), tr.poses(), p.string());
+  }
+  const fs::path images = fs::is_directory(p) ? p / "images.txt" : p;
+  if (!fs::exists(images)) throw Error(images.string(), 0, "missing (a COLMAP text model's images.txt)");
+  const auto ims = parse_colmap_images(read_file(images), images.string());
+  if (frames.paths.empty())
+    throw Error(images.string(), 0, "COLMAP poses are matched to the recording's frame files by name, and this recording has no frame files");
+  std::vector<std::pair<double, geometry::Pose>> timed;
+  for (const auto& im : ims) {
+    int found = -1;
+    for (std::size_t f = 0; f < frames.paths.size(); ++f) {
+      const std::string path = frames.paths[f].generic_string();
+      const bool match = path == im.name || (path.size() > im.name.size() && path.compare(path.size() - im.name.size(), im.name.size(), im.name) == 0 &&
+                                             path[path.size() - im.name.size() - 1] == '/');
+      if (!match) continue;
+      if (found >= 0) throw Error(images.string(), 0, "image '" + im.name.substr(0, 60) + "' matches two frames");
+      found = static_cast<int>(f);
+    }
+    if (found >= 0) timed.emplace_back(frames.t[static_cast<std::size_t>(found)], im.c2w);
+  }
+  if (timed.size() < 2)
+    throw Error(images.string(), 0, std::to_string(timed.size()) + " of its " + std::to_string(ims.size()) +
+                                        " images match a frame of the recording by file name (at least 2 needed)");
+  std::vector<std::size_t> order(timed.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return timed[a].first < timed[b].first; });
+  std::vector<double> t;
+  std::vector<geometry::Pose> poses;
+  for (auto i : order) {
+    if (!t.empty() && timed[i].first == t.back()) throw Error(images.string(), 0, "two images map to frames of the same time");
+    t.push_back(timed[i].first);
+    poses.push_back(timed[i].second);
+  }
+  return geometry::Trajectory(std::move(t), std::move(poses), images.string() + " (COLMAP, at the frames' times)");
+}
+
+/// The calibration a user names (LoadOptions::calib): calib.txt's format, or COLMAP's cameras.txt (one
+/// camera, of the sensor's size).
+inline geometry::Camera read_calib_source(const std::filesystem::path& p, int w, int h) {
+  if (p.filename() != "cameras.txt") return read_calib_txt(p, w, h);
+  const auto cams = parse_colmap_cameras(read_file(p), p.string());
+  if (cams.size() != 1) throw Error(p.string(), 0, "holds " + std::to_string(cams.size()) + " cameras; one is read");
+  const auto& c = cams.begin()->second;
+  if (c.width() != w || c.height() != h)
+    throw Error(p.string(), 0, "camera of " + std::to_string(c.width()) + "x" + std::to_string(c.height()) + " for a " + std::to_string(w) + "x" +
+                                   std::to_string(h) + " sensor");
+  return c;
+}
+
 /// Parses sensor.txt: "width height".
 inline std::pair<int, int> parse_sensor_size(std::string_view text, const std::string& file) {
   LineScanner s(text, file);
@@ -110,7 +173,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
   d.folder = folder;
   if (fs::exists(folder / "images.txt")) d.frames = read_frames_txt(folder / "images.txt");
   const auto [w, h] = sensor_size(folder, d.frames, opt.width, opt.height);
-  d.camera = read_calib_txt(opt.calib.empty() ? folder / "calib.txt" : opt.calib, w, h);
+  d.camera = opt.calib.empty() ? read_calib_txt(folder / "calib.txt", w, h) : read_calib_source(opt.calib, w, h);
   const fs::path ev_path = folder / "events.txt";
   if (!fs::exists(ev_path)) throw Error(ev_path.string(), 0, "missing events file");
   bool loaded = false;
@@ -142,7 +205,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
   }
   d.from_cache = loaded;
   if (!opt.poses.empty())
-    d.trajectory = read_poses_txt(opt.poses);
+    d.trajectory = read_pose_source(opt.poses, d.frames);
   else if (fs::exists(folder / "groundtruth.txt"))
     d.trajectory = read_poses_txt(folder / "groundtruth.txt");
   if (fs::is_directory(folder / "depth"))
@@ -228,12 +291,14 @@ inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& o
   const fs::path calib = opt.calib.empty() ? d.folder / "calib.txt" : opt.calib;
   if (!fs::exists(calib))
     throw Error(calib.string(), 0, "missing: an HDF5 recording takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]])");
-  d.camera = read_calib_txt(calib, rec.width, rec.height);
-  const fs::path poses = opt.poses.empty() ? d.folder / "groundtruth.txt" : opt.poses;
-  if (!opt.poses.empty() || fs::exists(poses)) d.trajectory = read_poses_txt(poses);
+  d.camera = read_calib_source(calib, rec.width, rec.height);
   d.events = std::move(rec.events);
   d.frames.t = std::move(rec.frame_times);
   d.frames.images = std::move(rec.frames);
+  if (!opt.poses.empty())
+    d.trajectory = read_pose_source(opt.poses, d.frames);
+  else if (fs::exists(d.folder / "groundtruth.txt"))
+    d.trajectory = read_poses_txt(d.folder / "groundtruth.txt");
   return d;
 }
 #endif
@@ -286,7 +351,7 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
   d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   d.time_origin = rec.origin_sec;
   if (!opt.calib.empty()) {
-    d.camera = read_calib_txt(opt.calib, w, h);
+    d.camera = read_calib_source(opt.calib, w, h);
   } else if (rec.has_camera_info) {
     d.camera = geometry::Camera(w, h, rec.fx, rec.fy, rec.cx, rec.cy, rec.distortion);
   } else {
@@ -295,18 +360,13 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
       throw Error(file, 0, "no camera info topic and no " + calib.string() + " beside the bag: give the calibration (fx fy cx cy [k1 k2 p1 p2 [k3]])");
     d.camera = read_calib_txt(calib, w, h);
   }
-  auto shifted = [&](const fs::path& poses) {
-    const auto tr = read_poses_txt(poses);
-    std::vector<double> t = tr.times();
-    for (double& v : t) v -= static_cast<double>(rec.origin_sec);
-    return geometry::Trajectory(std::move(t), tr.poses(), poses.string() + " (moved to the bag's origin, " + std::to_string(rec.origin_sec) + " s)");
-  };
+  d.frames.t = rec.frame_times;
   if (!opt.poses.empty()) {
-    d.trajectory = shifted(opt.poses);
+    d.trajectory = read_pose_source(opt.poses, d.frames, static_cast<double>(rec.origin_sec));
   } else if (!rec.poses.empty()) {
     d.trajectory = geometry::Trajectory(std::move(rec.pose_times), std::move(rec.poses), file + " (topic " + rec.poses_topic + ")");
   } else if (fs::exists(d.folder / "groundtruth.txt")) {
-    d.trajectory = shifted(d.folder / "groundtruth.txt");
+    d.trajectory = read_pose_source(d.folder / "groundtruth.txt", d.frames, static_cast<double>(rec.origin_sec));
   }
   rec.events.width = w;
   rec.events.height = h;
@@ -336,11 +396,11 @@ inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOpt
   auto s = read_eventnerf(folder, opt.width, opt.height);
   Dataset d;
   d.folder = folder;
-  d.camera = opt.calib.empty() ? s.camera : read_calib_txt(opt.calib, s.camera.width(), s.camera.height());
+  d.camera = opt.calib.empty() ? s.camera : read_calib_source(opt.calib, s.camera.width(), s.camera.height());
   d.events = std::move(s.events);
-  d.trajectory = opt.poses.empty() ? std::move(s.trajectory) : read_poses_txt(opt.poses);
   d.frames.t = std::move(s.frame_times);
   d.frames.paths = std::move(s.frames);
+  d.trajectory = opt.poses.empty() ? std::move(s.trajectory) : read_pose_source(opt.poses, d.frames);
   return d;
 }
 
@@ -353,13 +413,10 @@ inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const Loa
   d.time_origin = s.origin_sec;
   d.bayer_pattern = s.bayer_pattern;
   for (auto& c : d.bayer_pattern) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  d.camera = opt.calib.empty() ? s.camera : read_calib_txt(opt.calib, s.camera.width(), s.camera.height());
+  d.camera = opt.calib.empty() ? s.camera : read_calib_source(opt.calib, s.camera.width(), s.camera.height());
   d.events = std::move(s.events);
   if (!opt.poses.empty()) {
-    const auto tr = read_poses_txt(opt.poses);
-    std::vector<double> t = tr.times();
-    for (double& v : t) v -= static_cast<double>(s.origin_sec);
-    d.trajectory = geometry::Trajectory(std::move(t), tr.poses(), opt.poses.string());
+    d.trajectory = read_pose_source(opt.poses, d.frames, static_cast<double>(s.origin_sec));
   } else {
     d.trajectory = std::move(s.trajectory);
   }
