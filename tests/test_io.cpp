@@ -590,8 +590,10 @@ TEST_CASE("ROS bag: topics by name when two could serve; colour and Bayer frames
   CHECK(d.trajectory.poses()[4].t.x() == doctest::Approx(0.4));
   CHECK(d.trajectory.poses()[4].q.z() == doctest::Approx(std::sin(0.1)));
 
+  CHECK(d.bayer_pattern.empty());     // bgr8 frames say nothing of a mosaic
   o.images_topic = "/dvs/image_raw";  // bayer_rggb8, value (7 (x + 8 y) + frame) mod 256: demosaiced
   d = io::load(fx / "colour.bag", o);
+  CHECK(d.bayer_pattern == "rggb");
   const auto m = io::frame_image(d.frames, 0);
   REQUIRE(m.channels == 3);
   auto raw = [](int x, int y) { return static_cast<float>((7 * (x + 8 * y)) % 256) / 255.f; };

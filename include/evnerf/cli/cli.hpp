@@ -145,12 +145,33 @@ inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
   return all;
 }
 
-/// The baselines' reconstructions at the given frames.
-inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast) {
+/// The colour filter of a colour recording's events: the one the recording names, else RGGB (the
+/// Color-DAVIS346's, and the simulator's with --bayer).
+inline geometry::BayerPattern bayer_of(const io::Dataset& d) {
+  geometry::BayerPattern p;
+  if (!d.bayer_pattern.empty() && !geometry::BayerPattern::parse(d.bayer_pattern, p))
+    throw Error(d.folder.string() + ": unknown Bayer pattern '" + d.bayer_pattern + "'");
+  return p;
+}
+
+/// Whether a recording is scored in colour: its frames are RGB.
+inline bool colour_frames(const io::Dataset& d, const std::vector<std::size_t>& ids) {
+  return !ids.empty() && io::frame_image(d.frames, ids.front()).channels == 3;
+}
+
+/// The baselines' reconstructions at the given frames. In colour, each pixel integrates its own events
+/// (its channel of the mosaic), and the mosaic is then demosaiced.
+inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast, bool colour = false) {
   std::vector<double> times;
   for (auto i : ids) times.push_back(d.frames.t[i]);
-  return {{"direct_integration", eval::direct_integration(d.events, times, contrast)},
-          {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
+  std::vector<eval::Method> m{{"direct_integration", eval::direct_integration(d.events, times, contrast)},
+                              {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
+  if (colour) {
+    const auto p = bayer_of(d);
+    for (auto& method : m)
+      for (auto& img : method.images) img = geometry::demosaic(img, p);
+  }
+  return m;
 }
 
 /// The ground truth of the frames `ids` (grey): the frames, or the simulator's unclipped linear radiance where
@@ -161,12 +182,13 @@ struct Truth {
   /// What the montage shows of the truth.
   Image shown(std::size_t k) const { return hdr ? hdr->apply(images[k]) : images[k]; }
 };
-inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& ids) {
+inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& ids, bool colour = false) {
   Truth t;
   const bool linear = d.linear.size() == d.frames.size() && !d.linear.empty();
+  auto keep = [&](const Image& img) { return colour && img.channels == 3 ? img : eval::to_grey(img); };
   for (auto i : ids) {
     if (!linear) {
-      t.images.push_back(eval::to_grey(io::frame_image(d.frames, i)));
+      t.images.push_back(keep(io::frame_image(d.frames, i)));
       continue;
     }
     const auto a = io::load_npy<float>(d.linear[i]);
@@ -176,7 +198,7 @@ inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& id
       throw Error(d.linear[i].string(), 0, "linear truth: expected a float32 array of H×W or H×W×3 with the sensor's size");
     Image img(d.camera.width(), d.camera.height(), C);
     img.data = a.data;
-    t.images.push_back(eval::to_grey(img));
+    t.images.push_back(keep(img));
   }
   if (linear) t.hdr = eval::HdrTone::of(t.images, d.linear_log_offset);
   return t;
@@ -197,6 +219,20 @@ inline nlohmann::json score_and_report(const std::vector<eval::Method>& methods,
   auto j = eval::metrics_json(primary, others, ids);
   j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
                    : nlohmann::json{{"kind", "frames"}};
+  const int channels = truth.images.empty() ? 1 : truth.images.front().channels;
+  j["channels"] = channels;
+  if (channels == 3) {  // colour: the same methods in grey (Rec. 601 luminance), as secondary scores
+    Truth grey;
+    for (const auto& im : truth.images) grey.images.push_back(eval::to_grey(im));
+    if (hdr) grey.hdr = eval::HdrTone::of(grey.images, hdr->offset);
+    std::vector<eval::Method> gm = methods;
+    for (auto& m : gm)
+      for (auto& im : m.images) im = eval::to_grey(im);
+    fmt::print("in grey (luminance of every method and of the truth):\n");
+    const auto g = eval::score_methods(gm, grey.images, als.front(), false, grey.hdr ? &*grey.hdr : nullptr);
+    print_table(g);
+    j["grey"] = eval::metrics_json(g, {}, ids);
+  }
   return j;
 }
 
@@ -458,16 +494,17 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       const auto als = alignments_from(align);
       const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
       require(!ids.empty(), folder + ": no frames inside the events' time span");
-      const Truth truth = load_truth(d, ids);
+      const bool colour = colour_frames(d, ids);
+      const Truth truth = load_truth(d, ids, colour);
       eval::AlignedScores primary;
-      const auto j = score_and_report(baseline_methods(d, ids, contrast), truth, als, ids, primary);
+      const auto j = score_and_report(baseline_methods(d, ids, contrast, colour), truth, als, ids, primary);
       const fs::path rec_path(folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
       const fs::path bo = !baselines_out.empty()          ? baselines_out
                           : fs::is_directory(rec_path) ? rec_path / "baselines"
                                                        : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
       write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
       const std::size_t mid = ids.size() / 2;
-      io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}));
+      io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}, colour ? 3 : 1));
       fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
       return 0;
     }
@@ -542,15 +579,19 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
           const double t = d.frames.t[i];
           const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
           const auto r = model.render(d.camera, dirs, pose);
-          ours.images.push_back(eval::to_grey(r.luminance));
+          ours.images.push_back(r.luminance);
           depths.push_back(r.depth);
           write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.box().near), float(model.box().far * 0.6));
         }
         const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / ids.size();
-        auto methods = baseline_methods(d, ids, 0.2);
+        // In colour where both the frames and the model are: RGB scores per channel, grey ones secondary.
+        const bool colour = colour_frames(d, ids) && ours.images.front().channels == 3;
+        if (!colour)
+          for (auto& im : ours.images) im = eval::to_grey(im);
+        auto methods = baseline_methods(d, ids, 0.2, colour);
         methods.insert(methods.begin(), ours);
         eval::AlignedScores primary;
-        const Truth truth = load_truth(d, ids);
+        const Truth truth = load_truth(d, ids, colour);
         nlohmann::json j = score_and_report(methods, truth, als, ids, primary);
         j["seconds_per_render"] = render_s;
         // Depth against simulated ground truth, where the recording has it (median scale alignment).
@@ -575,7 +616,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         write_file_atomic(out / "metrics.json", j.dump(2) + "\n");
         const std::size_t mid = ids.size() / 2;
         io::write_png(out / "montage.png",
-                      io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}));
+                      io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}, colour ? 3 : 1));
         if (!pick.empty()) {
           fmt::print("held-out frames only ({}, novel views):\n", pick.size());
           print_table(primary, pick);

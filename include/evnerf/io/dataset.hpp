@@ -350,6 +350,8 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
   Dataset d;
   d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   d.time_origin = rec.origin_sec;
+  // Frames in a Bayer encoding come through the colour filter the events do (CED's Color-DAVIS346).
+  if (rec.frame_encoding.rfind("bayer_", 0) == 0) d.bayer_pattern = rec.frame_encoding.substr(6, 4);
   if (!opt.calib.empty()) {
     d.camera = read_calib_source(opt.calib, w, h);
   } else if (rec.has_camera_info) {
