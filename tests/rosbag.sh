@@ -41,27 +41,10 @@ $b"
 ARGS=(--iters 40 --pixels 512 --seed 2 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/run_txt" "${ARGS[@]}" > /dev/null 2>&1
 "$EV" train "$work/rec.bag" --out "$work/run_bag" "${ARGS[@]}" > /dev/null 2>&1
-python3 - "$work/run_txt/model.ckpt" "$work/run_bag/model.ckpt" <<'PY' || fail "training on the bag gave other parameters"
-import struct, sys
-def params(path):  # io/checkpoint.hpp, as in tests/formats.sh: the parameters and Adam's moments
-    b = open(path, "rb").read()
-    o = 16 + 8 + struct.unpack_from("<Q", b, 16)[0]
-    count = struct.unpack_from("<Q", b, o)[0]
-    o += 8 + 8 + 8 + 48 + 8
-    for _ in range(2):
-        o += 8 + struct.unpack_from("<Q", b, o)[0]
-    return b[o:o + count * 12]
-a, b = (params(p) for p in sys.argv[1:])
-sys.exit(0 if a == b else 1)
-PY
+python3 "$HERE/compare_runs.py" params "$work/run_txt/model.ckpt" "$work/run_bag/model.ckpt" || fail "training on the bag gave other parameters"
 "$EV" eval "$work/run_txt/model.ckpt" "$work/rec" --out "$work/eval_txt" > /dev/null 2>&1
 "$EV" eval "$work/run_bag/model.ckpt" "$work/rec.bag" --out "$work/eval_bag" > /dev/null 2>&1
-python3 - "$work/eval_txt/metrics.json" "$work/eval_bag/metrics.json" <<'PY' || fail "eval scores differ between the folder and the bag"
-import json, sys
-a, b = (json.load(open(p)) for p in sys.argv[1:])
-ma, mb = a["methods"], b["methods"]
-sys.exit(0 if all(abs(ma[k]["psnr"] - mb[k]["psnr"]) < 1e-9 and abs(ma[k]["ssim"] - mb[k]["ssim"]) < 1e-9 for k in ma) else 1)
-PY
+python3 "$HERE/compare_runs.py" metrics "$work/eval_txt/metrics.json" "$work/eval_bag/metrics.json" || fail "eval scores differ between the folder and the bag"
 # evnerf's own writer: python3-rosbag reads what it writes (every compression), and it reads back the same.
 for c in none bz2 lz4; do
   "$EV" convert "$work/rec" "$work/ours_$c.bag" --compression "$c" > /dev/null

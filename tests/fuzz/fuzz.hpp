@@ -3,11 +3,14 @@
 // reports it as a crash, as it does every sanitizer report, leak, timeout and allocation above its limit.
 #pragma once
 #include <cstddef>
+#include <cstdio>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <string>
 #include <string_view>
+
+#include <unistd.h>
 
 #include <evnerf/core/error.hpp>
 
@@ -15,6 +18,17 @@ namespace evfuzz {
 
 inline std::string_view text(const std::uint8_t* data, std::size_t size) {
   return {reinterpret_cast<const char*>(data), size};
+}
+
+/// Writes the input to a file in /dev/shm named for the harness and this process, for readers that open
+/// paths (HDF5, bags, .npz); returns its path, or "" when it cannot be written.
+inline std::string to_file(const std::uint8_t* data, std::size_t size, const char* name) {
+  static thread_local std::string path;
+  path = std::string("/dev/shm/evnerf_fuzz_") + std::to_string(::getpid()) + "_" + name;
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) return {};
+  const bool ok = std::fwrite(data, 1, size, f) == size;
+  return std::fclose(f) == 0 && ok ? path : std::string();
 }
 
 /// Stops the run with a message when an invariant of a successful read does not hold.

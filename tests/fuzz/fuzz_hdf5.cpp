@@ -12,11 +12,8 @@
 #include "fuzz.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/dev/shm/evnerf_fuzz_hdf5_" + std::to_string(::getpid()) + ".h5";
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) return 0;
-  std::fwrite(data, 1, size, f);
-  std::fclose(f);
+  const std::string path = evfuzz::to_file(data, size, "recording.h5");
+  if (path.empty()) return 0;
   evfuzz::run([&] {
     // As io::load reads: in a child first, so that the HDF5 library's own crashes on corrupt files become
     // an Error. A sanitizer report in the child (in our code or at the library's calls into libc) exits

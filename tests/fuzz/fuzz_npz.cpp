@@ -12,11 +12,8 @@
 #include "fuzz.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/dev/shm/evnerf_fuzz_npz_" + std::to_string(::getpid()) + ".npz";
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) return 0;
-  std::fwrite(data, 1, size, f);
-  std::fclose(f);
+  const std::string path = evfuzz::to_file(data, size, "archive.npz");
+  if (path.empty()) return 0;
   evfuzz::run([&] {
     const auto members = evnerf::io::read_npz(path);
     for (const auto& member : members) {

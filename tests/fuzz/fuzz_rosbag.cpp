@@ -12,11 +12,8 @@
 #include "fuzz.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/dev/shm/evnerf_fuzz_rosbag_" + std::to_string(::getpid()) + ".bag";
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) return 0;
-  std::fwrite(data, 1, size, f);
-  std::fclose(f);
+  const std::string path = evfuzz::to_file(data, size, "recording.bag");
+  if (path.empty()) return 0;
   evfuzz::run([&] {
     for (const auto& t : evnerf::io::rosbag_topics(path)) evfuzz::expect(!t.topic.empty() && !t.type.empty(), "a topic without a name or type");
   });

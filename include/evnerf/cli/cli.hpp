@@ -322,7 +322,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   fs::path textures;
   auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
   simulate->add_option("scene", scene,
-                       "built-in scene (planes, object, room), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
+                       "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
                        "or a scene description file")
       ->required();
   simulate->add_option("--out", out, "output folder")->required();
@@ -466,7 +466,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       cfg_s.noise_rate = sc.noise_rate;
       cfg_s.noise_ratio = sc.noise_ratio;
       cfg_s.log_offset = sc.log_offset;
-      cfg_s.bayer = bayer;
+      cfg_s.bayer = bayer || scene == "blocks";  // the built-in colour scene is seen through an RGGB mosaic
       if (hdr) {
         cfg_s.hdr = true;
         sim::hdr_lighting(spec.scene);

@@ -382,7 +382,9 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
 
 /// Built-in scenes: "planes" (three textured planes at 1, 2 and 3.5 m before a wall, linear slider),
 /// "object" (box and sphere on a textured floor before a wall, orbit arc), "room" (inside a textured
-/// room with a box, hand-held zig-zag).
+/// room with a box, hand-held zig-zag), "blocks" (the colour scene: three boxes and a sphere in coloured
+/// fractal noise, stripes and checkers on a coloured-noise floor before a coloured-noise wall, orbit arc;
+/// `evnerf simulate blocks` simulates it through an RGGB mosaic).
 inline const char* builtin_scene_text(const std::string& name) {
   if (name == "planes")
     return "light -0.2 0.3 1 0.4 0.6\n"
@@ -403,9 +405,18 @@ inline const char* builtin_scene_text(const std::string& name) {
            "box 0 0 0  2.5 1.5 2.5  noise 1.4 6 5\n"
            "box 0.6 1.0 1.2  0.4 0.5 0.4  checker 4 colors 0.85 0.3 0.3 0.2 0.2 0.5\n"
            "path handheld 0 0 -1.5  0 0 1  0.4 3.0\n";
+  if (name == "blocks")
+    return "light -0.3 0.8 0.5 0.35 0.65\n"
+           "box -0.45 0.15 0.1  0.3 0.3 0.3  noise 3 5 21 colors 0.95 0.45 0.1 0.25 0.05 0.05\n"
+           "box 0.35 0.2 -0.2  0.25 0.25 0.25  stripes 5 colors 0.1 0.55 0.9 0.9 0.85 0.2\n"
+           "sphere -0.02 0.25 -0.55 0.2  noise 4 4 33 colors 0.2 0.8 0.3 0.6 0.1 0.6\n"
+           "box 0.85 0.3 0.4  0.15 0.15 0.15  checker 4 colors 0.9 0.9 0.9 0.8 0.1 0.2\n"
+           "plane 0 0.45 0  0 -1 0  1 0 0  0 0  noise 2 6 41 colors 0.75 0.7 0.55 0.25 0.3 0.4\n"
+           "plane 0 0 3  0 0 -1  1 0 0  0 0  noise 1.5 6 12 colors 0.3 0.5 0.7 0.8 0.7 0.5\n"
+           "path arc 0 0 0 2.6 -0.8 -0.5 0.5 3.0\n";
   return nullptr;
 }
-inline std::vector<std::string> builtin_scenes() { return {"planes", "object", "room"}; }
+inline std::vector<std::string> builtin_scenes() { return {"planes", "object", "room", "blocks"}; }
 
 /// A built-in scene by name, or a scene description file.
 inline SceneSpec load_scene(const std::string& name_or_path) {
@@ -415,7 +426,7 @@ inline SceneSpec load_scene(const std::string& name_or_path) {
     return spec;
   }
   if (!std::filesystem::exists(name_or_path))
-    throw Error(name_or_path, 0, "no such scene file, and not a built-in scene (planes, object, room)");
+    throw Error(name_or_path, 0, "no such scene file, and not a built-in scene (planes, object, room, blocks)");
   auto spec = parse_scene(read_file(name_or_path), name_or_path, std::filesystem::path(name_or_path).parent_path());
   return spec;
 }
