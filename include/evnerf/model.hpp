@@ -40,6 +40,8 @@ struct TrainingData {
   std::vector<bool> slice_enabled;             ///< held-out slices are false (novel-view evaluation)
   events::CountPrefix prefix;                  ///< per-pixel running counts (objectives whose pixels look at the
                                                ///< window's counts need it; train::prepare builds it)
+  geometry::BayerPattern bayer;                ///< colour models: the channel of each pixel's events (the
+                                               ///< recording's mosaic; RGGB where it names none)
 };
 
 using render::Rendering;
@@ -361,7 +363,8 @@ class EvNerf {
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
   /// that pass's dcolor (2P×C) and adds the threshold gradients of the window's slices. Returns the loss
   /// contribution (already divided by the batch size).
-  double pair_loss(const StepWindow& sw, int p0, int P, int batch, int net, Scalar* grads, TileWork& w, int width) const {
+  double pair_loss(const StepWindow& sw, int p0, int P, int batch, int net, Scalar* grads, TileWork& w, int width,
+                   const geometry::BayerPattern& bayer) const {
     const auto& comp = renderer_type::composites(w.rw, net);
     auto& dcolor = w.rw.pass[net].dcolor;  // zeroed by the forward
     const int L = static_cast<int>(sw.len);
@@ -377,7 +380,7 @@ class EvNerf {
     double total = 0;
     for (int i = 0; i < P; ++i) {
       const std::uint32_t pix = sw.pixels[p0 + i];
-      const int c = channels == 1 ? 0 : geometry::rggb_channel(static_cast<int>(pix % width), static_cast<int>(pix / width));
+      const int c = channels == 1 ? 0 : bayer.at(static_cast<int>(pix % width), static_cast<int>(pix / width));
       std::fill(w.gbp.begin(), w.gbp.end(), 0.0);
       std::fill(w.gbm.begin(), w.gbm.end(), 0.0);
       const std::size_t o = static_cast<std::size_t>(p0 + i) * L;
@@ -420,7 +423,7 @@ class EvNerf {
     renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
     double loss = 0;
     for (int net = 0; net < n_fields; ++net) {
-      const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width());
+      const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width(), data.bayer);
       w.pass_loss[net] += l;
       loss += l;
     }
