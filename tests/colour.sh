@@ -2,6 +2,9 @@
 # Colour evaluation: on a simulated Bayer recording, `eval` of the colour preset scores in RGB
 # ("channels": 3, per-channel alignment, grey scores under "grey", an RGB montage), `baselines` too (each
 # pixel's own events integrated, then demosaiced); the grey preset on the same recording is scored in grey.
+# The paper's colour method (train --per-channel: a grey model per channel's quarter-resolution sites)
+# writes channels.json, which render and eval take as the checkpoint; it refuses a colour variant, and a
+# damaged channels.json is an error naming the file.
 # ctest runs this as cli.colour. Usage: tests/colour.sh EVNERF_BINARY
 set -euo pipefail
 EV=$1
@@ -15,6 +18,16 @@ ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" eval "$work/colour/model.ckpt" "$work/rec" --out "$work/eval_colour" > /dev/null 2>&1
 "$EV" eval "$work/grey/model.ckpt" "$work/rec" --out "$work/eval_grey" > /dev/null 2>&1
 "$EV" baselines "$work/rec" --out "$work/base" > /dev/null 2>&1
+"$EV" train "$work/rec" --out "$work/pc" --per-channel "${ARGS[@]}" > /dev/null 2>&1
+"$EV" eval "$work/pc/channels.json" "$work/rec" --out "$work/eval_pc" > /dev/null 2>&1
+"$EV" render "$work/pc/channels.json" --out "$work/render_pc" --novel 1 > /dev/null 2>&1
+[ -f "$work/render_pc/novel_0000.png" ] && [ -f "$work/render_pc/boundary_0001_depth.npy" ] || fail "render of channels.json"
+for c in r g b; do [ -f "$work/pc/$c/model.ckpt" ] || fail "per-channel: no $c/model.ckpt"; done
+if "$EV" train "$work/rec" --out "$work/pc_colour" --per-channel --preset colour "${ARGS[@]}" > "$work/err" 2>&1; then fail "--per-channel took a colour variant"; fi
+grep -q "renders colour; name a grey one" "$work/err" || fail "--per-channel with a colour variant: $(cat "$work/err")"
+sed 's/"rggb"/"rgbg"/' "$work/pc/channels.json" > "$work/pc/bad.json"
+if "$EV" eval "$work/pc/bad.json" "$work/rec" --out "$work/eval_bad" > "$work/err" 2>&1; then fail "a damaged channels.json was taken"; fi
+grep -q "bad.json:0: channels.json: unknown Bayer pattern 'rgbg'" "$work/err" || fail "damaged channels.json: $(cat "$work/err")"
 python3 - "$work" <<'PY' || fail "colour evaluation"
 import json, struct, sys
 w = sys.argv[1]
@@ -31,7 +44,11 @@ assert g["channels"] == 1 and "grey" not in g, "a grey model is scored in grey"
 assert png_colour_type(f"{w}/eval_grey/montage.png") == 0
 b = json.load(open(f"{w}/base/baselines.json"))
 assert b["channels"] == 3, "baselines on a colour recording are scored in colour"
+p = json.load(open(f"{w}/eval_pc/metrics.json"))
+assert p["channels"] == 3 and set(p["methods"]) == {"evnerf_fast_per_channel", "direct_integration", "high_pass_filter"}, p["methods"]
+assert png_colour_type(f"{w}/eval_pc/montage.png") == 2, "the per-channel montage is in colour"
+assert png_colour_type(f"{w}/render_pc/novel_0000.png") == 2, "per-channel renders are in colour"
 for m in ("direct_integration", "high_pass_filter"):
     assert 0 < b["methods"][m]["psnr"] < 100 and 0 < c["methods"][m]["psnr"] < 100, m
 PY
-echo "colour: eval and baselines score a Bayer recording in RGB (grey secondary); a grey model in grey"
+echo "colour: eval and baselines score a Bayer recording in RGB (grey secondary); a grey model in grey; per-channel models train, render and evaluate in colour"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A recording converted to HDF5 (event_utils/HQF layout) and back reads as the same recording: `inspect`
 # says the same, training on the HDF5 file gives the same parameters as on the IJRR folder, `eval` the same
-# scores (frames are 8-bit in both). ctest runs this as cli.formats where evnerf is built with HDF5.
+# scores (frames are 8-bit in both); a --time-window keeps the same events from either. ctest runs this as cli.formats where evnerf is built with HDF5.
 # Usage: tests/formats.sh EVNERF_BINARY
 set -euo pipefail
 EV=$1
@@ -26,6 +26,14 @@ b=$("$EV" inspect "$work/h5/rec.h5" | tail -n +2)
 $a
 HDF5
 $b"
+# --time-window: the same events from the folder and from the HDF5 file, exactly those of the window.
+a=$("$EV" inspect "$work/rec" --time-window 0.5 1.25 | tail -n +2)
+b=$("$EV" inspect "$work/h5/rec.h5" --time-window 0.5 1.25 | tail -n +2)
+[ "$a" = "$b" ] || fail "inspect --time-window differs between the folder and the HDF5 file"
+"$EV" convert "$work/h5/rec.h5" "$work/window" --time-window 0.5 1.25 > /dev/null
+want=$(awk '$1 >= 0.5 && $1 < 1.25' "$work/rec/events.txt" | wc -l)
+got=$(wc -l < "$work/window/events.txt")
+[ "$want" -gt 0 ] && [ "$want" = "$got" ] || fail "--time-window kept $got events, the window holds $want"
 ARGS=(--iters 40 --pixels 512 --seed 2 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/run_txt" "${ARGS[@]}" > /dev/null 2>&1
 "$EV" train "$work/h5/rec.h5" --out "$work/run_h5" "${ARGS[@]}" > /dev/null 2>&1

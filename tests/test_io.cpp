@@ -417,6 +417,21 @@ TEST_CASE("HDF5: the event_utils/HQF and DSEC layouts written by h5py read back 
       CHECK(r->events.t[k] == doctest::Approx(t0 + 1e-4 * double(k)).epsilon(1e-12));
     }
   }
+  CHECK(dsec.events_read == 40);
+  // A time window: the events of [1.15, 2.45) ms (events 12 to 24); the DSEC file is read through its
+  // ms_to_idx (entries 1 and 3: events 10 to 29, one more on each side), the HQF file whole.
+  const auto wd = io::read_hdf5(fx / "dsec.h5", 0, 0, 5.00115, 5.00245), wh = io::read_hdf5(fx / "hqf.h5", 0, 0, 0.00115, 0.00245);
+  CHECK(wd.events_read == 22);
+  CHECK(wh.events_read == 40);
+  for (const auto* r : {&wd, &wh}) {
+    REQUIRE(r->events.size() == 13);
+    CHECK(r->events.x.front() == 12 % 8);
+    CHECK(r->events.x.back() == 24 % 8);
+  }
+  CHECK(io::read_hdf5_checked(fx / "dsec.h5", 0, 0, 5.00115, 5.00245).events.t == wd.events.t);
+  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 4.0, 5.00005).events.size() == 1);     // before the index: from event 0
+  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 5.00385, 9.0).events.size() == 1);     // after it: to the last event
+  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 6.0, 7.0).events.empty());
   REQUIRE(hqf.frames.size() == 2);
   CHECK(hqf.frame_times == std::vector<double>{0.0, 0.002});
   CHECK(hqf.frames[1].width == 8);
@@ -851,6 +866,49 @@ TEST_CASE("EventNeRF layout: events from .npz (deflated or stored), poses spread
   CHECK(worst < 0.05);
 }
 
+TEST_CASE("io::load: a folder holding two layouts is refused unless --format names one; --format checks what it is given") {
+  const fs::path fx = EVNERF_FIXTURES;
+  const auto dir = temp_dir("twolayouts");
+  fs::copy(fx / "eventnerf", dir, fs::copy_options::recursive);
+  const auto enf = io::load(dir);  // one layout: read from the content
+  io::write_ijrr(dir, enf);        // now an IJRR folder too
+  CHECK_CONTAINS(error_of([&] { io::load(dir); }), "the folder holds several layouts (ijrr, eventnerf): choose one with --format");
+  io::LoadOptions o;
+  o.use_cache = false;
+  o.format = "eventnerf";
+  const auto a = io::load(dir, o);
+  CHECK(a.events.t == enf.events.t);
+  CHECK(a.trajectory.size() == 5);
+  o.format = "ijrr";
+  const auto b = io::load(dir, o);
+  CHECK(b.events.x == enf.events.x);
+  CHECK(b.events.size() == 40);
+  o.format = "hdf5";
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "format 'hdf5' is a file, and this is a folder");
+  o.format = "ijrr";
+  CHECK_CONTAINS(error_of([&] { io::load(fx / "davis.bag", o); }), "davis.bag:0: format 'ijrr' is a folder, and this is a file");
+#ifdef EVNERF_HAVE_ROSBAG
+  o.format = "rosbag";
+  CHECK(io::load(fx / "davis.bag", o).events.size() > 0);
+#endif
+  o.format = "hdf";
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
+  // A time window, for every reader: only the events inside it, and an error when none are.
+  o.format = "eventnerf";
+  o.t_begin = 0.00115;
+  o.t_end = 0.00245;
+  const auto w = io::load(dir, o);
+  REQUIRE(w.events.size() == 13);
+  CHECK(w.events.t.front() == enf.events.t[12]);
+  CHECK(w.trajectory.size() == 5);  // poses and frames stay whole
+  o.t_begin = 1.0;
+  o.t_end = 2.0;
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "no events in the time window [1, 2) s");
+  o.t_end = 1.0;
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "time window [1, 1) s is empty");
+  fs::remove_all(dir);
+}
+
 TEST_CASE("EventNeRF layout and .npz: bad archives and folders are refused with the file and what is wrong") {
   const fs::path fx = EVNERF_FIXTURES;
   const auto dir = temp_dir("enf");
@@ -965,4 +1023,63 @@ TEST_CASE("COLMAP text model as a recording's pose source: images get the times 
   o.poses.clear();
   CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "cameras.txt:0: camera of 16x12 for a 8x6 sensor");
   fs::remove_all(dir);
+}
+
+TEST_CASE("the paper's colour geometry: site sensors, their cameras and events, upsampling back") {
+  // The paper's colour geometry, for every pattern and channel: a channel's first site in each block, a
+  // camera for those sites (what site pixel (x', y') sees is what full pixel (2x'+ox, 2y'+oy) sees, through
+  // the same distortion), the events moved there, and the upsampling back.
+  const geometry::Camera full(13, 9, 20, 22, 6.3, 4.1, {0.05, -0.02, 0.001, -0.002, 0.003});
+  io::Dataset rec;
+  rec.camera = full;
+  rec.events.width = 13;
+  rec.events.height = 9;
+  for (int i = 0; i < 13 * 9; ++i) rec.events.push_back(0.001 * i, i % 13, i / 13, i % 3 == 0 ? -1 : 1);
+  for (const char* name : {"rggb", "bggr", "gbrg", "grbg"}) {
+    geometry::BayerPattern p;
+    REQUIRE(geometry::BayerPattern::parse(name, p));
+    rec.bayer_pattern = name;
+    for (int c = 0; c < 3; ++c) {
+      CAPTURE(name);
+      CAPTURE(c);
+      const auto s = geometry::site_of(p, c);
+      CHECK(p.at(s.ox, s.oy) == c);
+      if (c == 1) CHECK(s.oy == 0);  // green: the block's first green, in its first row for every pattern
+      const auto sc = geometry::site_camera(full, s);
+      CHECK(sc.width() == (s.ox ? 6 : 7));
+      CHECK(sc.height() == (s.oy ? 4 : 5));
+      for (int x = 0; x < sc.width(); ++x)
+        for (int y = 0; y < sc.height(); ++y) {
+          const auto a = sc.ray(geometry::Pose{}, x + 0.5, y + 0.5), b = full.ray(geometry::Pose{}, 2 * x + s.ox + 0.5, 2 * y + s.oy + 0.5);
+          CHECK((a.dir - b.dir).norm() < 1e-9);
+        }
+      const Vec3 point(0.3, -0.2, 2.0);
+      const Vec2 u = full.project(point), v = sc.project(point);
+      CHECK(v.x() == doctest::Approx((u.x() - s.ox + 0.5) / 2));
+      CHECK(v.y() == doctest::Approx((u.y() - s.oy + 0.5) / 2));
+      const auto sub = io::channel_dataset(rec, p, c);
+      CHECK(sub.camera.width() == sc.width());
+      CHECK(sub.events.size() == static_cast<std::size_t>(sc.width() * sc.height()));
+      CHECK(sub.bayer_pattern.empty());  // a grey recording
+      sub.events.validate("sub");
+      for (std::size_t i = 0; i < sub.events.size(); ++i) {  // each event from the site it names
+        const int k = static_cast<int>(std::lround(sub.events.t[i] / 0.001));
+        CHECK(k % 13 == 2 * sub.events.x[i] + s.ox);
+        CHECK(k / 13 == 2 * sub.events.y[i] + s.oy);
+        CHECK(sub.events.polarity[i] == rec.events.polarity[static_cast<std::size_t>(k)]);
+      }
+      // Upsampling: a site keeps its value; a plane in site coordinates stays that plane inside the grid.
+      Image img(sc.width(), sc.height());
+      for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) img.at(x, y) = 0.5f + 0.25f * x - 0.125f * y;
+      const auto up = geometry::upsample_sites(img, s, 13, 9);
+      REQUIRE(up.width == 13);
+      for (int y = 0; y < 9; ++y)
+        for (int x = 0; x < 13; ++x) {
+          const double sx = std::clamp((x - s.ox) / 2.0, 0.0, img.width - 1.0), sy = std::clamp((y - s.oy) / 2.0, 0.0, img.height - 1.0);
+          CHECK(up.at(x, y) == doctest::Approx(0.5 + 0.25 * sx - 0.125 * sy));
+          if ((x & 1) == s.ox && (y & 1) == s.oy) CHECK(up.at(x, y) == img.at(x / 2, y / 2));
+        }
+    }
+  }
 }

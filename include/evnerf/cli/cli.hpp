@@ -17,6 +17,8 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -253,6 +255,119 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
 }
 
+/// The paper's colour model (train --per-channel): a grey model per colour channel, each trained on its
+/// channel's quarter-resolution sites (io::channel_dataset), in these subfolders of the run.
+inline constexpr const char* kChannelDirs[3] = {"r", "g", "b"};
+
+/// channels.json: the full sensor's camera, the mosaic, and each channel's checkpoint (relative paths).
+inline nlohmann::json per_channel_manifest(const geometry::Camera& c, const geometry::BayerPattern& p) {
+  nlohmann::json j = {{"kind", "evnerf per-channel colour"},
+                      {"pattern", p.name()},
+                      {"camera", {{"width", c.width()}, {"height", c.height()}, {"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()},
+                                  {"cy", c.cy()}, {"distortion", c.distortion()}}},
+                      {"channels", nlohmann::json::array()}};
+  for (int k = 0; k < 3; ++k) j["channels"].push_back(std::string(kChannelDirs[k]) + "/model.ckpt");
+  return j;
+}
+
+/// What render and eval need of a trained model: its name, the training description (boundary times and
+/// poses; the camera is the recording's sensor), near and far for the depth maps, and a render at any pose.
+struct Renderable {
+  std::string name;
+  train::Described desc;
+  double near = 0, far = 1;
+  std::function<Rendering(const geometry::Pose&)> render;
+};
+
+/// One checkpoint, by the variant of V... that can load it.
+template <class... V>
+Renderable load_model(const fs::path& ckpt) {
+  Renderable r;
+  with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
+    auto model = std::make_shared<Model>();
+    r.desc = train::parse_description(train::load_checkpoint(ckpt, *model, ""), ckpt.string());
+    r.name = name;
+    r.near = model->box().near;
+    r.far = model->box().far;
+    auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));
+    r.render = [model, dirs, cam = r.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
+    return 0;
+  });
+  return r;
+}
+
+/// A model.ckpt, or the channels.json of train --per-channel: each channel's model renders its quarter-
+/// resolution sites, geometry::upsample_sites brings them to the full sensor, and the three make one RGB
+/// image (depth and opacity: the green model's, upsampled). Boundary times: those all three channels share.
+template <class... V>
+Renderable load_renderable(const fs::path& ckpt) {
+  if (ckpt.extension() != ".json") return load_model<V...>(ckpt);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_file(ckpt));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(ckpt.string(), 0, std::string("not a channels.json of train --per-channel: ") + e.what());
+  }
+  geometry::Camera cam;
+  geometry::BayerPattern pattern;
+  std::vector<fs::path> files;
+  try {
+    if (j.value("kind", "") != "evnerf per-channel colour") throw Error("its \"kind\" is not \"evnerf per-channel colour\"");
+    if (!geometry::BayerPattern::parse(j.at("pattern").get<std::string>(), pattern))
+      throw Error("unknown Bayer pattern '" + j.at("pattern").get<std::string>() + "'");
+    const auto& c = j.at("camera");
+    cam = geometry::Camera(c.at("width").get<int>(), c.at("height").get<int>(), c.at("fx").get<double>(), c.at("fy").get<double>(),
+                           c.at("cx").get<double>(), c.at("cy").get<double>(), c.at("distortion").get<std::array<double, 5>>());
+    if (!j.at("channels").is_array() || j.at("channels").size() != 3) throw Error("\"channels\" must list three checkpoints (R, G, B)");
+    for (const auto& f : j.at("channels")) files.push_back(ckpt.parent_path() / f.get<std::string>());
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(ckpt.string(), 0, std::string("channels.json: ") + e.what());
+  } catch (const Error& e) {
+    throw Error(ckpt.string(), 0, std::string("channels.json: ") + e.what());
+  }
+  std::array<Renderable, 3> ch;
+  std::array<geometry::Site, 3> sites;
+  double lo = -1e300, hi = 1e300;
+  for (int k = 0; k < 3; ++k) {
+    ch[k] = load_model<V...>(files[k]);
+    sites[k] = geometry::site_of(pattern, k);
+    const auto expect = geometry::site_camera(cam, sites[k]);
+    if (ch[k].desc.camera.width() != expect.width() || ch[k].desc.camera.height() != expect.height())
+      throw Error(files[k].string(), 0, "its camera is not the " + std::string(1, "RGB"[k]) + " sites of the sensor in " + ckpt.string());
+    if (ch[k].desc.times.empty()) throw Error(files[k].string(), 0, "no slice boundaries");
+    lo = std::max(lo, ch[k].desc.times.front());
+    hi = std::min(hi, ch[k].desc.times.back());
+  }
+  Renderable r;
+  r.name = ch[1].name + "_per_channel";
+  r.near = ch[1].near;
+  r.far = ch[1].far;
+  r.desc = ch[1].desc;
+  r.desc.camera = cam;
+  r.desc.times.clear();
+  r.desc.poses.clear();
+  for (std::size_t i = 0; i < ch[1].desc.times.size(); ++i)
+    if (ch[1].desc.times[i] >= lo - 1e-9 && ch[1].desc.times[i] <= hi + 1e-9) {
+      r.desc.times.push_back(ch[1].desc.times[i]);
+      r.desc.poses.push_back(ch[1].desc.poses[i]);
+    }
+  r.render = [ch, sites, W = cam.width(), H = cam.height()](const geometry::Pose& pose) {
+    Rendering out;
+    out.luminance = Image(W, H, 3);
+    for (int k = 0; k < 3; ++k) {
+      const auto rk = ch[k].render(pose);
+      const auto up = geometry::upsample_sites(rk.luminance, sites[k], W, H);
+      for (std::size_t i = 0; i < up.pixels(); ++i) out.luminance.data[3 * i + k] = up.data[i];
+      if (k == 1) {
+        out.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);
+        out.opacity = geometry::upsample_sites(rk.opacity, sites[k], W, H);
+      }
+    }
+    return out;
+  };
+  return r;
+}
+
 const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
                                "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
                                "min-max, none";
@@ -277,6 +392,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   // The recording every verb reads, and how to read it (any format io::load reads).
   std::string folder;
   io::LoadOptions load_opt;
+  std::vector<double> time_window;
   auto add_recording = [&](CLI::App* sub, const std::string& help) {
     sub->add_option("recording", folder, help)->required();
     sub->add_option("--calib", load_opt.calib,
@@ -284,6 +400,13 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     sub->add_option("--poses", load_opt.poses,
                     "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
                     "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
+    sub->add_option("--time-window", time_window,
+                    "only the events from T0 to T1 (seconds on the recording's clock as inspect shows it; DSEC HDF5 files are read "
+                    "through ms_to_idx, only the window)")
+        ->expected(2);
+    sub->add_option("--format", load_opt.format,
+                    "the reader, where the content does not decide it (a folder holding two layouts): ijrr, eventnerf, robust-e-nerf, hdf5, rosbag")
+        ->check(CLI::IsMember(io::load_formats()));
     sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
     sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
     sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
@@ -393,6 +516,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--box", box_fit, "scene box: cameras (centres plus far in every direction) or frusta (tight around the views)")
       ->check(CLI::IsMember({"cameras", "frusta"}))
       ->capture_default_str();
+  bool per_channel = false;
+  trainc->add_flag("--per-channel", per_channel,
+                   "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
+                   "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
   trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
   trainc->add_flag("--quiet", quiet, "no progress bar");
 
@@ -400,14 +527,14 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   fs::path ckpt;
   int novel = 8;
   auto* renderc = app.add_subcommand("render", "intensity and depth at every slice boundary and along a novel path");
-  renderc->add_option("checkpoint", ckpt, "model.ckpt")->required();
+  renderc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
   renderc->add_option("--out", out, "output folder")->required();
   renderc->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
 
   // eval
   int holdout = 0;
   auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
-  evalc->add_option("checkpoint", ckpt, "model.ckpt")->required();
+  evalc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
   add_recording(evalc, rec_help);
   evalc->add_option("--out", out, "output folder")->required();
   evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
@@ -422,6 +549,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     return code == 0 ? 0 : 2;
   }
   const std::string cmd = app.get_subcommands().front()->get_name();
+  if (time_window.size() == 2) {
+    load_opt.t_begin = time_window[0];
+    load_opt.t_end = time_window[1];
+  }
   try {
     if (*inspect) {
 #ifdef EVNERF_HAVE_ROSBAG
@@ -513,23 +644,23 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
-      const auto td = train::prepare(d, cfg);
-      const std::string meta = train::describe(td, fs::absolute(folder).string());
-      return with_variant<V...>(variant, [&]<class Model>(const std::string& name) {
-        train::Trainer<Model> trainer(td, cfg, out, name, meta);
+      // One run: a model trained on `td` into `dir`; returns the exit code.
+      auto train_one = [&]<class Model>(const std::string& name, const TrainingData& td, const fs::path& dir, std::size_t n_events) -> int {
+        const std::string meta = train::describe(td, fs::absolute(folder).string());
+        train::Trainer<Model> trainer(td, cfg, dir, name, meta);
         std::string note;
         if (resume && trainer.resume(&note)) {
           if (!note.empty()) fmt::print(stderr, "warning: {}\n", note);
           fmt::print(stderr, "resuming {} at step {}\n", name, trainer.model().step());
         }
-        fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), d.events.size(),
+        fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), n_events,
                    cfg.threads > 0 ? cfg.threads : thread_count());
         // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
         // checkpoint; a second signal kills at once (the handler restores the default action).
         const StopOnSignal stop_request;
         const auto r = trainer.run([&](const train::StepReport&) { return !stop_request.requested(); });
         fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
-                   r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (out / "model.ckpt").string());
+                   r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
         if (r.diverged) return 3;
         if (r.stopped) {
           fmt::print(stderr, "train: stopped by {} at step {}; the checkpoint is written, continue with --resume\n",
@@ -542,46 +673,60 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
           return 4;
         }
         return 0;
+      };
+      return with_variant<V...>(variant, [&]<class Model>(const std::string& name) -> int {
+        if (!per_channel) return train_one.template operator()<Model>(name, train::prepare(d, cfg), out, d.events.size());
+        if constexpr (Model::channels != 1) {
+          throw Error("train --per-channel: the variant '" + name + "' renders colour; name a grey one (each channel gets a grey model)");
+        } else {
+          const auto pattern = bayer_of(d);
+          for (int c = 0; c < 3; ++c) {
+            const auto sub = io::channel_dataset(d, pattern, c);
+            fmt::print(stderr, "channel {}: {}x{} sites, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(), sub.events.size());
+            const int code = train_one.template operator()<Model>(name, train::prepare(sub, cfg), out / kChannelDirs[c], sub.events.size());
+            if (code != 0) return code;
+          }
+          write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern).dump(2) + "\n");
+          fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
+          return 0;
+        }
       });
     }
     if (*renderc) {
-      return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string&) {
-        Model model;
-        const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
-        const auto dirs = render::pixel_directions(desc.camera);
-        const float dlo = float(model.box().near), dhi = float(model.box().far * 0.6);
-        for (std::size_t i = 0; i < desc.poses.size(); ++i)
-          write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.camera, dirs, desc.poses[i]), dlo, dhi);
-        for (int k = 0; k < novel; ++k)
-          write_rendering(out, fmt::format("novel_{:04d}", k),
-                          model.render(desc.camera, dirs, render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)), dlo, dhi);
-        fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
-                   out.string());
-        return 0;
-      });
+      const auto model = load_renderable<V...>(ckpt);
+      const auto& desc = model.desc;
+      const float dlo = float(model.near), dhi = float(model.far * 0.6);
+      for (std::size_t i = 0; i < desc.poses.size(); ++i)
+        write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
+      for (int k = 0; k < novel; ++k)
+        write_rendering(out, fmt::format("novel_{:04d}", k), model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)),
+                        dlo, dhi);
+      fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
+                 out.string());
+      return 0;
     }
     if (*evalc) {
       const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
-      return with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
-        Model model;
-        const auto desc = train::parse_description(train::load_checkpoint(ckpt, model, ""), ckpt.string());
+      {
+        const auto model = load_renderable<V...>(ckpt);
+        const auto& desc = model.desc;
+        const std::string& name = model.name;
         require(desc.camera.width() == d.camera.width() && desc.camera.height() == d.camera.height(),
                 "eval: the checkpoint's camera does not match the recording's sensor size");
         // Frames at the trained slice boundaries (the first boundary has no events before it: skipped).
         const auto ids = frames_inside(d, desc.times.front(), desc.times.back());
         require(!ids.empty(), "eval: no frames inside the trained time range");
-        const auto dirs = render::pixel_directions(d.camera);
         eval::Method ours{"evnerf_" + name, {}};
         std::vector<Image> depths;
         const auto t0 = std::chrono::steady_clock::now();
         for (auto i : ids) {
           const double t = d.frames.t[i];
           const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
-          const auto r = model.render(d.camera, dirs, pose);
+          const auto r = model.render(pose);
           ours.images.push_back(r.luminance);
           depths.push_back(r.depth);
-          write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.box().near), float(model.box().far * 0.6));
+          write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.near), float(model.far * 0.6));
         }
         const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / ids.size();
         // In colour where both the frames and the model are: RGB scores per channel, grey ones secondary.
@@ -598,7 +743,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if (d.depth.size() == d.frames.size()) {
           std::vector<std::vector<float>> gtd;
           for (auto i : ids) gtd.push_back(io::load_npy<float>(d.depth[i]).data);
-          const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.box().far);
+          const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.far);
           if (std::isfinite(absrel)) j["depth_absrel_median_scaled"] = absrel;
         }
         // Novel views: with --holdout K (as given to train), the frames at every K-th boundary were never
@@ -625,7 +770,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                    "high-pass filter), renders/\n",
                    render_s, d.camera.width(), d.camera.height(), out.string());
         return 0;
-      });
+      }
     }
   } catch (const std::exception& e) {
     fmt::print(stderr, "evnerf {}: error: {}\n", cmd, e.what());

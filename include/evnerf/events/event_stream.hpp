@@ -32,6 +32,18 @@ struct EventStream {
     y.push_back(static_cast<std::uint16_t>(ys));
     polarity.push_back(static_cast<std::int8_t>(p));
   }
+  /// Keeps events [a, b) only (a ≤ b ≤ size()).
+  void keep_range(std::size_t a, std::size_t b) {
+    require(a <= b && b <= t.size(), "EventStream::keep_range: bad range");
+    auto cut = [&](auto& v) {
+      v.erase(v.begin() + static_cast<std::ptrdiff_t>(b), v.end());
+      v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(a));
+    };
+    cut(t);
+    cut(x);
+    cut(y);
+    cut(polarity);
+  }
   double t_begin() const { return t.empty() ? 0.0 : t.front(); }
   double t_end() const { return t.empty() ? 0.0 : t.back(); }
   std::size_t count_positive() const {

@@ -1,13 +1,16 @@
 // geometry/bayer.hpp — colour filter mosaics of colour event cameras (Color-DAVIS346: RGGB; ESIM) and of
 // the frames that recordings carry (ROS's bayer_rggb8, bayer_bggr8, bayer_gbrg8, bayer_grbg8), and the
-// bilinear demosaicing of such a frame. Depends on core/ only.
+// bilinear demosaicing of such a frame; the paper's colour geometry (each channel a quarter-resolution
+// sensor of its own, upsampled back). Depends on core/ and geometry/camera.hpp.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <string>
 #include <string_view>
 
 #include "../core/error.hpp"
 #include "../core/types.hpp"
+#include "camera.hpp"
 
 namespace evnerf::geometry {
 
@@ -65,6 +68,60 @@ inline Image demosaic(const Image& mosaic, const BayerPattern& p) {
       for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = c == own ? mosaic.at(x, y) : n[c] ? sum[c] / static_cast<float>(n[c]) : 0.f;
     }
   return rgb;
+}
+
+/// Where a channel's quarter-resolution sensor sits in each 2×2 block: its first site in the order (0,0),
+/// (1,0), (0,1), (1,1). Green has two sites per block; the quarter-resolution sensor is the first one's
+/// (the paper reconstructs each channel at a quarter of the resolution).
+struct Site {
+  int ox = 0, oy = 0;
+};
+inline Site site_of(const BayerPattern& p, int channel) {
+  require(channel >= 0 && channel <= 2, "site_of: the channel must be 0 (R), 1 (G) or 2 (B)");
+  for (int i = 0; i < 4; ++i)
+    if (p.channel[static_cast<std::size_t>(i)] == channel) return {i & 1, i >> 1};
+  throw Error("site_of: the pattern '" + p.name() + "' has no channel " + std::to_string(channel));
+}
+
+/// The camera of the sites (2x'+ox, 2y'+oy) taken as a sensor of their own: pixel (x', y') of it sees what
+/// full-resolution pixel (2x'+ox, 2y'+oy) sees (pixel centres at integer + 0.5 in both), through the same
+/// lens (distortion acts on normalised coordinates, unchanged).
+inline Camera site_camera(const Camera& full, Site s) {
+  const int w = (full.width() - s.ox + 1) / 2, h = (full.height() - s.oy + 1) / 2;
+  require(w > 0 && h > 0, "site_camera: the sensor is too small for a 2x2 mosaic");
+  // full-resolution u = fx·n + cx, site coordinate u' = (u − ox + 0.5) / 2
+  return Camera(w, h, full.fx() / 2, full.fy() / 2, (full.cx() - s.ox + 0.5) / 2, (full.cy() - s.oy + 0.5) / 2,
+                full.distortion());
+}
+
+/// A site sensor's image brought back to the full resolution: full pixel (x, y) takes the bilinear
+/// interpolation at site coordinate ((x − ox) / 2, (y − oy) / 2), clamped to the site grid (every channel
+/// of `sub` alike). At a site the value is the site's own.
+inline Image upsample_sites(const Image& sub, Site s, int width, int height) {
+  require(sub.width > 0 && sub.height > 0, "upsample_sites: empty image");
+  Image out(width, height, sub.channels);
+  auto axis = [](int x, int o, int n, int& i0, int& i1, float& f) {
+    const double v = std::clamp((x - o) / 2.0, 0.0, double(n - 1));
+    i0 = static_cast<int>(v);
+    i1 = std::min(i0 + 1, n - 1);
+    f = static_cast<float>(v - i0);
+  };
+  for (int y = 0; y < height; ++y) {
+    int y0, y1;
+    float fy;
+    axis(y, s.oy, sub.height, y0, y1, fy);
+    for (int x = 0; x < width; ++x) {
+      int x0, x1;
+      float fx;
+      axis(x, s.ox, sub.width, x0, x1, fx);
+      for (int c = 0; c < sub.channels; ++c) {
+        const float top = sub.at(x0, y0, c) + fx * (sub.at(x1, y0, c) - sub.at(x0, y0, c));
+        const float bottom = sub.at(x0, y1, c) + fx * (sub.at(x1, y1, c) - sub.at(x0, y1, c));
+        out.at(x, y, c) = top + fy * (bottom - top);
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace evnerf::geometry

@@ -2,13 +2,16 @@
 // layout folder, as written by the real dataset and by evnerf's simulator. Depends on core/, geometry/,
 // events/ and io/ only.
 #pragma once
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include <stb_image.h>
 
+#include "../geometry/bayer.hpp"
 #include "colmap.hpp"
 #include "eventnerf.hpp"
 #include "robust_e_nerf.hpp"
@@ -38,7 +41,20 @@ struct LoadOptions {
   /// Read an HDF5 file in a child process first, so that a crash of the HDF5 library on a corrupt file is
   /// an Error (io::read_hdf5_checked; costs a second read of the file).
   bool hdf5_check_in_child = true;
+  /// Only the events with t_begin ≤ t < t_end (seconds, on the loaded clock: a bag's relative to its
+  /// time_origin). Every reader drops the others after reading; the HDF5 reader of the DSEC layout reads
+  /// only the window's events, found through ms_to_idx.
+  double t_begin = -INFINITY, t_end = INFINITY;
+  /// The reader, where the content does not decide it (a folder holding two layouts): "ijrr", "eventnerf",
+  /// "robust-e-nerf", "hdf5", "rosbag"; empty = from the content.
+  std::string format;
 };
+
+/// The names LoadOptions::format takes.
+inline const std::vector<std::string>& load_formats() {
+  static const std::vector<std::string> f{"ijrr", "eventnerf", "robust-e-nerf", "hdf5", "rosbag"};
+  return f;
+}
 
 struct Dataset {
   std::filesystem::path folder;
@@ -56,6 +72,29 @@ struct Dataset {
   std::string bayer_pattern;
   bool from_cache = false;
 };
+
+/// The paper's colour geometry: the events of one channel's sites (geometry::site_of) as a grey recording
+/// of a quarter-resolution sensor (geometry::site_camera), event (2x'+ox, 2y'+oy) at (x', y'). Poses and
+/// frames stay the recording's (the frames' times still cut the slices; they are not at the new sensor's
+/// size, so evaluate against the full recording); depth and linear truth are dropped.
+inline Dataset channel_dataset(const Dataset& d, const geometry::BayerPattern& p, int channel) {
+  const auto s = geometry::site_of(p, channel);
+  Dataset c;
+  c.folder = d.folder;
+  c.camera = geometry::site_camera(d.camera, s);
+  c.trajectory = d.trajectory;
+  c.frames = d.frames;
+  c.time_origin = d.time_origin;
+  c.events.width = c.camera.width();
+  c.events.height = c.camera.height();
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < d.events.size(); ++i) n += (d.events.x[i] & 1) == s.ox && (d.events.y[i] & 1) == s.oy;
+  c.events.reserve(n);
+  for (std::size_t i = 0; i < d.events.size(); ++i)
+    if ((d.events.x[i] & 1) == s.ox && (d.events.y[i] & 1) == s.oy)
+      c.events.push_back(d.events.t[i], d.events.x[i] / 2, d.events.y[i] / 2, d.events.polarity[i]);
+  return c;
+}
 
 /// The most pixels a sensor may have (8192 × 8192): per-pixel counts per slice are allocated from it.
 inline constexpr long long kMaxSensorPixels = 1LL << 26;
@@ -284,7 +323,8 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
 /// kept in memory.
 inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
-  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height) : read_hdf5(path, opt.width, opt.height);
+  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height, opt.t_begin, opt.t_end)
+                                     : read_hdf5(path, opt.width, opt.height, opt.t_begin, opt.t_end);
   check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
   Dataset d;
   d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
@@ -425,13 +465,43 @@ inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const Loa
   return d;
 }
 
-/// Loads a recording whatever its format: an IJRR-layout folder, an EventNeRF scene folder, a Robust e-NeRF
+/// Loads a recording whatever its format (all its events; io::load applies LoadOptions' time window): an IJRR-layout folder, an EventNeRF scene folder, a Robust e-NeRF
 /// sequence folder, an event HDF5 file or a ROS bag (where built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
-inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+/// A folder that holds more than one layout is refused unless `opt.format` names the one to read.
+inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
+  const std::string& f = opt.format;
+  if (!f.empty()) {
+    const auto& known = load_formats();
+    if (std::find(known.begin(), known.end(), f) == known.end())
+      throw Error(path.string(), 0, "unknown format '" + f + "' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
+    const bool folder_format = f == "ijrr" || f == "eventnerf" || f == "robust-e-nerf";
+    if (folder_format != fs::is_directory(path))
+      throw Error(path.string(), 0, "format '" + f + "' is " + (folder_format ? "a folder" : "a file") + ", and this is " +
+                                        (fs::exists(path) ? (folder_format ? "a file" : "a folder") : "missing"));
+    if (f == "ijrr") return load_ijrr(path, opt);
+    if (f == "eventnerf") return load_eventnerf(path, opt);
+    if (f == "robust-e-nerf") return load_robust_e_nerf(path, opt);
+#ifdef EVNERF_HAVE_HDF5
+    if (f == "hdf5") return load_hdf5(path, opt);
+#endif
+#ifdef EVNERF_HAVE_ROSBAG
+    if (f == "rosbag") return load_rosbag(path, opt);
+#endif
+    throw Error(path.string(), 0, "this build of evnerf does not read format '" + f + "'");
+  }
   if (fs::is_directory(path)) {
-    if (!fs::exists(path / "events.txt") && is_robust_e_nerf(path)) return load_robust_e_nerf(path, opt);
-    if (!fs::exists(path / "events.txt") && is_eventnerf(path)) return load_eventnerf(path, opt);
+    std::vector<std::string> found;
+    if (fs::exists(path / "events.txt")) found.push_back("ijrr");
+    if (is_eventnerf(path)) found.push_back("eventnerf");
+    if (is_robust_e_nerf(path)) found.push_back("robust-e-nerf");
+    if (found.size() > 1) {
+      std::string list;
+      for (const auto& k : found) list += (list.empty() ? "" : ", ") + k;
+      throw Error(path.string(), 0, "the folder holds several layouts (" + list + "): choose one with --format");
+    }
+    if (!found.empty() && found[0] == "robust-e-nerf") return load_robust_e_nerf(path, opt);
+    if (!found.empty() && found[0] == "eventnerf") return load_eventnerf(path, opt);
     return load_ijrr(path, opt);
   }
   if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder, an event HDF5 file or a ROS bag)");
@@ -449,6 +519,22 @@ inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = 
   missing += " This build reads no ROS bags (install libbz2-dev and liblz4-dev and rebuild).";
 #endif
   throw Error(path.string(), 0, "not a recording evnerf reads (an IJRR-layout folder, an event HDF5 file or a ROS bag 2.0)." + missing);
+}
+
+/// load_whole, then only the events of the time window LoadOptions names (an error when none are left).
+inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  if (!(opt.t_begin < opt.t_end))
+    throw Error(path.string(), 0, "time window [" + short_number(opt.t_begin) + ", " + short_number(opt.t_end) + ") s is empty");
+  auto d = load_whole(path, opt);
+  if (std::isfinite(opt.t_begin) || std::isfinite(opt.t_end)) {
+    auto& t = d.events.t;
+    const auto a = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), opt.t_begin) - t.begin());
+    const auto b = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), opt.t_end) - t.begin());
+    d.events.keep_range(a, std::max(a, b));
+    if (d.events.empty())
+      throw Error(path.string(), 0, "no events in the time window [" + short_number(opt.t_begin) + ", " + short_number(opt.t_end) + ") s");
+  }
+  return d;
 }
 
 }  // namespace evnerf::io

@@ -41,6 +41,8 @@ struct Hdf5Recording {
   int width = 0, height = 0;         ///< from `sensor_resolution` or the frames; 0 when the file does not say
   std::vector<double> frame_times;   ///< seconds
   std::vector<Image> frames;         ///< float in [0, 1]
+  std::size_t events_read = 0;       ///< events read from the file (fewer than it holds when a time window
+                                     ///< and DSEC's ms_to_idx let the reader skip the rest)
 };
 
 namespace detail {
@@ -179,7 +181,8 @@ inline bool is_hdf5(const std::filesystem::path& path) {
 
 /// Reads an event HDF5 file of either layout. `width`/`height` (when > 0) bound the pixel coordinates;
 /// otherwise the file's `sensor_resolution` or first frame does, else the largest coordinate + 1.
-inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0, int height = 0) {
+inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0, int height = 0, double t_begin = -INFINITY,
+                               double t_end = INFINITY) {
   const std::string file = path.string();
   const detail::H5Quiet quiet;
   if (!std::filesystem::is_regular_file(path)) throw Error(file, 0, "cannot open file (missing or not a file)");
@@ -281,18 +284,44 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   }
   const double t_scale = eu ? 1.0 : 1e-6;
 
+  // DSEC: ms_to_idx[k] is the first event at or after k ms (of the raw times, before t_offset). With a time
+  // window it bounds the events to read: those from ms_to_idx[floor] to ms_to_idx[ceil] of the window's
+  // ends, one more on each side so that the entries used are checked against the events like the others.
+  std::vector<std::uint64_t> ms_index;
+  if (dsec && detail::h5_exists(f, "ms_to_idx")) {
+    const detail::H5Vector idx(f, "ms_to_idx", file);
+    if (idx.size() > 16 * static_cast<std::size_t>(bytes))
+      throw Error(file, 0, "dataset 'ms_to_idx' claims " + std::to_string(idx.size()) + " entries in a file of " + std::to_string(bytes) + " bytes");
+    ms_index.resize(idx.size());
+    idx.read(0, ms_index.size(), ms_index.data());
+    for (std::size_t k = 0; k < ms_index.size(); ++k)
+      if (ms_index[k] > n || (k > 0 && ms_index[k] < ms_index[k - 1]))
+        throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
+  }
+  std::size_t i0 = 0, i1 = n;
+  if (!ms_index.empty() && (std::isfinite(t_begin) || std::isfinite(t_end))) {
+    const double ms0 = t_begin * 1e3 - t_offset * 1e-3, ms1 = t_end * 1e3 - t_offset * 1e-3;
+    const double last_k = static_cast<double>(ms_index.size() - 1);
+    if (std::isfinite(t_begin) && ms0 > 0) i0 = ms_index[static_cast<std::size_t>(std::min(std::floor(ms0), last_k))];
+    if (std::isfinite(t_end) && std::ceil(ms1) <= last_k) i1 = ms_index[static_cast<std::size_t>(std::max(0.0, std::ceil(ms1)))];
+    i0 = i0 > 0 ? i0 - 1 : 0;
+    i1 = std::min(n, std::max(i1, i0) + 1);
+  }
+
   auto& ev = rec.events;
-  ev.t.resize(n);
-  ev.x.resize(n);
-  ev.y.resize(n);
-  ev.polarity.resize(n);
-  std::vector<std::int64_t> bx(std::min(n, kHdf5Block)), by(bx.size()), bp(bx.size());
+  const std::size_t count = i1 - i0;
+  rec.events_read = count;
+  ev.t.resize(count);
+  ev.x.resize(count);
+  ev.y.resize(count);
+  ev.polarity.resize(count);
+  std::vector<std::int64_t> bx(std::min(count, kHdf5Block)), by(bx.size()), bp(bx.size());
   std::vector<double> bt(bx.size());
   std::int64_t max_x = -1, max_y = -1;
   const std::int64_t lim_x = rec.width > 0 ? rec.width : 65535, lim_y = rec.height > 0 ? rec.height : 65535;
   double last = -INFINITY;
-  for (std::size_t b = 0; b < n; b += kHdf5Block) {
-    const std::size_t m = std::min(kHdf5Block, n - b);
+  for (std::size_t b = i0; b < i1; b += kHdf5Block) {
+    const std::size_t m = std::min(kHdf5Block, i1 - b);
     xs.read(b, m, bx.data());
     ys.read(b, m, by.data());
     ps.read(b, m, bp.data());
@@ -319,10 +348,10 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
       last = t;
       max_x = std::max(max_x, bx[i]);
       max_y = std::max(max_y, by[i]);
-      ev.t[k] = t;
-      ev.x[k] = static_cast<std::uint16_t>(bx[i]);
-      ev.y[k] = static_cast<std::uint16_t>(by[i]);
-      ev.polarity[k] = static_cast<std::int8_t>(bp[i] == 1 ? 1 : -1);
+      ev.t[k - i0] = t;
+      ev.x[k - i0] = static_cast<std::uint16_t>(bx[i]);
+      ev.y[k - i0] = static_cast<std::uint16_t>(by[i]);
+      ev.polarity[k - i0] = static_cast<std::int8_t>(bp[i] == 1 ? 1 : -1);
     }
   }
   if (rec.width <= 0 || rec.height <= 0) {
@@ -332,18 +361,23 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   ev.width = rec.width;
   ev.height = rec.height;
 
-  // DSEC: ms_to_idx[k] is the first event at or after k ms; a file whose index disagrees is refused.
-  if (dsec && detail::h5_exists(f, "ms_to_idx")) {
-    const detail::H5Vector idx(f, "ms_to_idx", file);
-    if (idx.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
-      throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(idx.size()) + " entries, more than the events' milliseconds");
-    std::vector<std::uint64_t> v(idx.size());
-    idx.read(0, v.size(), v.data());
-    for (std::size_t k = 0; k < v.size(); ++k) {
-      const bool bad = v[k] > n || (k > 0 && v[k] < v[k - 1]) || (v[k] < n && (ev.t[v[k]] - t_offset * 1e-6) * 1e3 < double(k) - 1e-6) ||
-                       (v[k] > 0 && (ev.t[v[k] - 1] - t_offset * 1e-6) * 1e3 >= double(k) + 1e-6);
+  // A file whose ms_to_idx disagrees with the events read is refused (entries pointing at events this read
+  // skipped are checked only for order).
+  if (!ms_index.empty()) {
+    if (i0 == 0 && i1 == n &&
+        ms_index.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
+      throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(ms_index.size()) + " entries, more than the events' milliseconds");
+    auto raw_ms = [&](std::size_t j) { return (ev.t[j - i0] - t_offset * 1e-6) * 1e3; };
+    for (std::size_t k = 0; k < ms_index.size(); ++k) {
+      const std::size_t v = ms_index[k];
+      const bool bad = (v >= i0 && v < i1 && raw_ms(v) < double(k) - 1e-6) || (v > i0 && v <= i1 && raw_ms(v - 1) >= double(k) + 1e-6);
       if (bad) throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
     }
+  }
+  if (std::isfinite(t_begin) || std::isfinite(t_end)) {
+    const auto a = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), t_begin) - ev.t.begin());
+    const auto b = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), t_end) - ev.t.begin());
+    ev.keep_range(a, std::max(a, b));
   }
   return rec;
 }
@@ -362,7 +396,8 @@ inline void (*&hdf5_probe_hook())() {
 /// file, its Error is rethrown here; when it reads the file, this process reads it again (the same calls on
 /// the same bytes). The cost is a second read of the file; the child's memory is gone before this one's
 /// read begins, so the peak memory is unchanged.
-inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int width = 0, int height = 0) {
+inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int width = 0, int height = 0, double t_begin = -INFINITY,
+                                       double t_end = INFINITY) {
   const std::string file = path.string();
   int fds[2];
   if (::pipe(fds) != 0) throw Error(file, 0, "cannot create a pipe to check the HDF5 file in a child process");
@@ -381,7 +416,7 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
     int code = 0;
     try {
       if (detail::hdf5_probe_hook()) detail::hdf5_probe_hook()();
-      read_hdf5(path, width, height);
+      read_hdf5(path, width, height, t_begin, t_end);
     } catch (const Error& e) {
       const std::string m = e.what();
       for (std::size_t off = 0; off < m.size();) {
@@ -416,7 +451,7 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
     throw Error(file, 0, "reading this HDF5 file in a child process ended with exit status " +
                              std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
                              " (a crash a sanitizer reported, or out of memory); nothing was loaded");
-  return read_hdf5(path, width, height);
+  return read_hdf5(path, width, height, t_begin, t_end);
 }
 
 /// Writes events (and frames, 8-bit, with their times) as an event_utils/HQF HDF5 file: events/xs, ys
