@@ -1,6 +1,7 @@
 // events/event_stream.hpp — an event camera's output as a structure of arrays.
 // Depends on core/ only.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -32,12 +33,13 @@ struct EventStream {
     y.push_back(static_cast<std::uint16_t>(ys));
     polarity.push_back(static_cast<std::int8_t>(p));
   }
-  /// Keeps events [a, b) only (a ≤ b ≤ size()).
-  void keep_range(std::size_t a, std::size_t b) {
-    require(a <= b && b <= t.size(), "EventStream::keep_range: bad range");
+  /// Keeps only the events with t0 ≤ t < t1 (times in order, as validate() requires).
+  void keep_time_window(double t0, double t1) {
+    const auto a = std::lower_bound(t.begin(), t.end(), t0) - t.begin();
+    const auto b = std::max(a, std::lower_bound(t.begin(), t.end(), t1) - t.begin());
     auto cut = [&](auto& v) {
-      v.erase(v.begin() + static_cast<std::ptrdiff_t>(b), v.end());
-      v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(a));
+      v.erase(v.begin() + b, v.end());
+      v.erase(v.begin(), v.begin() + a);
     };
     cut(t);
     cut(x);

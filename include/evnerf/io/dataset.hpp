@@ -527,10 +527,7 @@ inline Dataset load(const std::filesystem::path& path, const LoadOptions& opt = 
     throw Error(path.string(), 0, "time window [" + short_number(opt.t_begin) + ", " + short_number(opt.t_end) + ") s is empty");
   auto d = load_whole(path, opt);
   if (std::isfinite(opt.t_begin) || std::isfinite(opt.t_end)) {
-    auto& t = d.events.t;
-    const auto a = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), opt.t_begin) - t.begin());
-    const auto b = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), opt.t_end) - t.begin());
-    d.events.keep_range(a, std::max(a, b));
+    d.events.keep_time_window(opt.t_begin, opt.t_end);
     if (d.events.empty())
       throw Error(path.string(), 0, "no events in the time window [" + short_number(opt.t_begin) + ", " + short_number(opt.t_end) + ") s");
   }

@@ -374,11 +374,7 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
       if (bad) throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
     }
   }
-  if (std::isfinite(t_begin) || std::isfinite(t_end)) {
-    const auto a = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), t_begin) - ev.t.begin());
-    const auto b = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), t_end) - ev.t.begin());
-    ev.keep_range(a, std::max(a, b));
-  }
+  if (std::isfinite(t_begin) || std::isfinite(t_end)) ev.keep_time_window(t_begin, t_end);
   return rec;
 }
 
