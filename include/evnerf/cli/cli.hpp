@@ -147,15 +147,6 @@ inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
   return all;
 }
 
-/// The colour filter of a colour recording's events: the one the recording names, else RGGB (the
-/// Color-DAVIS346's, and the simulator's with --bayer).
-inline geometry::BayerPattern bayer_of(const io::Dataset& d) {
-  geometry::BayerPattern p;
-  if (!d.bayer_pattern.empty() && !geometry::BayerPattern::parse(d.bayer_pattern, p))
-    throw Error(d.folder.string() + ": unknown Bayer pattern '" + d.bayer_pattern + "'");
-  return p;
-}
-
 /// Whether a recording is scored in colour: its frames are RGB.
 inline bool colour_frames(const io::Dataset& d, const std::vector<std::size_t>& ids) {
   return !ids.empty() && io::frame_image(d.frames, ids.front()).channels == 3;
@@ -169,7 +160,7 @@ inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const st
   std::vector<eval::Method> m{{"direct_integration", eval::direct_integration(d.events, times, contrast)},
                               {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
   if (colour) {
-    const auto p = bayer_of(d);
+    const auto p = io::bayer_of(d);
     for (auto& method : m)
       for (auto& img : method.images) img = geometry::demosaic(img, p);
   }
@@ -679,7 +670,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if constexpr (Model::channels != 1) {
           throw Error("train --per-channel: the variant '" + name + "' renders colour; name a grey one (each channel gets a grey model)");
         } else {
-          const auto pattern = bayer_of(d);
+          const auto pattern = io::bayer_of(d);
           for (int c = 0; c < 3; ++c) {
             const auto sub = io::channel_dataset(d, pattern, c);
             fmt::print(stderr, "channel {}: {}x{} sites, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(), sub.events.size());

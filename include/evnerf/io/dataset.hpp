@@ -73,6 +73,15 @@ struct Dataset {
   bool from_cache = false;
 };
 
+/// The colour filter of a recording's events: the one it names, else RGGB (the Color-DAVIS346's, and the
+/// simulator's with --bayer); a name no pattern has is an error naming the recording.
+inline geometry::BayerPattern bayer_of(const Dataset& d) {
+  geometry::BayerPattern p;
+  if (!d.bayer_pattern.empty() && !geometry::BayerPattern::parse(d.bayer_pattern, p))
+    throw Error(d.folder.string() + ": unknown Bayer pattern '" + d.bayer_pattern + "' (known: rggb, bggr, grbg, gbrg)");
+  return p;
+}
+
 /// The paper's colour geometry: the events of one channel's sites (geometry::site_of) as a grey recording
 /// of a quarter-resolution sensor (geometry::site_camera), event (2x'+ox, 2y'+oy) at (x', y'). Poses and
 /// frames stay the recording's (the frames' times still cut the slices; they are not at the new sensor's

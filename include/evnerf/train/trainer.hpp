@@ -142,8 +142,7 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   td.pixel_dirs = render::pixel_directions(d.camera);
   td.slice_enabled.assign(td.slices.size(), true);
   td.prefix = events::CountPrefix(td.slices);
-  if (!d.bayer_pattern.empty() && !geometry::BayerPattern::parse(d.bayer_pattern, td.bayer))
-    throw Error(d.folder.string() + ": unknown Bayer pattern '" + d.bayer_pattern + "' (known: rggb, bggr, grbg, gbrg)");
+  td.bayer = io::bayer_of(d);
   if (cfg.holdout_every > 0)
     for (std::size_t k = cfg.holdout_every; k + 1 < b.size(); k += cfg.holdout_every) {
       td.slice_enabled[k - 1] = false;  // both slices touching boundary k
