@@ -518,6 +518,50 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   fs::remove_all(out);
 }
 
+TEST_CASE("training loop: without an output folder nothing is written and the model trains the same; bad settings are refused") {
+  Fixture f;
+  train::Config cfg = f.cfg;
+  cfg.iterations = 20;
+  cfg.pixels_per_step = 64;
+  cfg.progress = false;
+  cfg.threads = 1;
+  cfg.checkpoint_every = 5;
+  const fs::path cwd = fs::current_path();
+  const fs::path here = fs::temp_directory_path() / "evnerf_test_no_out";
+  fs::remove_all(here);
+  fs::create_directories(here);
+  fs::current_path(here);  // a relative "model.ckpt" or "log.jsonl" would land here
+  Tiny a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  const auto r = train::run(a, f.td, cfg, fs::path(), "tiny", "meta");
+  fs::current_path(cwd);
+  CHECK(r.steps == 20);
+  CHECK(fs::is_empty(here));
+  train::run(b, f.td, cfg, here / "run", "tiny", "meta");
+  CHECK(a.params().values == b.params().values);
+  fs::remove_all(here);
+  // train::check names the setting.
+  auto refused = [&](auto change, const std::string& what) {
+    train::Config c = cfg;
+    change(c);
+    try {
+      train::check(c);
+      FAIL("accepted: " << what);
+    } catch (const Error& e) {
+      CHECK(std::string(e.what()).find(what) != std::string::npos);
+    }
+  };
+  refused([](train::Config& c) { c.far = c.near / 2; }, "far greater than near");
+  refused([](train::Config& c) { c.iterations = 0; }, "iterations must be positive");
+  refused([](train::Config& c) { c.pixels_per_step = 0; }, "pixels per step");
+  refused([](train::Config& c) { c.lr = -1; }, "learning rate must be positive");
+  refused([](train::Config& c) { c.subslices = 65; }, "subslices must be between 1 and 64");
+  Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  train::Config bad = cfg;
+  bad.threads = -1;
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", "meta"), doctest::Contains("threads must be between 0"), Error);
+  CHECK(m.step() == 0);
+}
+
 TEST_CASE("lazy Adam: a threshold of a slice no step touched keeps its value and its moments") {
   Fixture f;
   TrainingData td = f.td;

@@ -27,59 +27,19 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "../evaluate.hpp"
 #include "../evnerf.hpp"
+#include "../sim/simulate.hpp"
+#include "../variants.hpp"
 
 namespace evnerf::cli {
 
 namespace fs = std::filesystem;
 
-/// A string usable as a template argument (a variant's name).
-template <std::size_t N>
-struct Name {
-  char s[N]{};
-  constexpr Name(const char (&a)[N]) { std::copy_n(a, N, s); }
-};
-
-/// A model type and the name the command line knows it by.
-template <class Model, Name N>
-struct Variant {
-  using model = Model;
-  static constexpr const char* name = N.s;
-};
-
-/// Calls fn.template operator()<Model>(name) for the variant called `name`.
-template <class... V, class Fn>
-int with_variant(const std::string& name, Fn&& fn) {
-  int result = 0;
-  const bool found = ((name == V::name ? (result = fn.template operator()<typename V::model>(std::string(V::name)), true) : false) || ...);
-  if (!found) {
-    std::string known;
-    ((known += (known.empty() ? "" : ", ") + std::string(V::name)), ...);
-    throw Error("unknown variant '" + name + "' (this program has: " + known + ")");
-  }
-  return result;
-}
-
-/// The variant that can load a checkpoint: of those whose architecture (version 5 on), loss (version 4
-/// on) and parameter count match the file, the one named in the file, else the first (a file written
-/// under another name, or by another program with the same model).
-template <class... V>
-std::string checkpoint_variant(const fs::path& path) {
-  const auto h = io::peek_checkpoint(path);
-  auto fits = [&]<class Model>() {
-    const bool params = h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices;
-    return params && (h.version < 4 || h.loss == Model::loss_description()) &&
-           (h.version < 5 || h.architecture == Model::architecture());
-  };
-  std::string pick;
-  ((pick.empty() && h.name == V::name && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
-  ((pick.empty() && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
-  if (pick.empty())
-    throw Error(path.string(), 0, "written by variant '" + h.name + "' with the loss '" + h.loss + "'" +
-                                      (h.architecture.empty() ? "" : " and the architecture '" + h.architecture + "'") +
-                                      ", which no variant of this program matches");
-  return pick;
-}
+using evnerf::Name;
+using evnerf::Variant;
+using evnerf::with_variant;
+using evnerf::checkpoint_variant;
 
 namespace detail {
 
@@ -116,14 +76,6 @@ class StopOnSignal {
   void (*old_term_)(int) = SIG_DFL;
 };
 
-/// Frames of a recording that lie strictly inside (lo, hi] (where event methods can work).
-inline std::vector<std::size_t> frames_inside(const io::Dataset& d, double lo, double hi) {
-  std::vector<std::size_t> ids;
-  for (std::size_t i = 0; i < d.frames.size(); ++i)
-    if (d.frames.t[i] > lo + 1e-9 && d.frames.t[i] <= hi + 1e-9) ids.push_back(i);
-  return ids;
-}
-
 inline void print_table(const eval::AlignedScores& a, const std::vector<std::size_t>& subset = {}) {
   fmt::print("{:<22} {:>10} {:>10} {:>10}   (alignment: {})\n", "method", "MSE", "PSNR", "SSIM", eval::to_string(a.alignment));
   for (std::size_t m = 0; m < a.names.size(); ++m) {
@@ -138,95 +90,18 @@ inline void print_table(const eval::AlignedScores& a, const std::vector<std::siz
   }
 }
 
-/// The requested alignment first, then the others of global-log-affine, log-affine, min-max and eventnerf.
-inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
-  const auto first = eval::parse_alignment(flag);
-  std::vector<eval::Alignment> all{first};
-  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax, eval::Alignment::EventNerf})
-    if (al != first) all.push_back(al);
-  return all;
-}
+using namespace evaluation;
 
-/// Whether a recording is scored in colour: its frames are RGB.
-inline bool colour_frames(const io::Dataset& d, const std::vector<std::size_t>& ids) {
-  return !ids.empty() && io::frame_image(d.frames, ids.front()).channels == 3;
-}
-
-/// The baselines' reconstructions at the given frames. In colour, each pixel integrates its own events
-/// (its channel of the mosaic), and the mosaic is then demosaiced.
-inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast, bool colour = false) {
-  std::vector<double> times;
-  for (auto i : ids) times.push_back(d.frames.t[i]);
-  std::vector<eval::Method> m{{"direct_integration", eval::direct_integration(d.events, times, contrast)},
-                              {"high_pass_filter", eval::high_pass_filter(d.events, times, contrast)}};
-  if (colour) {
-    const auto p = io::bayer_of(d);
-    for (auto& method : m)
-      for (auto& img : method.images) img = geometry::demosaic(img, p);
-  }
-  return m;
-}
-
-/// The ground truth of the frames `ids` (grey): the frames, or the simulator's unclipped linear radiance where
-/// the recording has it, then with the tone map that scores in the log space (`hdr` set).
-struct Truth {
-  std::vector<Image> images;
-  std::optional<eval::HdrTone> hdr;
-  /// What the montage shows of the truth.
-  Image shown(std::size_t k) const { return hdr ? hdr->apply(images[k]) : images[k]; }
-};
-inline Truth load_truth(const io::Dataset& d, const std::vector<std::size_t>& ids, bool colour = false) {
-  Truth t;
-  const bool linear = d.linear.size() == d.frames.size() && !d.linear.empty();
-  auto keep = [&](const Image& img) { return colour && img.channels == 3 ? img : eval::to_grey(img); };
-  for (auto i : ids) {
-    if (!linear) {
-      t.images.push_back(keep(io::frame_image(d.frames, i)));
-      continue;
-    }
-    const auto a = io::load_npy<float>(d.linear[i]);
-    const int C = a.shape.size() == 3 ? static_cast<int>(a.shape[2]) : 1;
-    if (a.shape.size() < 2 || a.shape.size() > 3 || a.shape[0] != static_cast<std::size_t>(d.camera.height()) ||
-        a.shape[1] != static_cast<std::size_t>(d.camera.width()) || (C != 1 && C != 3))
-      throw Error(d.linear[i].string(), 0, "linear truth: expected a float32 array of H×W or H×W×3 with the sensor's size");
-    Image img(d.camera.width(), d.camera.height(), C);
-    img.data = a.data;
-    t.images.push_back(keep(img));
-  }
-  if (linear) t.hdr = eval::HdrTone::of(t.images, d.linear_log_offset);
-  return t;
-}
-
-/// Scores under every alignment (the first is the primary), prints the tables and returns metrics.json.
-inline nlohmann::json score_and_report(const std::vector<eval::Method>& methods, const Truth& truth,
-                                       const std::vector<eval::Alignment>& als, const std::vector<std::size_t>& ids,
-                                       eval::AlignedScores& primary) {
-  const eval::HdrTone* hdr = truth.hdr ? &*truth.hdr : nullptr;
-  primary = eval::score_methods(methods, truth.images, als.front(), true, hdr);
-  std::vector<eval::AlignedScores> others;
-  for (std::size_t k = 1; k < als.size(); ++k) others.push_back(eval::score_methods(methods, truth.images, als[k], false, hdr));
-  if (hdr)
-    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(hdr->offset));
-  print_table(primary);
-  for (const auto& o : others) print_table(o);
-  auto j = eval::metrics_json(primary, others, ids);
-  j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
-                   : nlohmann::json{{"kind", "frames"}};
-  const int channels = truth.images.empty() ? 1 : truth.images.front().channels;
-  j["channels"] = channels;
-  if (channels == 3) {  // colour: the same methods in grey (Rec. 601 luminance), as secondary scores
-    Truth grey;
-    for (const auto& im : truth.images) grey.images.push_back(eval::to_grey(im));
-    if (hdr) grey.hdr = eval::HdrTone::of(grey.images, hdr->offset);
-    std::vector<eval::Method> gm = methods;
-    for (auto& m : gm)
-      for (auto& im : m.images) im = eval::to_grey(im);
+/// Prints the scores of evaluation::score_all: the primary table, the others, and in colour the grey one.
+inline void print_scores(const Scored& s, const Truth& truth) {
+  if (truth.hdr)
+    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(truth.hdr->offset));
+  print_table(s.primary);
+  for (const auto& o : s.others) print_table(o);
+  if (s.grey) {
     fmt::print("in grey (luminance of every method and of the truth):\n");
-    const auto g = eval::score_methods(gm, grey.images, als.front(), false, grey.hdr ? &*grey.hdr : nullptr);
-    print_table(g);
-    j["grey"] = eval::metrics_json(g, {}, ids);
+    print_table(*s.grey);
   }
-  return j;
 }
 
 /// Intensity and depth of one view. Luminance beyond 1 (a field of unbounded radiance) is written as its log
@@ -244,119 +119,6 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
   io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
   io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
-}
-
-/// The paper's colour model (train --per-channel): a grey model per colour channel, each trained on its
-/// channel's quarter-resolution sites (io::channel_dataset), in these subfolders of the run.
-inline constexpr const char* kChannelDirs[3] = {"r", "g", "b"};
-
-/// channels.json: the full sensor's camera, the mosaic, and each channel's checkpoint (relative paths).
-inline nlohmann::json per_channel_manifest(const geometry::Camera& c, const geometry::BayerPattern& p) {
-  nlohmann::json j = {{"kind", "evnerf per-channel colour"},
-                      {"pattern", p.name()},
-                      {"camera", {{"width", c.width()}, {"height", c.height()}, {"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()},
-                                  {"cy", c.cy()}, {"distortion", c.distortion()}}},
-                      {"channels", nlohmann::json::array()}};
-  for (int k = 0; k < 3; ++k) j["channels"].push_back(std::string(kChannelDirs[k]) + "/model.ckpt");
-  return j;
-}
-
-/// What render and eval need of a trained model: its name, the training description (boundary times and
-/// poses; the camera is the recording's sensor), near and far for the depth maps, and a render at any pose.
-struct Renderable {
-  std::string name;
-  train::Described desc;
-  double near = 0, far = 1;
-  std::function<Rendering(const geometry::Pose&)> render;
-};
-
-/// One checkpoint, by the variant of V... that can load it.
-template <class... V>
-Renderable load_model(const fs::path& ckpt) {
-  Renderable r;
-  with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
-    auto model = std::make_shared<Model>();
-    r.desc = train::parse_description(train::load_checkpoint(ckpt, *model, ""), ckpt.string());
-    r.name = name;
-    r.near = model->box().near;
-    r.far = model->box().far;
-    auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));
-    r.render = [model, dirs, cam = r.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
-    return 0;
-  });
-  return r;
-}
-
-/// A model.ckpt, or the channels.json of train --per-channel: each channel's model renders its quarter-
-/// resolution sites, geometry::upsample_sites brings them to the full sensor, and the three make one RGB
-/// image (depth and opacity: the green model's, upsampled). Boundary times: those all three channels share.
-template <class... V>
-Renderable load_renderable(const fs::path& ckpt) {
-  if (ckpt.extension() != ".json") return load_model<V...>(ckpt);
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(read_file(ckpt));
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(ckpt.string(), 0, std::string("not a channels.json of train --per-channel: ") + e.what());
-  }
-  geometry::Camera cam;
-  geometry::BayerPattern pattern;
-  std::vector<fs::path> files;
-  try {
-    if (j.value("kind", "") != "evnerf per-channel colour") throw Error("its \"kind\" is not \"evnerf per-channel colour\"");
-    if (!geometry::BayerPattern::parse(j.at("pattern").get<std::string>(), pattern))
-      throw Error("unknown Bayer pattern '" + j.at("pattern").get<std::string>() + "'");
-    const auto& c = j.at("camera");
-    cam = geometry::Camera(c.at("width").get<int>(), c.at("height").get<int>(), c.at("fx").get<double>(), c.at("fy").get<double>(),
-                           c.at("cx").get<double>(), c.at("cy").get<double>(), c.at("distortion").get<std::array<double, 5>>());
-    if (!j.at("channels").is_array() || j.at("channels").size() != 3) throw Error("\"channels\" must list three checkpoints (R, G, B)");
-    for (const auto& f : j.at("channels")) files.push_back(ckpt.parent_path() / f.get<std::string>());
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(ckpt.string(), 0, std::string("channels.json: ") + e.what());
-  } catch (const Error& e) {
-    throw Error(ckpt.string(), 0, std::string("channels.json: ") + e.what());
-  }
-  std::array<Renderable, 3> ch;
-  std::array<geometry::Site, 3> sites;
-  double lo = -1e300, hi = 1e300;
-  for (int k = 0; k < 3; ++k) {
-    ch[k] = load_model<V...>(files[k]);
-    sites[k] = geometry::site_of(pattern, k);
-    const auto expect = geometry::site_camera(cam, sites[k]);
-    if (ch[k].desc.camera.width() != expect.width() || ch[k].desc.camera.height() != expect.height())
-      throw Error(files[k].string(), 0, "its camera is not the " + std::string(1, "RGB"[k]) + " sites of the sensor in " + ckpt.string());
-    if (ch[k].desc.times.empty()) throw Error(files[k].string(), 0, "no slice boundaries");
-    lo = std::max(lo, ch[k].desc.times.front());
-    hi = std::min(hi, ch[k].desc.times.back());
-  }
-  Renderable r;
-  r.name = ch[1].name + "_per_channel";
-  r.near = ch[1].near;
-  r.far = ch[1].far;
-  r.desc = ch[1].desc;
-  r.desc.camera = cam;
-  r.desc.times.clear();
-  r.desc.poses.clear();
-  for (std::size_t i = 0; i < ch[1].desc.times.size(); ++i)
-    if (ch[1].desc.times[i] >= lo - 1e-9 && ch[1].desc.times[i] <= hi + 1e-9) {
-      r.desc.times.push_back(ch[1].desc.times[i]);
-      r.desc.poses.push_back(ch[1].desc.poses[i]);
-    }
-  r.render = [ch, sites, W = cam.width(), H = cam.height()](const geometry::Pose& pose) {
-    Rendering out;
-    out.luminance = Image(W, H, 3);
-    for (int k = 0; k < 3; ++k) {
-      const auto rk = ch[k].render(pose);
-      const auto up = geometry::upsample_sites(rk.luminance, sites[k], W, H);
-      for (std::size_t i = 0; i < up.pixels(); ++i) out.luminance.data[3 * i + k] = up.data[i];
-      if (k == 1) {
-        out.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);
-        out.opacity = geometry::upsample_sites(rk.opacity, sites[k], W, H);
-      }
-    }
-    return out;
-  };
-  return r;
 }
 
 const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
@@ -582,44 +344,41 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*simulate) {
       std::string scene_text;
-      require(textures.empty() || scene == "random", "simulate: --textures goes with the 'random' scene");
-      auto spec = scene == "random" ? sim::random_scene(sim_seed, sim::texture_pictures(textures), &scene_text) : sim::load_scene(scene);
-      sim::SensorConfig cfg_s = realistic ? sim::SensorConfig::realistic() : sim::SensorConfig{};
-      cfg_s.noise_rate = sc.noise_rate;
-      cfg_s.noise_ratio = sc.noise_ratio;
-      cfg_s.log_offset = sc.log_offset;
-      cfg_s.bayer = bayer || scene == "blocks";  // the built-in colour scene is seen through an RGGB mosaic
-      if (hdr) {
-        cfg_s.hdr = true;
-        sim::hdr_lighting(spec.scene);
-      }
-      cfg_s.seed = sim_seed;
-      cfg_s.fx = cfg_s.fy = focal > 0 ? focal : cfg_s.fx * width / 240.0;
-      cfg_s.width = width;
-      cfg_s.height = height;
-      cfg_s.cx = cfg_s.cy = -1;
+      sim::SimulateOptions so;
+      so.realistic = realistic;
+      so.bayer = bayer;
+      so.hdr = hdr;
+      so.seed = sim_seed;
+      so.textures = textures;
+      so.log_offset = sc.log_offset;
+      so.noise_rate = sc.noise_rate;
+      so.noise_ratio = sc.noise_ratio;
+      so.width = width;
+      so.height = height;
+      so.focal = focal;
       const auto t0 = std::chrono::steady_clock::now();
-      auto rec = sim::Simulator(spec, cfg_s).run(true);
+      auto rec = sim::simulate(scene, so, &scene_text);
       sim::write_recording(out, rec);
       if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
       if (!rec.linear.empty())
         fmt::print("{}: wrote the unclipped linear truth (linear/){}; eval scores against it\n", out.string(),
                    rec.clipped ? ", as highlights clip the frames" : "");
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", spec.scene.name,
-                 rec.events.size(), rec.events.count_positive(), spec.path.duration, rec.frames.size(), rec.renders, secs,
+      fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", rec.scene_name,
+                 rec.events.size(), rec.events.count_positive(), rec.duration, rec.frames.size(), rec.renders, secs,
                  out.string());
       return 0;
     }
     if (*baselines) {
       const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
-      const auto ids = frames_inside(d, d.events.t_begin(), d.events.t_end());
-      require(!ids.empty(), folder + ": no frames inside the events' time span");
-      const bool colour = colour_frames(d, ids);
-      const Truth truth = load_truth(d, ids, colour);
-      eval::AlignedScores primary;
-      const auto j = score_and_report(baseline_methods(d, ids, contrast, colour), truth, als, ids, primary);
+      const auto b = run_baselines(d, als, contrast);
+      print_scores(b.scored, b.truth);
+      const auto& j = b.scored.json;
+      const auto& ids = b.ids;
+      const auto& primary = b.scored.primary;
+      const auto& truth = b.truth;
+      const bool colour = b.colour;
       const fs::path rec_path(folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
       const fs::path bo = !baselines_out.empty()          ? baselines_out
                           : fs::is_directory(rec_path) ? rec_path / "baselines"
@@ -699,69 +458,23 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     if (*evalc) {
       const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
-      {
-        const auto model = load_renderable<V...>(ckpt);
-        const auto& desc = model.desc;
-        const std::string& name = model.name;
-        require(desc.camera.width() == d.camera.width() && desc.camera.height() == d.camera.height(),
-                "eval: the checkpoint's camera does not match the recording's sensor size");
-        // Frames at the trained slice boundaries (the first boundary has no events before it: skipped).
-        const auto ids = frames_inside(d, desc.times.front(), desc.times.back());
-        require(!ids.empty(), "eval: no frames inside the trained time range");
-        eval::Method ours{"evnerf_" + name, {}};
-        std::vector<Image> depths;
-        const auto t0 = std::chrono::steady_clock::now();
-        for (auto i : ids) {
-          const double t = d.frames.t[i];
-          const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
-          const auto r = model.render(pose);
-          ours.images.push_back(r.luminance);
-          depths.push_back(r.depth);
-          write_rendering(out / "renders", fmt::format("frame_{:08d}", i), r, float(model.near), float(model.far * 0.6));
-        }
-        const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / ids.size();
-        // In colour where both the frames and the model are: RGB scores per channel, grey ones secondary.
-        const bool colour = colour_frames(d, ids) && ours.images.front().channels == 3;
-        if (!colour)
-          for (auto& im : ours.images) im = eval::to_grey(im);
-        auto methods = baseline_methods(d, ids, 0.2, colour);
-        methods.insert(methods.begin(), ours);
-        eval::AlignedScores primary;
-        const Truth truth = load_truth(d, ids, colour);
-        nlohmann::json j = score_and_report(methods, truth, als, ids, primary);
-        j["seconds_per_render"] = render_s;
-        // Depth against simulated ground truth, where the recording has it (median scale alignment).
-        if (d.depth.size() == d.frames.size()) {
-          std::vector<std::vector<float>> gtd;
-          for (auto i : ids) gtd.push_back(io::load_npy<float>(d.depth[i]).data);
-          const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.far);
-          if (std::isfinite(absrel)) j["depth_absrel_median_scaled"] = absrel;
-        }
-        // Novel views: with --holdout K (as given to train), the frames at every K-th boundary were never
-        // trained on (both slices touching them were held out); their scores are reported on their own.
-        std::vector<std::size_t> pick;  // positions in ids
-        if (holdout > 0) {
-          for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))
-            for (std::size_t q = 0; q < ids.size(); ++q)
-              if (std::abs(d.frames.t[ids[q]] - desc.times[k]) < 1e-9) pick.push_back(q);
-          require(!pick.empty(), "eval: --holdout " + std::to_string(holdout) + " selects no frame of this recording");
-          std::vector<std::size_t> frames;
-          for (auto q : pick) frames.push_back(ids[q]);
-          j["heldout"] = {{"every", holdout}, {"frames", frames}, {"methods", eval::methods_json(primary, false, pick)}};
-        }
-        write_file_atomic(out / "metrics.json", j.dump(2) + "\n");
-        const std::size_t mid = ids.size() / 2;
-        io::write_png(out / "montage.png",
-                      io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid], primary.aligned[2][mid]}, colour ? 3 : 1));
-        if (!pick.empty()) {
-          fmt::print("held-out frames only ({}, novel views):\n", pick.size());
-          print_table(primary, pick);
-        }
-        fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
-                   "high-pass filter), renders/\n",
-                   render_s, d.camera.width(), d.camera.height(), out.string());
-        return 0;
+      const auto model = load_renderable<V...>(ckpt);
+      auto e = evaluate(model, d, als, holdout);
+      print_scores(e.scored, e.truth);
+      for (std::size_t q = 0; q < e.ids.size(); ++q)
+        write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], float(model.near), float(model.far * 0.6));
+      write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");
+      const std::size_t mid = e.ids.size() / 2;
+      const auto& al = e.scored.primary.aligned;
+      io::write_png(out / "montage.png", io::montage({e.truth.shown(mid), al[0][mid], al[1][mid], al[2][mid]}, e.colour ? 3 : 1));
+      if (!e.heldout.empty()) {
+        fmt::print("held-out frames only ({}, novel views):\n", e.heldout.size());
+        print_table(e.scored.primary, e.heldout);
       }
+      fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
+                 "high-pass filter), renders/\n",
+                 e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
+      return 0;
     }
   } catch (const std::exception& e) {
     fmt::print(stderr, "evnerf {}: error: {}\n", cmd, e.what());

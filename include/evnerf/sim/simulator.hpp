@@ -71,6 +71,8 @@ struct Recording {
   double log_offset = 0;       ///< the sensor's, to score HDR renders in the space the events see
   geometry::Trajectory trajectory;
   std::size_t renders = 0;
+  std::string scene_name;  ///< the scene's own name
+  double duration = 0;     ///< the camera path's length in time, seconds
 };
 
 class Simulator {
@@ -115,6 +117,8 @@ class Simulator {
   Recording run(bool progress = false) const {
     Recording rec;
     rec.camera = cam_;
+    rec.scene_name = spec_.scene.name;
+    rec.duration = spec_.path.duration;
     const int W = cfg_.width, H = cfg_.height;
     const std::size_t n = static_cast<std::size_t>(W) * H;
     const double T = spec_.path.duration;

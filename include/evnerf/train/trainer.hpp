@@ -3,6 +3,7 @@
 // Depends on model.hpp, io/ and eval/.
 #pragma once
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -50,6 +51,24 @@ struct Config {
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
 };
+
+/// Refuses settings no run can use, naming the setting (the command line's flags check the same ranges;
+/// programs and the Python module set a Config directly). train::run calls it.
+inline void check(const Config& c) {
+  auto need = [](bool ok, const std::string& what) {
+    if (!ok) throw Error("train: " + what);
+  };
+  need(c.iterations > 0, "iterations must be positive, got " + std::to_string(c.iterations));
+  need(c.pixels_per_step >= 1 && c.pixels_per_step <= (1 << 22), "pixels per step must be between 1 and 4194304, got " + std::to_string(c.pixels_per_step));
+  need(c.threads >= 0 && c.threads <= 4096, "threads must be between 0 (all) and 4096, got " + std::to_string(c.threads));
+  need(c.lr > 0 && std::isfinite(c.lr), "the learning rate must be positive, got " + short_number(c.lr));
+  need(c.lr_decay > 0 && c.lr_decay_steps > 0, "the learning-rate decay and its steps must be positive");
+  need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
+                                                                 short_number(c.near) + " and " + short_number(c.far));
+  need(c.checkpoint_every >= 0, "the checkpoint period must not be negative");
+  need(c.holdout_every >= 0, "holdout must not be negative");
+  need(c.subslices >= 1 && c.subslices <= 64, "subslices must be between 1 and 64, got " + std::to_string(c.subslices));
+}
 
 /// What a collapse check saw. A run has collapsed when its renders are almost constant (the spread of
 /// log luminance over the pixels of a few low-resolution views below kMinLogSpread) or when its event loss
@@ -253,7 +272,8 @@ inline constexpr long kLogEvery = 50;
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
 /// `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
-/// every checkpoint_every steps and at the end. On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
+/// every checkpoint_every steps and at the end; an empty `out` writes nothing (the model stays in memory,
+/// as the Python module's `train` without `out` has it). On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
 /// is due, it stops with a message (RunResult::diverged) and leaves the last good checkpoint in place. A
 /// resumed run first drops the log's lines past the checkpoint's step (written before the process died),
 /// so the log reads as one run. `on_step`, when given, is called after every step and may return false to
@@ -261,15 +281,17 @@ inline constexpr long kLogEvery = 50;
 template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
+  check(cfg);
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
-  {
+  const bool files = !out.empty();
+  if (files) {
     std::error_code ec;
     fs::create_directories(out, ec);
     if (ec) throw Error(out.string(), 0, "cannot create the output folder: " + ec.message());
   }
   const ScopedThreadCount threads(cfg.threads);
-  if (model.step() > 0 && fs::exists(out / "log.jsonl")) {
+  if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
     std::string kept, line;
     std::istringstream in(read_file(out / "log.jsonl"));
     while (std::getline(in, line)) {
@@ -279,8 +301,11 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     }
     write_file_atomic(out / "log.jsonl", kept);
   }
-  std::ofstream log(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
-  if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
+  std::ofstream log;
+  if (files) {
+    log.open(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
+    if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
+  }
   Progress bar(cfg.iterations, "train", cfg.progress);
   RunResult r;
   const double t_start = bar.elapsed();
@@ -293,8 +318,9 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   auto diverged = [&](const std::string& what) {
     std::error_code ec;
     std::fprintf(stderr, "\ntraining diverged at step %ld (%s); %s\n", model.step(), what.c_str(),
-                 fs::exists(ckpt, ec) ? ("the last good checkpoint is " + ckpt.string() + ", unchanged").c_str()
-                                      : "no checkpoint was written");
+                 !files                 ? "nothing was written (no output folder)"
+                 : fs::exists(ckpt, ec) ? ("the last good checkpoint is " + ckpt.string() + ", unchanged").c_str()
+                                        : "no checkpoint was written");
     r.diverged = true;
   };
   // A checkpoint is written only of finite parameters: a NaN or Inf in them stops the run as a divergence
@@ -307,7 +333,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                short_number(static_cast<double>(*bad)));
       return false;
     }
-    save_checkpoint(ckpt, model, name, meta);
+    if (files) save_checkpoint(ckpt, model, name, meta);
     return true;
   };
   while (model.step() < cfg.iterations) {
@@ -372,8 +398,10 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                        cfg.allow_collapse ? "; going on (allow_collapse)" : "; stopping (pass --allow-collapse to go on)");
         }
       }
-      log << j.dump() << "\n";
-      log.flush();
+      if (files) {
+        log << j.dump() << "\n";
+        log.flush();
+      }
       sum_loss = sum_event = sum_threshold = sum_samples = sum_backward = 0;
       window = 0;
       if (r.collapsed && !cfg.allow_collapse) {
@@ -415,7 +443,7 @@ class Trainer {
   /// rate applies from here on). Returns whether it did; `note` gets what the file could not tell (an old
   /// format's missing loss), or stays empty.
   bool resume(std::string* note = nullptr) {
-    if (!fs::exists(out_ / "model.ckpt")) return false;
+    if (out_.empty() || !fs::exists(out_ / "model.ckpt")) return false;
     load_checkpoint(out_ / "model.ckpt", model_, name_);
     if (note) *note = model_.load_note();
     model_.optimizer().set_config(adam_config(cfg_));
