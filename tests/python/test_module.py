@@ -1,0 +1,266 @@
+"""The Python module: numpy in and out, training with a callback, rendering, scoring, errors.
+
+Run by ctest (python.module) with PYTHONPATH at the built module; by hand:
+    PYTHONPATH=build/examples/python /usr/bin/python3 -m pytest tests/python
+"""
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import evnerf
+
+W, H = 48, 36
+
+
+@pytest.fixture(scope="module")
+def planes():
+    return evnerf.simulate("planes", width=W, height=H, seed=1)
+
+
+def arrays_of(d):
+    """The dataset as the plain numpy arrays a user's own loader would hand over."""
+    e = d.events
+    frames = np.stack([d.frame(i) for i in range(len(d.frame_times))])
+    return dict(x=np.array(e.x, dtype=np.int32), y=np.array(e.y, dtype=np.int64), t=np.array(e.t), p=(np.array(e.p) > 0),
+                width=d.width, height=d.height, intrinsics=np.array(d.intrinsics[:4]), poses=d.poses,
+                frame_times=d.frame_times, frames=frames)
+
+
+def test_events_are_views_not_copies(planes):
+    e = planes.events
+    assert e.x.dtype == np.uint16 and e.y.dtype == np.uint16 and e.t.dtype == np.float64 and e.p.dtype == np.int8
+    assert len(e.x) == len(planes) > 1000
+    again = planes.events
+    assert np.shares_memory(e.x, again.x) and np.shares_memory(e.t, again.t)  # the same memory each time
+    assert not e.t.flags.writeable  # the stream's invariants (time order, sensor) cannot be broken from Python
+    with pytest.raises(ValueError):
+        e.t[0] = 1.0
+    assert set(np.unique(e.p)) <= {-1, 1}
+    assert np.all(np.diff(e.t) >= 0) and e.x.max() < W and e.y.max() < H
+
+
+def test_views_keep_the_dataset_alive():
+    d = evnerf.simulate("planes", width=16, height=12)
+    t = d.events.t
+    first = t.copy()
+    del d
+    import gc
+    gc.collect()
+    assert np.array_equal(t, first)
+
+
+def test_round_trip_numpy_train_render_numpy(planes):
+    d = evnerf.Dataset(**arrays_of(planes))
+    assert len(d) == len(planes) and np.array_equal(d.events.t, planes.events.t)
+    assert np.array_equal(d.events.p, planes.events.p)
+    m = evnerf.train(d, iterations=20, threads=2, seed=3)
+    assert m.variant == "fast" and m.step == 20 and m.run["steps"] == 20
+    img, depth = m.render(m.boundary_poses[5])
+    assert img.shape == (H, W) and depth.shape == (H, W) and img.dtype == np.float32
+    assert np.all(np.isfinite(img)) and np.all(depth > 0) and img.std() > 0
+    # Any pose: a 7-vector is the same pose as its matrix.
+    P = m.boundary_poses[5]
+    q = np.array([P[0, 3], P[1, 3], P[2, 3], *quaternion_of(P[:3, :3])])
+    assert np.allclose(m.render(q)[0], img, atol=1e-5)
+    # Determinism: same seed and threads, same model.
+    m2 = evnerf.train(d, iterations=20, threads=2, seed=3)
+    assert np.array_equal(m2.render(P)[0], img) and np.array_equal(m2.thresholds, m.thresholds)
+
+
+def quaternion_of(R):
+    w = np.sqrt(max(0.0, 1 + R[0, 0] + R[1, 1] + R[2, 2])) / 2
+    return [(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w]
+
+
+def test_callback_sees_every_step_and_can_stop(planes):
+    seen = []
+
+    def cb(step, loss, thresholds):
+        seen.append((step, loss, thresholds.copy()))
+        return step < 7
+
+    m = evnerf.train(planes, iterations=50, threads=1, callback=cb)
+    assert [s for s, _, _ in seen] == list(range(1, 8))
+    assert m.step == 7 and m.run["stopped"]
+    assert all(np.isfinite(l) and l > 0 for _, l, _ in seen)
+    n = len(m.boundary_times) - 1
+    assert seen[-1][2].shape == (n, 2) and np.array_equal(seen[-1][2], m.thresholds)
+    assert np.all(seen[-1][2][:, 0] > 0) and np.all(seen[-1][2][:, 1] < 0)  # B+ > 0, B- < 0
+
+
+def test_callback_exception_stops_training_and_propagates(planes):
+    def cb(step, loss, thresholds):
+        if step == 3:
+            raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        evnerf.train(planes, iterations=50, threads=1, callback=cb)
+
+
+def test_ctrl_c_stops_training(planes):
+    def cb(step, loss, thresholds):
+        if step == 2:
+            signal.raise_signal(signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        evnerf.train(planes, iterations=50, threads=1, callback=cb)
+
+
+def test_training_releases_the_gil(planes):
+    done = threading.Event()
+    result = {}
+
+    def work():
+        result["m"] = evnerf.train(planes, iterations=40, threads=1)
+        done.set()
+
+    th = threading.Thread(target=work)
+    th.start()
+    ticks = 0
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    th.join()
+    assert result["m"].step == 40
+    assert ticks > 20, "the main thread barely ran while training: the GIL was held"
+
+
+def test_save_load_resume(planes, tmp_path):
+    m = evnerf.train(planes, iterations=10, threads=1, out=tmp_path / "run")
+    assert (tmp_path / "run" / "model.ckpt").exists() and (tmp_path / "run" / "log.jsonl").exists()
+    loaded = evnerf.load_model(tmp_path / "run" / "model.ckpt")
+    P = m.boundary_poses[2]
+    assert loaded.variant == "fast" and loaded.step == 10
+    assert np.array_equal(loaded.render(P)[0], m.render(P)[0])
+    m.save(tmp_path / "copy.ckpt")
+    assert np.array_equal(evnerf.load_model(tmp_path / "copy.ckpt").thresholds, m.thresholds)
+    # Resume to 20 steps = 20 steps straight.
+    resumed = evnerf.train(planes, iterations=20, threads=1, out=tmp_path / "run", resume=True)
+    straight = evnerf.train(planes, iterations=20, threads=1)
+    assert resumed.step == 20 and np.array_equal(resumed.render(P)[0], straight.render(P)[0])
+    # Without out nothing is written.
+    before = set(tmp_path.iterdir())
+    evnerf.train(planes, iterations=2, threads=1)
+    assert set(tmp_path.iterdir()) == before
+
+
+def test_evaluate_and_baselines(planes):
+    m = evnerf.train(planes, iterations=30, threads=2)
+    r = evnerf.evaluate(m, planes)
+    assert r["alignment"] == "global-log-affine"
+    assert set(r["methods"]) == {"evnerf_fast", "direct_integration", "high_pass_filter"}
+    assert all(np.isfinite(v["psnr"]) for v in r["methods"].values())
+    assert len(r["renders"]) == len(r["frames"]) > 10 and r["renders"][0].shape == (H, W)
+    b = evnerf.baselines(planes, alignment="min-max")
+    assert b["alignment"] == "min-max" and set(b["images"]) == {"direct_integration", "high_pass_filter"}
+    assert b["frames"] == r["frames"][: len(b["frames"])] or len(b["frames"]) >= len(r["frames"])
+    truth = [planes.frame(i) for i in b["frames"]]
+    s = evnerf.score(b["images"]["direct_integration"], truth, alignment="min-max")
+    assert s["psnr"] == pytest.approx(b["methods"]["direct_integration"]["psnr"], abs=1e-9)
+    assert evnerf.score(truth, truth, alignment="none")["mse"] == 0
+
+
+def test_colour_and_a_time_window(tmp_path):
+    assert evnerf.simulate("blocks", width=32, height=24).bayer == "rggb"
+    d = evnerf.simulate("blocks", width=32, height=24, out=tmp_path / "blocks")
+    assert d.frame(0).shape == (24, 32, 3)  # an IJRR folder names no mosaic: RGGB, the simulator's
+    m = evnerf.train(d, preset="colour", iterations=5, threads=1)
+    assert m.channels == 3 and m.render(m.boundary_poses[0])[0].shape == (24, 32, 3)
+    t = d.events.t
+    w = evnerf.load(tmp_path / "blocks", time_window=(t[0] + 0.1, t[0] + 0.3))
+    assert 0 < len(w) < len(d) and w.events.t[0] >= t[0] + 0.1 and w.events.t[-1] < t[0] + 0.3
+
+
+def test_a_users_own_variant():
+    my = pytest.importorskip("my_evnerf")
+    assert my.variants == ["mine", "fast"]
+    m = my.train(my.simulate("planes", width=24, height=18), iterations=5, threads=1)
+    assert m.variant == "mine" and m.render(m.boundary_poses[0])[0].shape == (18, 24)
+
+
+# ---- errors: Python exceptions with the library's messages --------------------------------------------------
+def base():
+    return dict(x=np.array([1, 2, 3]), y=np.array([1, 1, 2]), t=np.array([0.1, 0.2, 0.3]), p=np.array([1, -1, 1]),
+                width=10, height=8, intrinsics=[10.0, 10.0, 5.0, 4.0])
+
+
+def test_good_arrays_make_a_dataset():
+    d = evnerf.Dataset(**base())
+    assert len(d) == 3 and list(d.events.p) == [1, -1, 1]
+    zero_one = dict(base(), p=np.array([1, 0, 1], dtype=np.uint8))
+    assert list(evnerf.Dataset(**zero_one).events.p) == [1, -1, 1]
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("x", np.array([1.0, 2.0, 3.0]), "x: expected integer pixel columns, got float64"),
+    ("y", np.array(["a", "b", "c"]), "y: expected integer pixel rows, got <U1"),
+    ("t", np.array([1, 2, 3]), "t: expected floating-point seconds (divide integer timestamps by their unit first), got int64"),
+    ("p", np.array([0.5, 1.0, 1.0]), "p: expected polarities: bool, 0/1 or -1/+1, got float64"),
+])
+def test_wrong_dtypes(field, value, message):
+    with pytest.raises(TypeError) as e:
+        evnerf.Dataset(**dict(base(), **{field: value}))
+    assert str(e.value) == message
+
+
+def test_wrong_shapes():
+    with pytest.raises(evnerf.Error, match=r"^x: expected a 1-D array, got shape \(3, 1\)$"):
+        evnerf.Dataset(**dict(base(), x=np.array([[1], [2], [3]])))
+    with pytest.raises(evnerf.Error, match=r"arrays differ in length \(x 2, y 3, t 3, p 3\)"):
+        evnerf.Dataset(**dict(base(), x=np.array([1, 2])))
+    with pytest.raises(evnerf.Error, match=r"poses: expected shape \(N, 8\)"):
+        evnerf.Dataset(**dict(base(), poses=np.zeros((4, 7))))
+    with pytest.raises(evnerf.Error, match=r"frames\[0\]: expected shape \(8, 10\) or \(8, 10, 3\), got \(10, 8\)"):
+        evnerf.Dataset(**dict(base(), frame_times=np.array([0.1]), frames=[np.zeros((10, 8), np.float32)]))
+    with pytest.raises(evnerf.Error, match="intrinsics: expected"):
+        evnerf.Dataset(**dict(base(), intrinsics=[1.0, 2.0, 3.0]))
+
+
+def test_bad_values_carry_the_cpp_messages():
+    # The same text as the C++ EventStream::validate (tests/test_io.cpp checks it for the file readers).
+    with pytest.raises(evnerf.Error) as e:
+        evnerf.Dataset(**dict(base(), x=np.array([1, 10, 3])))
+    assert str(e.value) == "arrays: event 1 lies outside the 10x8 sensor"
+    assert isinstance(e.value, ValueError)
+    with pytest.raises(evnerf.Error, match="^arrays: event 0 lies outside the 10x8 sensor$"):
+        evnerf.Dataset(**dict(base(), y=np.array([-1, 1, 1])))
+    with pytest.raises(evnerf.Error, match="^arrays: event 2 has polarity 2$"):
+        evnerf.Dataset(**dict(base(), p=np.array([1, -1, 2])))
+    with pytest.raises(evnerf.Error, match="^arrays: event 1 has polarity 0$"):
+        evnerf.Dataset(**dict(base(), p=np.array([1, 0, -1])))
+    with pytest.raises(evnerf.Error, match="^arrays: event 2 goes back in time$"):
+        evnerf.Dataset(**dict(base(), t=np.array([0.1, 0.3, 0.2])))
+    with pytest.raises(evnerf.Error, match="quaternion is far from unit length"):
+        evnerf.Dataset(**dict(base(), poses=np.array([[0.0, 0, 0, 0, 0, 0, 0, 0.1]])))
+    with pytest.raises(evnerf.Error, match=r"pose times must increase strictly \(pose 1\)"):
+        evnerf.Dataset(**dict(base(), poses=np.array([[0.2, 0, 0, 0, 0, 0, 0, 1], [0.1, 0, 0, 0, 0, 0, 0, 1]])))
+    with pytest.raises(evnerf.Error, match="unknown Bayer pattern 'xyzw'"):
+        evnerf.Dataset(**dict(base(), bayer="xyzw"))
+
+
+def test_errors_from_files_and_settings(tmp_path, planes):
+    missing = tmp_path / "nowhere"
+    with pytest.raises(evnerf.Error, match="nowhere"):
+        evnerf.load(missing)
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(evnerf.Error, match="bad.ckpt"):
+        evnerf.load_model(bad)
+    with pytest.raises(evnerf.Error, match="unknown variant 'nope'"):
+        evnerf.train(planes, preset="nope", iterations=1)
+    with pytest.raises(TypeError, match="unknown keyword 'iters'"):
+        evnerf.train(planes, iters=1)
+    with pytest.raises(evnerf.Error, match="train: near must be positive and far greater than near"):
+        evnerf.train(planes, iterations=1, near=2.0, far=1.0)
+    with pytest.raises(evnerf.Error, match="train: iterations must be positive"):
+        evnerf.train(planes, iterations=0)
+    m = evnerf.train(planes, iterations=1, threads=1)
+    with pytest.raises(evnerf.Error, match="pose: the upper-left 3x3 block is not a rotation"):
+        m.render(np.eye(4) * 2)
+    with pytest.raises(evnerf.Error, match=r"pose: expected a 4x4 camera-to-world matrix .* got shape \(3,\)"):
+        m.render(np.zeros(3))
+    with pytest.raises(evnerf.Error, match="no poses"):
+        evnerf.train(evnerf.Dataset(**base()), iterations=1)
