@@ -1,0 +1,58 @@
+"""Gathers the metrics.json files of a sweep (examples/slurm/sweep.sh) into one table.
+
+    python3 examples/slurm/gather.py OUT [--csv FILE]
+
+One row per (scene, preset): the mean and spread over seeds of our PSNR and SSIM under metrics.json's primary
+alignment, and the baselines'; the alignment is printed with the table. Every run is also listed in the CSV.
+"""
+import argparse
+import csv
+import json
+import pathlib
+import statistics
+import sys
+
+
+def runs(out):
+    for f in sorted(pathlib.Path(out).glob("*/*/seed*/metrics.json")):
+        seed_dir = f.parent
+        scene, preset, seed = seed_dir.parent.parent.name, seed_dir.parent.name, seed_dir.name[len("seed"):]
+        m = json.loads(f.read_text())
+        ours = [k for k in m["methods"] if k.startswith("evnerf_")]
+        if len(ours) != 1:
+            raise SystemExit(f"{f}: expected one evnerf_* method, found {ours}")
+        yield dict(scene=scene, preset=preset, seed=int(seed), alignment=m["alignment"],
+                   psnr=m["methods"][ours[0]]["psnr"], ssim=m["methods"][ours[0]]["ssim"],
+                   di_psnr=m["methods"]["direct_integration"]["psnr"], hpf_psnr=m["methods"]["high_pass_filter"]["psnr"])
+
+
+def spread(v, digits=2):
+    return f"{statistics.mean(v):.{digits}f} ± {statistics.stdev(v):.{digits}f}" if len(v) > 1 else f"{v[0]:.{digits}f}"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out")
+    ap.add_argument("--csv")
+    a = ap.parse_args()
+    rows = list(runs(a.out))
+    if not rows:
+        sys.exit(f"{a.out}: no metrics.json (is the sweep finished?)")
+    aligns = sorted({r["alignment"] for r in rows})
+    print(f"{len(rows)} runs from {a.out}; PSNR dB / SSIM, alignment {', '.join(aligns)}, mean ± sd over seeds\n")
+    print("| scene | preset | seeds | PSNR | SSIM | direct integration PSNR | high-pass filter PSNR |")
+    print("|---|---|---|---|---|---|---|")
+    for key in sorted({(r["scene"], r["preset"]) for r in rows}):
+        g = [r for r in rows if (r["scene"], r["preset"]) == key]
+        print(f"| {key[0]} | {key[1]} | {','.join(str(r['seed']) for r in g)} | {spread([r['psnr'] for r in g])} | "
+              f"{spread([r['ssim'] for r in g], 3)} | {spread([r['di_psnr'] for r in g])} | {spread([r['hpf_psnr'] for r in g])} |")
+    if a.csv:
+        with open(a.csv, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        print(f"\nwrote {a.csv}")
+
+
+if __name__ == "__main__":
+    main()
