@@ -190,35 +190,30 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   // simulate
   std::string scene;
   fs::path out;
-  sim::SensorConfig sc;
-  bool realistic = false, bayer = false, hdr = false;
-  std::uint64_t sim_seed = 1;
-  int width = sc.width, height = sc.height;
-  double focal = 0;
-  fs::path textures;
+  sim::SimulateOptions so;  // the flags fill it in
   auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
   simulate->add_option("scene", scene,
                        "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
                        "or a scene description file")
       ->required();
   simulate->add_option("--out", out, "output folder")->required();
-  simulate->add_flag("--realistic", realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
-  simulate->add_flag("--bayer", bayer, "colour sensor: RGGB mosaic in front of the event pixels");
-  simulate->add_flag("--hdr", hdr,
+  simulate->add_flag("--realistic", so.realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
+  simulate->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
+  simulate->add_flag("--hdr", so.hdr,
                      "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
                      "frames); writes the unclipped linear truth that eval scores against");
-  simulate->add_option("--seed", sim_seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
-  simulate->add_option("--textures", textures, "with 'random': photos (.png) to texture some surfaces with");
-  simulate->add_option("--log-offset", sc.log_offset, "the sensor's dark end: pixels see log(I + offset)")
+  simulate->add_option("--seed", so.seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
+  simulate->add_option("--textures", so.textures, "with 'random': photos (.png) to texture some surfaces with");
+  simulate->add_option("--log-offset", so.log_offset, "the sensor's dark end: pixels see log(I + offset)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  simulate->add_option("--noise-rate", sc.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
-  simulate->add_option("--noise-ratio", sc.noise_ratio, "uniform random events added, as a fraction of the signal events")
+  simulate->add_option("--noise-rate", so.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
+  simulate->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  simulate->add_option("--width", width, "sensor width (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
-  simulate->add_option("--height", height, "sensor height (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
-  simulate->add_option("--focal", focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
+  simulate->add_option("--width", so.width, "sensor width (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--height", so.height, "sensor height (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
 
   // baselines
   std::string align = "global-log-affine";
@@ -344,18 +339,6 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*simulate) {
       std::string scene_text;
-      sim::SimulateOptions so;
-      so.realistic = realistic;
-      so.bayer = bayer;
-      so.hdr = hdr;
-      so.seed = sim_seed;
-      so.textures = textures;
-      so.log_offset = sc.log_offset;
-      so.noise_rate = sc.noise_rate;
-      so.noise_ratio = sc.noise_ratio;
-      so.width = width;
-      so.height = height;
-      so.focal = focal;
       const auto t0 = std::chrono::steady_clock::now();
       auto rec = sim::simulate(scene, so, &scene_text);
       sim::write_recording(out, rec);
