@@ -311,6 +311,17 @@ inline train::Config config_of(const py::kwargs& kw) {
   return c;
 }
 
+/// Every slice's thresholds (B+, B−), row-major N×2.
+template <class M>
+std::vector<double> thresholds_of(const M& model) {
+  std::vector<double> v(2 * model.n_slices());
+  for (std::size_t i = 0; i < model.n_slices(); ++i) {
+    v[2 * i] = model.threshold_pos(i);
+    v[2 * i + 1] = model.threshold_neg(i);
+  }
+  return v;
+}
+
 /// A Model around one model object of type M (shared with the closures).
 template <class M>
 Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Described desc, std::shared_ptr<const std::string> meta) {
@@ -323,14 +334,7 @@ Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Describe
   m.renderable.far = model->box().far;
   auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(m.renderable.desc.camera));
   m.renderable.render = [model, dirs, cam = m.renderable.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
-  m.thresholds = [model] {
-    std::vector<double> v(2 * model->n_slices());
-    for (std::size_t i = 0; i < model->n_slices(); ++i) {
-      v[2 * i] = model->threshold_pos(i);
-      v[2 * i + 1] = model->threshold_neg(i);
-    }
-    return v;
-  };
+  m.thresholds = [model] { return thresholds_of(*model); };
   m.step = [model] { return model->step(); };
   m.save = [model, variant, meta](const fs::path& p) { train::save_checkpoint(p, *model, variant, *meta); };
   return m;
@@ -386,12 +390,8 @@ Model train_model(const Dataset& ds, const std::string& preset, py::object callb
         try {
           if (PyErr_CheckSignals() != 0) throw py::error_already_set();
           if (callback.is_none()) return true;
-          std::vector<double> th(2 * model.n_slices());
-          for (std::size_t i = 0; i < model.n_slices(); ++i) {
-            th[2 * i] = model.threshold_pos(i);
-            th[2 * i + 1] = model.threshold_neg(i);
-          }
-          const py::object go = callback(rep.step, rep.stats.loss, to_numpy(th, {static_cast<py::ssize_t>(model.n_slices()), 2}));
+          const py::object go =
+              callback(rep.step, rep.stats.loss, to_numpy(thresholds_of(model), {static_cast<py::ssize_t>(model.n_slices()), 2}));
           return go.is_none() || go.cast<bool>();
         } catch (...) {
           raised = std::current_exception();
