@@ -46,6 +46,13 @@ struct TrainingData {
 
 using render::Rendering;
 
+/// Which shards of a step this process computes (EvNerf::train_step): a step is `count` shards, each its own
+/// window and pixels; process `rank` of `ranks` computes shards rank, rank + ranks, … (count a multiple of
+/// ranks). The default is the one-shard step of one process.
+struct StepShards {
+  int count = 1, rank = 0, ranks = 1;
+};
+
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   std::size_t rays = 0;
@@ -143,25 +150,73 @@ class EvNerf {
   /// applied to the field and to the window's thresholds. Deterministic for a seed and thread count. A
   /// non-finite loss leaves the parameters as they were (the caller stops).
   StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
+    return train_step(data, pixels_per_step, seed, pixels_per_tile, StepShards{}, [](std::vector<Scalar>&, std::vector<double>&) {});
+  }
+
+  /// A step of `shards.count` shards, each a window and pixels_per_step pixels of its own (gradients() of
+  /// that shard), whose gradients and statistics are averaged: one process computing every shard equals
+  /// `shards.ranks` processes computing shards rank, rank + ranks, … and summing what they computed.
+  /// `exchange(grads, totals)` is that sum across processes (train/group.hpp); it is called once per step
+  /// with this process's summed gradients and a vector of statistics followed by one entry per slice
+  /// (how many of this process's shards touched it), and must leave in both the sum over all processes.
+  /// With one shard in one process this is exactly the single-shard step.
+  template <class Exchange>
+  StepStats train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile, const StepShards& shards,
+                       Exchange&& exchange) {
     check_data(data);
+    require(shards.count >= 1 && shards.ranks >= 1 && shards.count % shards.ranks == 0 && shards.rank >= 0 && shards.rank < shards.ranks,
+            "train_step: the shards per step (" + std::to_string(shards.count) + ") must be a positive multiple of the processes (" +
+                std::to_string(shards.ranks) + ")");
     const long s = adam_.step();
     update_sampler(data, s, Rng(seed).split(static_cast<std::uint64_t>(s)).split(0xCCu).next_u64());
-    StepStats st = gradients(data, pixels_per_step, seed, pixels_per_tile);
+    StepStats st;
+    if (shards.count == 1) {
+      st = gradients(data, pixels_per_step, seed, pixels_per_tile);
+    } else {
+      // This process's shards, their gradients summed in shard order, their statistics and touched slices.
+      std::vector<double> totals(kTotals + n_slices_, 0.0);
+      bool first = true;
+      for (int k = shards.rank; k < shards.count; k += shards.ranks) {
+        if (!first) {  // keep the sum so far; gradients() overwrites grads
+          shard_sum_.resize(params_.grads.size());
+          shard_sum_.swap(params_.grads);
+        }
+        const StepStats one = gradients(data, pixels_per_step, seed, pixels_per_tile, k);
+        if (!first) {
+          Scalar* g = params_.grads.data();
+          const Scalar* a = shard_sum_.data();
+          parallel_blocks(params_.grads.size(), 1 << 16, [&](std::size_t b, std::size_t e, int) {
+            for (std::size_t i = b; i < e; ++i) g[i] = a[i] + g[i];
+          });
+        }
+        first = false;
+        add_totals(totals, one);
+        for (std::size_t j = 0; j < one.window; ++j) totals[kTotals + one.first_slice + j] += 1;
+      }
+      exchange(params_.grads, totals);
+      st = from_totals(totals, shards.count);
+      touched_.clear();
+      for (std::size_t j = 0; j < n_slices_; ++j)
+        if (totals[kTotals + j] > 0) {
+          touched_.push_back(threshold_offset() + 2 * j);
+          touched_.push_back(threshold_offset() + 2 * j + 1);
+        }
+      if (!std::isfinite(st.loss)) return st;
+      const Scalar inv = static_cast<Scalar>(1.0 / shards.count);
+      for (auto& g : params_.grads) g *= inv;
+    }
     if (!std::isfinite(st.loss)) return st;
-    // The field's parameters all move; of the thresholds only the window's slices' (lazy Adam).
-    const StepWindow& sw = window_;
+    // The field's parameters all move; of the thresholds only the step's windows' slices' (lazy Adam).
     adam_.update(params_.values, params_.grads, threshold_offset(), touched_);
-    if constexpr (requires { ThresholdP::projected; })
-      for (std::size_t k = 0; k < sw.len; ++k) {
-        Scalar& bp = params_.values[threshold_offset() + 2 * (sw.first + k)];
-        Scalar& bm = params_.values[threshold_offset() + 2 * (sw.first + k) + 1];
+    for (std::size_t t = 0; t + 1 < touched_.size(); t += 2) {
+      Scalar& bp = params_.values[touched_[t]];
+      Scalar& bm = params_.values[touched_[t + 1]];
+      if constexpr (requires { ThresholdP::projected; }) {
         bp = std::max(bp, static_cast<Scalar>(ThresholdP::init));
         bm = std::min(bm, static_cast<Scalar>(-ThresholdP::init));
       }
-    if constexpr (requires { ThresholdP::shared_scale; })
-      for (std::size_t k = 0; k < sw.len; ++k)
-        ThresholdP::project(params_.values[threshold_offset() + 2 * (sw.first + k)],
-                            params_.values[threshold_offset() + 2 * (sw.first + k) + 1]);
+      if constexpr (requires { ThresholdP::shared_scale; }) ThresholdP::project(bp, bm);
+    }
     return st;
   }
 
@@ -170,10 +225,13 @@ class EvNerf {
   /// drawn from (seed, step), noise injected, both end poses rendered, the objective applied per pixel, the
   /// threshold floor on every slice of the window. Calling it twice gives the same result; finite-difference
   /// checks perturb params() between calls.
-  StepStats gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0) {
+  /// `shard` > 0 draws another window and other pixels for the same step (train_step's shards); shard 0 is
+  /// the step's own draw.
+  StepStats gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile = 0, int shard = 0) {
     check_data(data);
     const long s = adam_.step();
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
+    if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
     StepWindow& sw = window_;
     loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw);
     const std::size_t first = sw.first, L = sw.len;
@@ -338,6 +396,27 @@ class EvNerf {
   /// cannot be checked against the loss).
   const std::string& load_note() const { return load_note_; }
  private:
+  /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
+  /// samples, backward samples and the two passes' event losses.
+  static constexpr std::size_t kTotals = 8;
+  static void add_totals(std::vector<double>& t, const StepStats& s) {
+    const double v[kTotals] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
+                               s.pass_event_loss[0], s.pass_event_loss[1]};
+    for (std::size_t i = 0; i < kTotals; ++i) t[i] += v[i];
+  }
+  StepStats from_totals(const std::vector<double>& t, int count) const {
+    StepStats s;
+    s.loss = t[0] / count;
+    s.event_loss = t[1] / count;
+    s.threshold_loss = t[2] / count;
+    s.rays = static_cast<std::size_t>(t[3]);
+    s.samples = static_cast<std::size_t>(t[4]);
+    s.backward_samples = static_cast<std::size_t>(t[5]);
+    s.pass_event_loss = {t[6] / count, t[7] / count};
+    s.first_slice = window_.first;
+    s.window = window_.len;
+    return s;
+  }
   void check_data(const TrainingData& data) const {
     if (data.slices.size() != n_slices_)
       throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
@@ -438,6 +517,7 @@ class EvNerf {
   std::vector<TileWork> work_;  ///< gradients()'s per-thread scratch (no state: any content gives the same step)
   StepWindow window_;           ///< the last gradients()'s window (train_step applies Adam to its thresholds)
   std::vector<std::size_t> touched_;  ///< the last step's threshold entries (lazy Adam)
+  std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
 };
 
