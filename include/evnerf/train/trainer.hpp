@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <string_view>
 
 #include "../core/fileio.hpp"
 #include "../core/progress.hpp"
@@ -17,6 +18,7 @@
 #include "../io/dataset.hpp"
 #include "../io/image_io.hpp"
 #include "../model.hpp"
+#include "group.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -50,6 +52,15 @@ struct Config {
   /// and its event loss; a collapsed run stops unsuccessfully unless `allow_collapse`.
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
+  /// Data-parallel steps. A step is `shards` shards (0: one per process of `group`, or 1 alone), each a
+  /// window and pixels_per_step pixels of its own, their gradients averaged: one process with shards = N
+  /// computes what N processes compute together. `group` (dist/mpi.hpp's MpiGroup, say; null = this
+  /// process alone) sums the processes' gradients each step, as `exchange` says; only rank 0 writes.
+  int shards = 0;
+  Exchange exchange = Exchange::Auto;
+  Group* group = nullptr;
+  /// The shards per step this Config gives.
+  int shard_count() const { return shards > 0 ? shards : group ? group->size() : 1; }
 };
 
 /// Refuses settings no run can use, naming the setting (the command line's flags check the same ranges;
@@ -68,6 +79,17 @@ inline void check(const Config& c) {
   need(c.checkpoint_every >= 0, "the checkpoint period must not be negative");
   need(c.holdout_every >= 0, "holdout must not be negative");
   need(c.subslices >= 1 && c.subslices <= 64, "subslices must be between 1 and 64, got " + std::to_string(c.subslices));
+  need(c.shards >= 0 && c.shards <= 4096, "shards must be between 0 (one per process) and 4096, got " + std::to_string(c.shards));
+  if (c.group)
+    need(c.shard_count() % c.group->size() == 0, "the shards per step (" + std::to_string(c.shard_count()) +
+                                                     ") must be a multiple of the processes (" + std::to_string(c.group->size()) + ")");
+}
+
+/// The shards per step a checkpoint's metadata records (train::run adds the line when there are several;
+/// older and one-shard checkpoints have none: 1).
+inline int recorded_shards(const std::string& meta) {
+  const auto at = meta.rfind("\nshards ");
+  return at == std::string::npos ? 1 : std::max(1, std::atoi(meta.c_str() + at + 8));
 }
 
 /// What a collapse check saw. A run has collapsed when its renders are almost constant (the spread of
@@ -284,7 +306,13 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   check(cfg);
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
-  const bool files = !out.empty();
+  Group* group = cfg.group && cfg.group->size() > 1 ? cfg.group : nullptr;
+  const int rank = group ? group->rank() : 0, shard_count = cfg.shard_count();
+  const StepShards shards{shard_count, rank, group ? group->size() : 1};
+  GradientExchange exchange(group, cfg.exchange);
+  const bool files = !out.empty() && rank == 0;  // rank 0 writes; the others only train
+  const std::string saved_meta =
+      shard_count > 1 ? meta + (meta.empty() || meta.back() == '\n' ? "" : "\n") + "shards " + std::to_string(shard_count) + "\n" : meta;
   if (files) {
     std::error_code ec;
     fs::create_directories(out, ec);
@@ -306,7 +334,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     log.open(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
     if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
   }
-  Progress bar(cfg.iterations, "train", cfg.progress);
+  Progress bar(cfg.iterations, "train", cfg.progress && rank == 0);
   RunResult r;
   const double t_start = bar.elapsed();
   double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_samples = 0, sum_backward = 0;
@@ -316,12 +344,13 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   std::size_t rays = 0;
   const fs::path ckpt = out / "model.ckpt";
   auto diverged = [&](const std::string& what) {
+    r.diverged = true;
+    if (rank != 0) return;
     std::error_code ec;
     std::fprintf(stderr, "\ntraining diverged at step %ld (%s); %s\n", model.step(), what.c_str(),
                  !files                 ? "nothing was written (no output folder)"
                  : fs::exists(ckpt, ec) ? ("the last good checkpoint is " + ckpt.string() + ", unchanged").c_str()
                                         : "no checkpoint was written");
-    r.diverged = true;
   };
   // A checkpoint is written only of finite parameters: a NaN or Inf in them stops the run as a divergence
   // and leaves the previous checkpoint as it was.
@@ -333,11 +362,12 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                short_number(static_cast<double>(*bad)));
       return false;
     }
-    if (files) save_checkpoint(ckpt, model, name, meta);
+    if (files) save_checkpoint(ckpt, model, name, saved_meta);
     return true;
   };
   while (model.step() < cfg.iterations) {
-    const auto st = model.train_step(td, cfg.pixels_per_step, cfg.seed);
+    const auto st = shard_count == 1 ? model.train_step(td, cfg.pixels_per_step, cfg.seed)
+                                     : model.train_step(td, cfg.pixels_per_step, cfg.seed, 0, shards, exchange);
     if (!std::isfinite(st.loss)) {
       diverged("loss " + short_number(st.loss));
       break;
@@ -372,6 +402,23 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"lr", model.optimizer().learning_rate()},
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
+      if (shard_count > 1) {
+        j["shards"] = shard_count;
+        if (group) {
+          j["ranks"] = group->size();
+          j["exchange_bytes_per_step"] = exchange.bytes() / std::max(1L, exchange.steps());
+          j["exchange_seconds_per_step"] = exchange.seconds() / std::max(1L, exchange.steps());
+          j["sparse_steps"] = exchange.sparse_steps();
+          j["touched_blocks"] = exchange.last_fraction();
+          exchange.reset();
+          // The processes hold the same parameters (each applies the same summed gradients); a difference
+          // would mean the sums differ between them, and the runs would drift apart silently.
+          const auto& v = model.params().values;
+          if (!group->same(fnv1a64(std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0])))))
+            throw Error("train: at step " + std::to_string(s) + " the processes' parameters differ (rank " + std::to_string(rank) +
+                        " sees another checksum); the group's sums are not the same on every process");
+        }
+      }
       if constexpr (Model::sampler_type::skips_samples) {
         j["occupied"] = model.sampler().occupied_fraction();
         if constexpr (requires { model.sampler().grid().seen_fraction(); })
@@ -394,7 +441,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
         r.checks.push_back(c);
         if (c.collapsed()) {
           r.collapsed = true;
-          std::fprintf(stderr, "\ntraining has collapsed %s%s\n", c.describe().c_str(),
+          if (rank == 0)
+            std::fprintf(stderr, "\ntraining has collapsed %s%s\n", c.describe().c_str(),
                        cfg.allow_collapse ? "; going on (allow_collapse)" : "; stopping (pass --allow-collapse to go on)");
         }
       }
@@ -415,6 +463,11 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       go_on = on_step(rep);
     } else {
       if (on_step) go_on = on_step(rep);
+    }
+    if (group) {  // a stop anywhere stops every process at this step
+      double stop = go_on ? 0.0 : 1.0;
+      group->sum(&stop, 1);
+      go_on = stop == 0.0;
     }
     ++r.steps;
     if ((cfg.checkpoint_every > 0 && s % cfg.checkpoint_every == 0) || s == cfg.iterations || !go_on)
@@ -442,9 +495,21 @@ class Trainer {
   /// Continues from out/model.ckpt when there is one (same architecture and loss; the Config's learning
   /// rate applies from here on). Returns whether it did; `note` gets what the file could not tell (an old
   /// format's missing loss), or stays empty.
+  /// In a group, rank 0 reads the file and every process gets its bytes (no shared file system needed).
+  /// A checkpoint of another shard count is refused: its run would go on drawing other rays.
   bool resume(std::string* note = nullptr) {
-    if (out_.empty() || !fs::exists(out_ / "model.ckpt")) return false;
-    load_checkpoint(out_ / "model.ckpt", model_, name_);
+    Group* g = cfg_.group && cfg_.group->size() > 1 ? cfg_.group : nullptr;
+    const fs::path file = out_ / "model.ckpt";
+    std::string bytes;  // "" when there is no checkpoint, else "c" and the file's bytes (an empty file is damaged)
+    if ((!g || g->rank() == 0) && !out_.empty() && fs::exists(file)) bytes = "c" + read_file(file);
+    if (g) g->broadcast(bytes);
+    if (bytes.empty()) return false;
+    const std::string meta = model_.deserialize(bytes.substr(1), name_, file.string());
+    if (recorded_shards(meta) != cfg_.shard_count())
+      throw Error(file.string(), 0,
+                  "the checkpoint was trained with " + std::to_string(recorded_shards(meta)) + " shard(s) per step, this run has " +
+                      std::to_string(cfg_.shard_count()) + " (processes × shards): resume with --shards " +
+                      std::to_string(recorded_shards(meta)) + " (any number of processes that divides it)");
     if (note) *note = model_.load_note();
     model_.optimizer().set_config(adam_config(cfg_));
     return true;
