@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -130,8 +131,13 @@ const char* const kAlignHelp = "alignment of the primary scores: global-log-affi
 /// The command line over the variants V... (the first is train's default). Returns the process exit code:
 /// 0 success, 1 an error (printed), 2 a usage error (printed with the command's flags), 3 training diverged,
 /// 4 training collapsed (train::CollapseCheck; --allow-collapse goes on and returns 0).
+/// `group` (dist/mpi.hpp's MpiGroup under mpirun; null or one process: alone) makes `train` data-parallel:
+/// every process trains its shards of each step, rank 0 alone prints and writes, and an error on any
+/// process ends them all (Group::abort) rather than leaving the others waiting. The other verbs refuse
+/// to run in a group of several processes.
 template <class... V>
-int main(int argc, char** argv, const std::string& description = "evnerf: neural radiance fields from event cameras") {
+int main(int argc, char** argv, const std::string& description = "evnerf: neural radiance fields from event cameras",
+         train::Group* group = nullptr) {
   static_assert(sizeof...(V) >= 1, "cli::main needs at least one variant");
   using namespace detail;
   std::string variant_list;
@@ -269,6 +275,17 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                    "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
                    "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
   trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
+  trainc->add_option("--shards", cfg.shards,
+                     "shards per step, each its own window and --pixels pixels, gradients averaged (0: one per MPI process); "
+                     "one process with --shards N computes what mpirun -np N computes")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+  std::string exchange = "auto";
+  trainc->add_option("--exchange", exchange,
+                     "how processes sum gradients under mpirun: dense (the whole buffer), sparse (only blocks some process "
+                     "touched), auto (whichever is fewer bytes each step)")
+      ->check(CLI::IsMember({"auto", "dense", "sparse"}))
+      ->capture_default_str();
   trainc->add_flag("--quiet", quiet, "no progress bar");
 
   // render
@@ -290,13 +307,22 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
 
+  if (group && group->size() <= 1) group = nullptr;
+  const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    if (!lead) return e.get_exit_code() == 0 ? 0 : 2;
     const int code = app.exit(e);  // prints the help, or the message and a pointer to --help
     return code == 0 ? 0 : 2;
   }
   const std::string cmd = app.get_subcommands().front()->get_name();
+  if (group && cmd != "train") {
+    if (lead)
+      fmt::print(stderr, "evnerf {}: error: only train runs in several processes ({} were started); run {} as one process\n", cmd,
+                 group->size(), cmd);
+    return 2;
+  }
   if (time_window.size() == 2) {
     load_opt.t_begin = time_window[0];
     load_opt.t_end = time_window[1];
@@ -374,6 +400,12 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*trainc) {
       cfg.progress = !quiet;
+      cfg.exchange = exchange == "dense" ? train::Exchange::Dense : exchange == "sparse" ? train::Exchange::Sparse : train::Exchange::Auto;
+      if (group) {
+        cfg.group = group;
+        // The processes on one machine share its cores: each takes its part unless --threads says.
+        if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
+      }
       cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
@@ -382,16 +414,21 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         const std::string meta = train::describe(td, fs::absolute(folder).string());
         train::Trainer<Model> trainer(td, cfg, dir, name, meta);
         std::string note;
-        if (resume && trainer.resume(&note)) {
+        if (resume && trainer.resume(&note) && lead) {
           if (!note.empty()) fmt::print(stderr, "warning: {}\n", note);
           fmt::print(stderr, "resuming {} at step {}\n", name, trainer.model().step());
         }
-        fmt::print(stderr, "training {} on {} slices, {} events, {} threads\n", name, td.slices.size(), n_events,
-                   cfg.threads > 0 ? cfg.threads : thread_count());
+        if (lead)
+          fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,
+                     cfg.threads > 0 ? cfg.threads : thread_count(),
+                     group ? fmt::format(" in each of {} processes, {} shards per step", group->size(), cfg.shard_count())
+                     : cfg.shard_count() > 1 ? fmt::format(", {} shards per step", cfg.shard_count())
+                                             : std::string());
         // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
         // checkpoint; a second signal kills at once (the handler restores the default action).
         const StopOnSignal stop_request;
         const auto r = trainer.run([&](const train::StepReport&) { return !stop_request.requested(); });
+        if (!lead) return r.diverged ? 3 : r.stopped ? 128 + stop_request.signal_number() : r.collapsed && !cfg.allow_collapse ? 4 : 0;
         fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
                    r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
         if (r.diverged) return 3;
@@ -415,10 +452,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
           const auto pattern = io::bayer_of(d);
           for (int c = 0; c < 3; ++c) {
             const auto sub = io::channel_dataset(d, pattern, c);
-            fmt::print(stderr, "channel {}: {}x{} sites, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(), sub.events.size());
+            if (lead) fmt::print(stderr, "channel {}: {}x{} sites, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(), sub.events.size());
             const int code = train_one.template operator()<Model>(name, train::prepare(sub, cfg), out / kChannelDirs[c], sub.events.size());
             if (code != 0) return code;
           }
+          if (!lead) return 0;
           write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern).dump(2) + "\n");
           fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
           return 0;
@@ -460,6 +498,8 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       return 0;
     }
   } catch (const std::exception& e) {
+    // In a group the others may be waiting in a sum this process will never join: end them all.
+    if (group) group->abort(fmt::format("evnerf {}: error (rank {} of {}): {}", cmd, group->rank(), group->size(), e.what()), 1);
     fmt::print(stderr, "evnerf {}: error: {}\n", cmd, e.what());
     return 1;
   }
