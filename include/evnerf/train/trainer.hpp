@@ -409,7 +409,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
           j["exchange_bytes_per_step"] = exchange.bytes() / std::max(1L, exchange.steps());
           j["exchange_seconds_per_step"] = exchange.seconds() / std::max(1L, exchange.steps());
           j["sparse_steps"] = exchange.sparse_steps();
-          j["touched_blocks"] = exchange.last_fraction();
+          if (cfg.exchange != Exchange::Dense) j["touched_blocks"] = exchange.last_fraction();  // dense never looks
           exchange.reset();
           // The processes hold the same parameters (each applies the same summed gradients); a difference
           // would mean the sums differ between them, and the runs would drift apart silently.
