@@ -428,18 +428,23 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         // checkpoint; a second signal kills at once (the handler restores the default action).
         const StopOnSignal stop_request;
         const auto r = trainer.run([&](const train::StepReport&) { return !stop_request.requested(); });
-        if (!lead) return r.diverged ? 3 : r.stopped ? 128 + stop_request.signal_number() : r.collapsed && !cfg.allow_collapse ? 4 : 0;
-        fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
-                   r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
+        // Every process returns the same code; rank 0 alone says why.
+        if (lead)
+          fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
+                     r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
         if (r.diverged) return 3;
         if (r.stopped) {
-          fmt::print(stderr, "train: stopped by {} at step {}; the checkpoint is written, continue with --resume\n",
-                     stop_request.signal_name(), trainer.model().step());
-          return 128 + stop_request.signal_number();
+          // In a group the signal may have reached another process only: its stop is shared (train::run).
+          const int sig = stop_request.requested() ? stop_request.signal_number() : SIGTERM;
+          if (lead)
+            fmt::print(stderr, "train: stopped by {} at step {}; the checkpoint is written, continue with --resume\n",
+                       stop_request.requested() ? stop_request.signal_name() : "a signal to another process", trainer.model().step());
+          return 128 + sig;
         }
         if (r.collapsed && !cfg.allow_collapse) {
-          fmt::print(stderr, "train: the run collapsed ({}); the checkpoint is kept, but this is not a usable model\n",
-                     r.checks.back().describe());
+          if (lead)
+            fmt::print(stderr, "train: the run collapsed ({}); the checkpoint is kept, but this is not a usable model\n",
+                       r.checks.back().describe());
           return 4;
         }
         return 0;

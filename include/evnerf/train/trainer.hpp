@@ -61,6 +61,8 @@ struct Config {
   Group* group = nullptr;
   /// The shards per step this Config gives.
   int shard_count() const { return shards > 0 ? shards : group ? group->size() : 1; }
+  /// `group` when it has several processes (one process alone needs no sums), else null.
+  Group* processes() const { return group && group->size() > 1 ? group : nullptr; }
 };
 
 /// Refuses settings no run can use, naming the setting (the command line's flags check the same ranges;
@@ -306,7 +308,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   check(cfg);
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
-  Group* group = cfg.group && cfg.group->size() > 1 ? cfg.group : nullptr;
+  Group* group = cfg.processes();
   const int rank = group ? group->rank() : 0, shard_count = cfg.shard_count();
   const StepShards shards{shard_count, rank, group ? group->size() : 1};
   GradientExchange exchange(group, cfg.exchange);
@@ -498,7 +500,7 @@ class Trainer {
   /// In a group, rank 0 reads the file and every process gets its bytes (no shared file system needed).
   /// A checkpoint of another shard count is refused: its run would go on drawing other rays.
   bool resume(std::string* note = nullptr) {
-    Group* g = cfg_.group && cfg_.group->size() > 1 ? cfg_.group : nullptr;
+    Group* g = cfg_.processes();
     const fs::path file = out_ / "model.ckpt";
     std::string bytes;  // "" when there is no checkpoint, else "c" and the file's bytes (an empty file is damaged)
     if ((!g || g->rank() == 0) && !out_.empty() && fs::exists(file)) bytes = "c" + read_file(file);
