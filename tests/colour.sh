@@ -3,8 +3,9 @@
 # ("channels": 3, per-channel alignment, grey scores under "grey", an RGB montage), `baselines` too (each
 # pixel's own events integrated, then demosaiced); the grey preset on the same recording is scored in grey.
 # The paper's colour method (train --per-channel: a grey model per channel's quarter-resolution sites)
-# writes channels.json, which render and eval take as the checkpoint; it refuses a colour variant, and a
-# damaged channels.json is an error naming the file.
+# writes channels.json, which render and eval take as the checkpoint, reaching the full sensor either way
+# (--channel-upsampling volume, sites: equal at the sites); it refuses a colour variant, and a damaged
+# channels.json is an error naming the file.
 # ctest runs this as cli.colour. Usage: tests/colour.sh EVNERF_BINARY
 set -euo pipefail
 EV=$1
@@ -21,6 +22,8 @@ ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" train "$work/rec" --out "$work/pc" --per-channel "${ARGS[@]}" > /dev/null 2>&1
 "$EV" eval "$work/pc/channels.json" "$work/rec" --out "$work/eval_pc" > /dev/null 2>&1
 "$EV" render "$work/pc/channels.json" --out "$work/render_pc" --novel 1 > /dev/null 2>&1
+"$EV" render "$work/pc/channels.json" --out "$work/render_sites" --novel 1 --channel-upsampling sites > /dev/null 2>&1
+if "$EV" render "$work/pc/channels.json" --out "$work/render_bad" --channel-upsampling nearest > "$work/err" 2>&1; then fail "--channel-upsampling nearest was taken"; fi
 [ -f "$work/render_pc/novel_0000.png" ] && [ -f "$work/render_pc/boundary_0001_depth.npy" ] || fail "render of channels.json"
 for c in r g b; do [ -f "$work/pc/$c/model.ckpt" ] || fail "per-channel: no $c/model.ckpt"; done
 if "$EV" train "$work/rec" --out "$work/pc_colour" --per-channel --preset colour "${ARGS[@]}" > "$work/err" 2>&1; then fail "--per-channel took a colour variant"; fi
@@ -48,6 +51,22 @@ p = json.load(open(f"{w}/eval_pc/metrics.json"))
 assert p["channels"] == 3 and set(p["methods"]) == {"evnerf_fast_per_channel", "direct_integration", "high_pass_filter"}, p["methods"]
 assert png_colour_type(f"{w}/eval_pc/montage.png") == 2, "the per-channel montage is in colour"
 assert png_colour_type(f"{w}/render_pc/novel_0000.png") == 2, "per-channel renders are in colour"
+# The two ways to the full sensor agree where the green model's sites are (both render the same ray there:
+# the sites' camera is the sensor's at half the focal length) and differ between them. Depth is the green
+# model's; RGGB's first green is at odd x, even y.
+def npy_f32(path):  # a little-endian float32 .npy of shape (24, 32), without numpy
+    b = open(path, "rb").read()
+    n = struct.unpack("<H", b[8:10])[0]
+    head = b[10:10 + n].decode()
+    assert "'<f4'" in head and "(24, 32)" in head, head
+    return struct.unpack(f"<{24 * 32}f", b[10 + n:])
+for stem in ("boundary_0001", "novel_0000"):
+    v = npy_f32(f"{w}/render_pc/{stem}_depth.npy")
+    s = npy_f32(f"{w}/render_sites/{stem}_depth.npy")
+    green = [y * 32 + x for y in range(0, 24, 2) for x in range(1, 32, 2)]
+    at = max(abs(v[i] - s[i]) for i in green)
+    assert at < 1e-3 * max(1.0, max(abs(a) for a in s)), f"{stem}: volume and sites differ at the green sites by {at}"
+    assert max(abs(a - b) for a, b in zip(v, s)) > 10 * at + 1e-6, f"{stem}: volume rendering did not render between the sites"
 for m in ("direct_integration", "high_pass_filter"):
     assert 0 < b["methods"][m]["psnr"] < 100 and 0 < c["methods"][m]["psnr"] < 100, m
 PY

@@ -173,7 +173,20 @@ struct Renderable {
   train::Described desc;
   double near = 0, far = 1;
   std::function<Rendering(const geometry::Pose&)> render;
+  /// The same model seen by another camera (a single model.ckpt; empty for channels.json).
+  std::function<Rendering(const geometry::Camera&, const geometry::Pose&)> render_with;
 };
+
+/// How the paper's colour model (train --per-channel) reaches the full sensor from its three channels' models,
+/// each trained on its channel's quarter-resolution sites: render each channel's volume at every pixel of the
+/// full sensor (`Volume`), or render it at its own sites and interpolate bilinearly (`Sites`,
+/// geometry::upsample_sites: the 2-D upsampling of the paper's description).
+enum class ChannelUpsampling { Volume, Sites };
+inline ChannelUpsampling parse_channel_upsampling(const std::string& s) {
+  if (s == "volume") return ChannelUpsampling::Volume;
+  if (s == "sites") return ChannelUpsampling::Sites;
+  throw Error("channel upsampling '" + s + "': expected volume or sites");
+}
 
 /// One checkpoint, by the variant of V... that can load it.
 template <class... V>
@@ -187,16 +200,19 @@ Renderable load_model(const fs::path& ckpt) {
     r.far = model->box().far;
     auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));
     r.render = [model, dirs, cam = r.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
+    r.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
+      return model->render(cam, render::pixel_directions(cam), pose);
+    };
     return 0;
   });
   return r;
 }
 
-/// A model.ckpt, or the channels.json of train --per-channel: each channel's model renders its quarter-
-/// resolution sites, geometry::upsample_sites brings them to the full sensor, and the three make one RGB
-/// image (depth and opacity: the green model's, upsampled). Boundary times: those all three channels share.
+/// A model.ckpt, or the channels.json of train --per-channel: each channel's model reaches the full sensor
+/// as `up` says (its volume rendered at every pixel, or its sites rendered and upsampled), and the three make
+/// one RGB image (depth and opacity: the green model's). Boundary times: those all three channels share.
 template <class... V>
-Renderable load_renderable(const fs::path& ckpt) {
+Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelUpsampling::Volume) {
   if (ckpt.extension() != ".json") return load_model<V...>(ckpt);
   nlohmann::json j;
   try {
@@ -247,16 +263,21 @@ Renderable load_renderable(const fs::path& ckpt) {
       r.desc.times.push_back(ch[1].desc.times[i]);
       r.desc.poses.push_back(ch[1].desc.poses[i]);
     }
-  r.render = [ch, sites, W = cam.width(), H = cam.height()](const geometry::Pose& pose) {
+  r.render = [ch, sites, cam, up](const geometry::Pose& pose) {
+    const int W = cam.width(), H = cam.height();
     Rendering out;
     out.luminance = Image(W, H, 3);
     for (int k = 0; k < 3; ++k) {
-      const auto rk = ch[k].render(pose);
-      const auto up = geometry::upsample_sites(rk.luminance, sites[k], W, H);
-      for (std::size_t i = 0; i < up.pixels(); ++i) out.luminance.data[3 * i + k] = up.data[i];
+      Rendering rk = up == ChannelUpsampling::Volume ? ch[k].render_with(cam, pose) : ch[k].render(pose);
+      if (up == ChannelUpsampling::Sites) {
+        rk.luminance = geometry::upsample_sites(rk.luminance, sites[k], W, H);
+        rk.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);
+        rk.opacity = geometry::upsample_sites(rk.opacity, sites[k], W, H);
+      }
+      for (std::size_t i = 0; i < rk.luminance.pixels(); ++i) out.luminance.data[3 * i + k] = rk.luminance.data[i];
       if (k == 1) {
-        out.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);
-        out.opacity = geometry::upsample_sites(rk.opacity, sites[k], W, H);
+        out.depth = std::move(rk.depth);
+        out.opacity = std::move(rk.opacity);
       }
     }
     return out;

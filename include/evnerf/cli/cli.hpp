@@ -295,6 +295,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   renderc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
   renderc->add_option("--out", out, "output folder")->required();
   renderc->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
+  std::string channel_up = "volume";
+  const std::string up_help =
+      "with channels.json: each channel's volume rendered at every pixel of the sensor (volume), or at its own "
+      "quarter-resolution sites and interpolated bilinearly (sites)";
+  renderc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
 
   // eval
   int holdout = 0;
@@ -303,6 +308,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   add_recording(evalc, rec_help);
   evalc->add_option("--out", out, "output folder")->required();
   evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
+  evalc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
   evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
@@ -469,7 +475,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       });
     }
     if (*renderc) {
-      const auto model = load_renderable<V...>(ckpt);
+      const auto model = load_renderable<V...>(ckpt, parse_channel_upsampling(channel_up));
       const auto& desc = model.desc;
       const float dlo = float(model.near), dhi = float(model.far * 0.6);
       for (std::size_t i = 0; i < desc.poses.size(); ++i)
@@ -484,7 +490,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     if (*evalc) {
       const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
-      const auto model = load_renderable<V...>(ckpt);
+      const auto model = load_renderable<V...>(ckpt, parse_channel_upsampling(channel_up));
       auto e = evaluate(model, d, als, holdout);
       print_scores(e.scored, e.truth);
       for (std::size_t q = 0; q < e.ids.size(); ++q)

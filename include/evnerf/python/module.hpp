@@ -334,6 +334,9 @@ Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Describe
   m.renderable.far = model->box().far;
   auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(m.renderable.desc.camera));
   m.renderable.render = [model, dirs, cam = m.renderable.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
+  m.renderable.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
+    return model->render(cam, render::pixel_directions(cam), pose);
+  };
   m.thresholds = [model] { return thresholds_of(*model); };
   m.step = [model] { return model->step(); };
   m.save = [model, variant, meta](const fs::path& p) { train::save_checkpoint(p, *model, variant, *meta); };
@@ -341,10 +344,10 @@ Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Describe
 }
 
 template <class... V>
-Model load_model(const fs::path& path) {
+Model load_model(const fs::path& path, const std::string& channel_upsampling) {
   if (path.extension() == ".json") {  // train --per-channel: three grey models
     Model m;
-    m.renderable = evaluation::load_renderable<V...>(path);
+    m.renderable = evaluation::load_renderable<V...>(path, evaluation::parse_channel_upsampling(channel_upsampling));
     m.variant = m.renderable.name;
     m.channels = 3;
     return m;
@@ -586,7 +589,9 @@ void define(py::module_& m) {
   });
 
   static std::string train_doc;
-  m.def("load_model", &load_model<V...>, py::arg("path"), "a model.ckpt of any compiled-in variant, or channels.json of train --per-channel");
+  m.def("load_model", &load_model<V...>, py::arg("path"), py::arg("channel_upsampling") = "volume",
+        "a model.ckpt of any compiled-in variant, or channels.json of train --per-channel (channel_upsampling: 'volume' "
+        "renders each channel's volume at every pixel, 'sites' renders its sites and interpolates)");
   m.def("train", &train_model<V...>, py::arg("dataset"), py::kw_only(), py::arg("preset") = default_variant, py::arg("callback") = py::none(),
         py::arg("out") = py::none(), py::arg("resume") = false,
         (train_doc = "Trains a variant (" + [&] {
