@@ -39,7 +39,7 @@ std::vector<double> window_grad(const std::vector<double>& x, const std::vector<
 }  // namespace
 
 TEST_CASE_TEMPLATE("window objective: finite differences in double match the gradient for every luminance and threshold", Bound,
-                   loss::SplitCounts<1>, loss::HalfSlackCounts, loss::SignedCount) {
+                   loss::SplitCounts<1>, loss::HalfSlackCounts, loss::SignedCount, loss::CentredCounts<1000>) {
   Rng rng(4);
   int checked_nonzero = 0;
   for (int trial = 0; trial < 200; ++trial) {
@@ -89,6 +89,33 @@ TEST_CASE("window objective: one slice is spec §2's EventBounds exactly; the wi
   // Beyond the upper end (centre + B⁺_eff, B⁺_eff = (2·0.2 + 0.4)/3) by 0.1.
   const double hi = centre + (2 * 0.2 + 0.4) / 3 + 0.1, b2 = std::exp(hi) * (a + 1e-3) - 1e-3;
   CHECK(loss::window_pixel_loss<loss::SplitCounts<1>>(a, b2, 2, np2, nn2, bp2, bm2, gp, gm).value == doctest::Approx(0.1));
+}
+
+TEST_CASE("centred counts: the half-slack hinge plus weight · (change − μ)²; weight 0 is HalfSlackCounts to the bit") {
+  const int np2[2] = {2, 1}, nn2[2] = {0, 1};
+  const double bp2[2] = {0.2, 0.4}, bm2[2] = {-0.3, -0.5};
+  const double mu = 2 * 0.2 + 1 * 0.4 - 0.5, eps = 1e-3, a = 0.3;
+  auto at = [&](double change) { return std::exp(change) * (a + eps) - eps; };
+  double gp[2] = {0, 0}, gm[2] = {0, 0};
+  using C = loss::CentredCounts<2500>;
+  // Inside the half slack: only the square, 2.5 · d².
+  const double d = 0.05;
+  CHECK(loss::window_pixel_loss<C>(a, at(mu + d), 2, np2, nn2, bp2, bm2, gp, gm, eps).value == doctest::Approx(2.5 * d * d));
+  CHECK(loss::window_pixel_loss<loss::HalfSlackCounts>(a, at(mu + d), 2, np2, nn2, bp2, bm2, gp, gm, eps).value == 0.0);
+  // Beyond the upper end (μ + ½ B⁺_eff) by 0.1: the hinge's distance plus the square.
+  const double up = 0.5 * (2 * 0.2 + 0.4) / 3 + 0.1;
+  CHECK(loss::window_pixel_loss<C>(a, at(mu + up), 2, np2, nn2, bp2, bm2, gp, gm, eps).value ==
+        doctest::Approx(0.1 + 2.5 * up * up));
+  // No events: the change is pulled to zero.
+  const int z[1] = {0};
+  const double b1[1] = {0.3}, m1[1] = {-0.3};
+  CHECK(loss::window_pixel_loss<C>(a, at(0.1), 1, z, z, b1, m1, gp, gm, eps).value == doctest::Approx(2.5 * 0.01));
+  // EventBounds with centre 0 takes the hinge's own path: bit-identical values and gradients.
+  auto e = loss::HalfSlackCounts::make(3, 1);
+  const auto r0 = e.evaluate(0.2, 0.7, 0.31, -0.29);
+  e.centre = 0.0;
+  CHECK(e.evaluate(0.2, 0.7, 0.31, -0.29) == r0);
+  CHECK(std::string(loss::CentredCounts<2500>::name) == "half-slack-centred");
 }
 
 TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty pixels and the rest where events fired") {

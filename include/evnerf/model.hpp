@@ -387,6 +387,7 @@ class EvNerf {
     std::string d = "bounds ";  // appended piece by piece: GCC 12's -Wrestrict misfires on chains of operator+
     d.append(bound_policy::name);
     if constexpr (requires { bound_policy::slack; }) d.append(" ").append(std::to_string(bound_policy::slack));
+    if constexpr (requires { bound_policy::per_mille; }) d.append(" ").append(std::to_string(bound_policy::per_mille)).append(" per mille");
     d.append(", thresholds ").append(ThresholdP::name).append(", noise ");
     d.append(std::to_string(static_cast<int>(NoiseP::ratio * 1000 + 0.5))).append(" per mille");
     d.append(objective::description());  // empty for the paper's one-slice objective (older files compare equal)

@@ -174,6 +174,11 @@ def test_colour_and_a_time_window(tmp_path):
     assert 0 < len(w) < len(d) and w.events.t[0] >= t[0] + 0.1 and w.events.t[-1] < t[0] + 0.3
 
 
+def test_channel_upsampling_is_checked(tmp_path):
+    with pytest.raises(evnerf.Error, match="channel upsampling 'nearest': expected volume or sites"):
+        evnerf.load_model(tmp_path / "channels.json", channel_upsampling="nearest")
+
+
 def test_a_users_own_variant():
     my = pytest.importorskip("my_evnerf")
     assert my.variants == ["mine", "fast"]
