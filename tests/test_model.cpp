@@ -91,9 +91,10 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 template <class Model>
-void check_model() {
+void check_model(double distortion = 0) {
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  m.set_distortion(distortion);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
   Rng rng(11);
@@ -118,6 +119,8 @@ void check_model() {
     CAPTURE(seed);
     REQUIRE(std::isfinite(st.loss));
     REQUIRE(st.loss > 0);
+    if (distortion > 0) CHECK(st.distortion_loss > 0);
+    else CHECK(st.distortion_loss == 0);
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
       CHECK(st.samples < st.rays * Model::Nc);
@@ -150,6 +153,13 @@ TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every 
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
                    OccupancyModel<3>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>, CustomParts) {
   check_model<Model>();
+}
+
+// The distortion regulariser joins the loss of every pass; one-network models, where the loss is one sum
+// (a two-network model's coarse gradient excludes the fine pass through its resampled depths, see above).
+TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite differences in double", Model, StratifiedModel<1>,
+                   OccupancyModel<1>, ExpRadianceModel<3>) {
+  check_model<Model>(0.05);
 }
 
 TEST_CASE("examples' parts: inverse-depth samples, the triangle-wave encoding's input gradient, the shot-noise interval") {

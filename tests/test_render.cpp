@@ -41,6 +41,64 @@ TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densit
   CHECK(r.opacity <= 1.0 + 1e-9);
 }
 
+TEST_CASE("distortion regulariser: equals the double sum, its weight gradient and its density gradient match finite differences") {
+  const int S = 11;
+  Rng rng(7);
+  std::vector<double> w(S), t(S), sigma(S), raw(S), noise(S, 0.0);
+  double at = 0.4;
+  for (int k = 0; k < S; ++k) {
+    w[k] = rng.uniform();
+    t[k] = at;
+    at += 0.05 + 0.3 * rng.uniform();
+    sigma[k] = rng.uniform(-0.5, 3.0);
+    raw[k] = rng.uniform(-2, 2);
+  }
+  // The plain O(S²) definition over the same intervals.
+  auto plain = [&](const std::vector<double>& ws) {
+    const double span = t[S - 1] - t[0];
+    auto mid = [&](int k) { return k + 1 < S ? 0.5 * (t[k] + t[k + 1]) / span : t[k] / span; };
+    auto len = [&](int k) { return k + 1 < S ? (t[k + 1] - t[k]) / span : 0.0; };
+    double l = 0;
+    for (int i = 0; i < S; ++i) {
+      for (int j = 0; j < S; ++j) l += ws[i] * ws[j] * std::abs(mid(i) - mid(j));
+      l += ws[i] * ws[i] * len(i) / 3;
+    }
+    return l;
+  };
+  std::vector<double> g(S);
+  const double l = render::distortion_loss<double>(S, w.data(), t.data(), g.data());
+  CHECK(l == doctest::Approx(plain(w)).epsilon(1e-12));
+  CHECK(l > 0);
+  CHECK(evtest::max_fd_error(plain, w, g) < 1e-7);
+  // One weight alone: only its own interval's third is left; a point (the open interval) costs nothing.
+  std::vector<double> one(S, 0.0), go(S);
+  one[3] = 0.8;
+  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) == doctest::Approx(0.64 * (t[4] - t[3]) / (t[S - 1] - t[0]) / 3));
+  std::fill(one.begin(), one.end(), 0.0);
+  one[S - 1] = 1;
+  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) == 0);
+  // Weights spread over the ray cost more than the same weight on one sample.
+  std::vector<double> spread(S, 1.0 / S), g2(S);
+  one.assign(S, 0.0);
+  one[S / 2] = 1;
+  CHECK(render::distortion_loss<double>(S, spread.data(), t.data(), g2.data()) >
+        render::distortion_loss<double>(S, one.data(), t.data(), go.data()));
+  // Through compositing: dL/dw passed as composite_backward's dweight gives dL/dσ.
+  auto loss_of_sigma = [&](const std::vector<double>& sg) {
+    render::RayComposite<double> r;
+    render::composite_forward<double, nn::ReLU>(S, 1, sg.data(), 1, raw.data(), t.data(), 1.3, noise.data(), r);
+    std::vector<double> gw(S);
+    return render::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data()) + 0.7 * r.color[0];
+  };
+  render::RayComposite<double> r;
+  render::composite_forward<double, nn::ReLU>(S, 1, sigma.data(), 1, raw.data(), t.data(), 1.3, noise.data(), r);
+  std::vector<double> gw(S), ds(S), dr(S);
+  render::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data());
+  const double dcolor = 0.7;
+  render::composite_backward<double>(S, 1, r, &dcolor, ds.data(), 1, dr.data(), gw.data());
+  CHECK(evtest::max_fd_error(loss_of_sigma, sigma, ds) < 1e-6);
+}
+
 TEST_CASE_TEMPLATE("compositing: finite-difference check through each radiance activation", Radiance, field::SigmoidRadiance,
                    field::ExpRadiance) {
   const int S = 7, C = 1;

@@ -557,6 +557,8 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.pixels_per_step = 0; }, "pixels per step");
   refused([](train::Config& c) { c.lr = -1; }, "learning rate must be positive");
   refused([](train::Config& c) { c.subslices = 65; }, "subslices must be between 1 and 64");
+  refused([](train::Config& c) { c.distortion = -0.1; }, "distortion weight must be finite and non-negative");
+  refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion weight must be finite and non-negative");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;

@@ -55,6 +55,7 @@ struct StepShards {
 
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
+  double distortion_loss = 0;  ///< the distortion regulariser's term (0 unless set_distortion() was given a weight)
   std::size_t rays = 0;
   std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
@@ -240,7 +241,7 @@ class EvNerf {
     const int n_tiles = (P + tile - 1) / tile;
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.begin_accumulate(threads);
-    std::vector<double> loss_ev(threads, 0.0);
+    std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0);
     std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
     std::vector<std::array<double, 2>> pass_loss(threads);
     const geometry::Pose& pose0 = data.boundary_poses[first];
@@ -251,6 +252,7 @@ class EvNerf {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.rw.evaluated = w.rw.backward_samples = 0;
       w.pass_loss = {};
+      w.distortion = 0;
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
@@ -259,6 +261,7 @@ class EvNerf {
       renderer_type::flush(w.rw);
       evaluated[th] = w.rw.evaluated;
       pass_loss[th] = w.pass_loss;
+      loss_dist[th] = w.distortion;
       backward[th] = w.rw.backward_samples;
     });
     params_.end_accumulate(threads);
@@ -266,6 +269,7 @@ class EvNerf {
     st.first_slice = first;
     st.window = L;
     for (double l : loss_ev) st.event_loss += l;
+    for (double l : loss_dist) st.distortion_loss += l;
     for (const auto& l : pass_loss)
       for (int net = 0; net < 2; ++net) st.pass_event_loss[net] += l[net];
     for (std::size_t e : evaluated) st.samples += e;
@@ -284,7 +288,7 @@ class EvNerf {
         params_.grads[to] = params_.grads[to + 1] = Scalar(0);
       }
     }
-    st.loss = st.event_loss + st.threshold_loss;
+    st.loss = st.event_loss + st.threshold_loss + st.distortion_loss;
     st.rays = static_cast<std::size_t>(2 * P);
     touched_.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
@@ -396,13 +400,21 @@ class EvNerf {
   /// Set by deserialize(): empty, or a warning the caller should show (a checkpoint older than version 4
   /// cannot be checked against the loss).
   const std::string& load_note() const { return load_note_; }
+  /// The distortion regulariser (render::distortion_loss, Mip-NeRF 360's, against floaters and surfaces
+  /// smeared along rays): `weight` × its mean over a step's rays, in every pass, joins the loss. 0 (the
+  /// default) leaves the step bit-identical. A training setting like the learning rate: not checkpointed.
+  void set_distortion(double weight) {
+    require(std::isfinite(weight) && weight >= 0, "the distortion weight must be finite and non-negative");
+    distortion_ = weight;
+  }
+  double distortion() const { return distortion_; }
  private:
   /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
   /// samples, backward samples and the two passes' event losses.
-  static constexpr std::size_t kTotals = 8;
+  static constexpr std::size_t kTotals = 9;
   static void add_totals(std::vector<double>& t, const StepStats& s) {
     const double v[kTotals] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
-                               s.pass_event_loss[0], s.pass_event_loss[1]};
+                               s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss};
     for (std::size_t i = 0; i < kTotals; ++i) t[i] += v[i];
   }
   StepStats from_totals(const std::vector<double>& t, int count) const {
@@ -414,6 +426,7 @@ class EvNerf {
     s.samples = static_cast<std::size_t>(t[4]);
     s.backward_samples = static_cast<std::size_t>(t[5]);
     s.pass_event_loss = {t[6] / count, t[7] / count};
+    s.distortion_loss = t[8] / count;
     s.first_slice = window_.first;
     s.window = window_.len;
     return s;
@@ -438,6 +451,7 @@ class EvNerf {
     std::vector<Rng> rng;
     std::vector<double> bp, bm, gbp, gbm;
     std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
+    double distortion = 0;              ///< the thread's distortion term, this step
   };
 
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
@@ -507,6 +521,8 @@ class EvNerf {
       w.pass_loss[net] += l;
       loss += l;
     }
+    // The distortion regulariser: its weight times the mean over the step's 2·batch rays, every pass.
+    if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (2.0 * batch));
     renderer_.backward(params, w.rw, grads);
     return loss;
   }
@@ -520,6 +536,7 @@ class EvNerf {
   std::vector<std::size_t> touched_;  ///< the last step's threshold entries (lazy Adam)
   std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
+  double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
 };
 
 }  // namespace evnerf

@@ -253,6 +253,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--lr-decay-steps", cfg.lr_decay_steps, "steps over which the learning rate decays by 10×")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  trainc->add_option("--distortion", cfg.distortion,
+                     "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);

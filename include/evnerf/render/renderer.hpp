@@ -55,6 +55,7 @@ class Renderer {
     std::vector<T> t, noise, pts, dirs;      ///< R×S depths and density noise; 3·R·S points and directions
     std::vector<RayComposite<T>> comp;        ///< one per ray
     std::vector<T> dcolor;                    ///< R×C, dL/dcolor of comp: the caller fills it before backward()
+    std::vector<T> dweight;                   ///< R×S, dL/dw of comp's weights (a regulariser), or empty
     std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
     std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
   };
@@ -92,6 +93,24 @@ class Renderer {
   /// table gradients that backward() kept back.
   void backward(const T* params, Workspace& w, T* grads) const {
     for (int net = 0; net < networks; ++net) backward_pass(params + net * field_params, w.pass[net], w, grads + net * field_params);
+  }
+  /// Adds `scale` × the distortion of every ray's weights (distortion_loss) in every pass of the last
+  /// training forward to the loss that backward() differentiates; returns that addition. Call after the
+  /// forward, before backward(); scale 0 adds nothing.
+  static double add_distortion(Workspace& w, double scale) {
+    if (scale == 0) return 0.0;
+    double total = 0;
+    for (auto& p : w.pass) {
+      const int R = static_cast<int>(p.comp.size()), S = p.S;
+      p.dweight.assign(static_cast<std::size_t>(R) * S, T(0));
+      for (int r = 0; r < R; ++r) {
+        const std::size_t o = static_cast<std::size_t>(r) * S;
+        T* g = p.dweight.data() + o;
+        total += scale * distortion_loss<T>(S, p.comp[r].weight.data(), p.t.data() + o, g);
+        for (int k = 0; k < S; ++k) g[k] = static_cast<T>(scale * double(g[k]));
+      }
+    }
+    return total;
   }
   /// Defers table gradients of every pass to flush() (bit-identical; see Field::Workspace::defer_encoding_grad).
   static void defer_encoding_grad(Workspace& w) {
@@ -307,6 +326,7 @@ class Renderer {
                                                                 training ? p.noise.data() + o : nullptr, p.comp[r]);
     }
     p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
+    p.dweight.clear();
   }
 
   void backward_pass(const T* params, Pass& p, Workspace& w, T* grads) const {
@@ -316,7 +336,7 @@ class Renderer {
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       composite_backward<T>(S, channels, p.comp[r], p.dcolor.data() + static_cast<std::size_t>(r) * channels, p.dsigma.data() + o, 1,
-                            p.draw.data() + o * channels);
+                            p.draw.data() + o * channels, p.dweight.empty() ? nullptr : p.dweight.data() + o);
     }
     if (sampler_.skipping()) {  // only the evaluated samples carry gradient
       // Early termination for the backward pass: a sample behind transmittance < kMinTransmittance has weight
