@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Robustness: trains a preset on procedural random scenes (`evnerf simulate random --seed N`) and prints, per
 # scene, ours against both baselines under eval's default alignment (global-log-affine), the truth eval used
-# (the frames, or the linear HDR truth of a scene whose frames clip, scored in its log space) and whether the
-# collapse detector fired. A scene passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Writes
-# $OUT/robustness.csv and prints a Markdown table.
+# (the frames, or the linear HDR truth of a scene whose frames clip, scored in its log space), whether the
+# collapse detector fired, and our error split by scale (eval's error_scales: coarse and fine PSNR). A scene
+# passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Writes $OUT/robustness.csv and prints a
+# Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
 # Environment: PRESET (the default preset), STEPS (train's default), SEED (training seed, 1), THREADS (2),
 #              OUT (out/robustness), BUILD (build).
@@ -22,7 +23,7 @@ TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iters "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
-echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass" > "$CSV"
+echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr" > "$CSV"
 for n in "${SEEDS[@]}"; do
   dir="$OUT/random-$n"
   [ -f "$dir/scene/events.txt" ] || "$EV" simulate random --seed "$n" --out "$dir/scene" > "$dir.simulate.txt" 2>&1
@@ -44,18 +45,21 @@ secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else
 path = next((l.split()[1] for l in open(f"{d}/scene/scene.txt") if l.startswith("path")), "?")
 events = sum(1 for _ in open(f"{d}/scene/events.txt"))
 ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for b in (di, hpf))
+name = next(k for k in m if k.startswith("evnerf"))
+scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
+db = lambda v: "inf" if v is None else f"{v:.2f}"
 print(f"{n},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
-      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)}")
+      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db(scales.get('coarse_psnr'))},{db(scales.get('fine_psnr'))}")
 PY
   tail -n 1 "$CSV"
 done
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-print("| seed | path | events | truth | ours PSNR / SSIM | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
-print("|---|---|---|---|---|---|---|---|---|")
+print("| seed | path | events | truth | ours PSNR / SSIM | ours coarse / fine PSNR | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
+print("|---|---|---|---|---|---|---|---|---|---|")
 for r in rows:
-    print(f"| {r['scene_seed']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | "
+    print(f"| {r['scene_seed']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['coarse_psnr']} / {r['fine_psnr']} | {r['di_psnr']} / {r['di_ssim']} | "
           f"{r['hpf_psnr']} / {r['hpf_ssim']} | {'yes' if r['collapse_fired'] == '1' else 'no'} | {'yes' if r['pass'] == '1' else 'no'} |")
 print(f"passed {sum(r['pass'] == '1' for r in rows)} of {len(rows)}; collapse fired on {sum(r['collapse_fired'] == '1' for r in rows)}")
 PY

@@ -44,6 +44,14 @@ assert set(c["grey"]["methods"]) == set(c["methods"])
 assert png_colour_type(f"{w}/eval_colour/montage.png") == 2, "the montage is in colour"
 g = json.load(open(f"{w}/eval_grey/metrics.json"))
 assert g["channels"] == 1 and "grey" not in g, "a grey model is scored in grey"
+# The error split by scale (eval's error_scales): every method, in RGB and in grey; the coarse and fine MSEs
+# add up to about the whole MSE, so both parts are measured against the truth as it was scored.
+for m in (c, g):
+    es = m["error_scales"]
+    assert es["sigma_px"] == 8 and set(es["methods"]) == set(m["methods"]), es
+    for name, v in es["methods"].items():
+        whole = m["methods"][name]["mse"]
+        assert abs(v["coarse_mse"] + v["fine_mse"] - whole) < 0.25 * whole, (name, v, whole)
 assert png_colour_type(f"{w}/eval_grey/montage.png") == 0
 b = json.load(open(f"{w}/base/baselines.json"))
 assert b["channels"] == 3, "baselines on a colour recording are scored in colour"

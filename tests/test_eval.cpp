@@ -1,5 +1,6 @@
 #include <evnerf/eval/baselines.hpp>
 #include <evnerf/eval/metrics.hpp>
+#include <evnerf/eval/report.hpp>
 
 #include "common.hpp"
 
@@ -173,4 +174,61 @@ TEST_CASE("HDR scoring: the truth's log range is put on [0, 1]; a known map is u
   CHECK(hdr > 80);
   CHECK(ldr < hdr);
   CHECK_THROWS_WITH(eval::HdrTone::of({Image(4, 4, 1)}, 1e-4), doctest::Contains("no range"));
+}
+
+TEST_CASE("gaussian_blur keeps constants, spreads an impulse symmetrically with unit mass, and refuses sigma <= 0") {
+  const Image flat(17, 13, 2, 0.4f);
+  const Image b = eval::gaussian_blur(flat, 3.0);
+  for (float v : b.data) CHECK(v == doctest::Approx(0.4f).epsilon(1e-5));
+  Image imp(41, 41, 1, 0.f);
+  imp.at(20, 20) = 1.f;
+  const Image g = eval::gaussian_blur(imp, 2.0);
+  double sum = 0;
+  for (float v : g.data) sum += v;
+  CHECK(sum == doctest::Approx(1.0).epsilon(1e-5));
+  CHECK(g.at(17, 20) == doctest::Approx(g.at(23, 20)));
+  CHECK(g.at(20, 17) == doctest::Approx(g.at(20, 23)));
+  CHECK(g.at(20, 20) > g.at(21, 20));
+  // Against the continuous Gaussian's ratio between neighbours (kernel normalised, so ratios are exact).
+  CHECK(g.at(21, 20) / g.at(20, 20) == doctest::Approx(std::exp(-0.5 / 4.0)).epsilon(1e-4));
+  CHECK_THROWS_AS(eval::gaussian_blur(flat, 0.0), Error);
+}
+
+TEST_CASE("error_scales: a brightness offset is coarse error, a pixel-scale pattern is fine error, and the parts add up") {
+  const Image truth = det(64, 48, 0.2, 0.3);
+  Image offset = truth, pattern = truth, both = truth;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) {
+      const float c = ((x + y) % 2 ? 0.05f : -0.05f);
+      offset.at(x, y) += 0.1f;
+      pattern.at(x, y) += c;
+      both.at(x, y) += 0.1f + c;
+    }
+  const auto o = eval::error_scales(offset, truth);
+  CHECK(o.coarse_mse == doctest::Approx(0.01).epsilon(1e-4));
+  CHECK(o.fine_mse < 1e-10);
+  CHECK(o.coarse_psnr() == doctest::Approx(20.0).epsilon(1e-4));
+  const auto p = eval::error_scales(pattern, truth);
+  CHECK(p.fine_mse == doctest::Approx(0.0025).epsilon(0.02));
+  CHECK(p.coarse_psnr() > 50);  // a 1-px checker averages out (the borders' reflection leaves a trace)
+  const auto b = eval::error_scales(both, truth);
+  CHECK(b.coarse_mse + b.fine_mse == doctest::Approx(eval::mse(both, truth)).epsilon(1e-3));
+  CHECK(eval::error_scales(truth, truth).coarse_psnr() == INFINITY);
+  CHECK_THROWS_AS(eval::error_scales(truth, Image(3, 3, 1)), Error);
+}
+
+TEST_CASE("error_scales_json: per method from the primary alignment's aligned images; refused without them") {
+  const Image truth = det(32, 24, 0.2, 0.3);
+  Image brighter = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
+  for (auto& v : brighter.data) v = static_cast<float>(std::exp(0.5 * std::log(v + 1e-3) - 0.7) - 1e-3);
+  eval::Method exact{"exact", {truth, truth}}, gain{"gain", {brighter, brighter}};
+  const auto a = eval::score_methods({exact, gain}, {truth, truth}, eval::Alignment::GlobalLogAffine, true);
+  const auto j = eval::error_scales_json(a, {truth, truth});
+  CHECK(j.at("sigma_px").get<double>() == eval::kErrorScaleSigma);
+  const auto& exact_coarse = j.at("methods").at("exact").at("coarse_psnr");  // rounding only (null if none at all)
+  CHECK((exact_coarse.is_null() || exact_coarse.get<double>() > 100));
+  CHECK(j.at("methods").at("gain").at("fine_psnr").get<double>() > 60);
+  CHECK(j.at("methods").at("gain").at("coarse_psnr").get<double>() > 60);
+  const auto kept_not = eval::score_methods({exact}, {truth, truth}, eval::Alignment::GlobalLogAffine, false);
+  CHECK_THROWS_AS(eval::error_scales_json(kept_not, {truth, truth}), Error);
 }

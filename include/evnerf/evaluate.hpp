@@ -117,6 +117,10 @@ inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& t
   j = eval::metrics_json(s.primary, s.others, ids);
   j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
                    : nlohmann::json{{"kind", "frames"}};
+  std::vector<Image> scored_truth;  // the truth as the primary alignment compared it
+  for (const auto& g : truth.images)
+    scored_truth.push_back(als.front() == eval::Alignment::MinMax ? (hdr ? hdr->log_min_max(g) : eval::min_max(g)) : (hdr ? hdr->apply(g) : g));
+  j["error_scales"] = eval::error_scales_json(s.primary, scored_truth);
   const int channels = truth.images.empty() ? 1 : truth.images.front().channels;
   j["channels"] = channels;
   if (channels == 3) {  // colour: the same methods in grey (Rec. 601 luminance), as secondary scores

@@ -87,6 +87,29 @@ inline nlohmann::json metrics_json(const AlignedScores& primary, const std::vect
   return j;
 }
 
+/// The primary alignment's error split by scale (ErrorScales), per method, averaged over the frames (PSNR in
+/// dB, as the scores): {"sigma_px", "methods": {"<name>": {"coarse_mse", "coarse_psnr", "fine_mse",
+/// "fine_psnr"}}}. `a` must hold the aligned predictions (score_methods with keep_aligned) and `truths` the
+/// truth as it was scored (tone-mapped for HDR truth, normalised under min-max).
+inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vector<Image>& truths, double sigma = kErrorScaleSigma) {
+  nlohmann::json j = {{"sigma_px", sigma}, {"methods", nlohmann::json::object()}};
+  for (std::size_t m = 0; m < a.names.size(); ++m) {
+    require(a.aligned[m].size() == truths.size(), "error_scales_json: the aligned predictions were not kept");
+    double cm = 0, fm = 0, cp = 0, fp = 0;
+    const double n = static_cast<double>(truths.size());
+    for (std::size_t f = 0; f < truths.size(); ++f) {
+      const auto e = error_scales(a.aligned[m][f], truths[f], sigma);
+      cm += e.coarse_mse / n;
+      fm += e.fine_mse / n;
+      cp += e.coarse_psnr() / n;
+      fp += e.fine_psnr() / n;
+    }
+    j["methods"][a.names[m]] = {{"coarse_mse", json_number(cm)}, {"coarse_psnr", json_number(cp)}, {"fine_mse", json_number(fm)},
+                                {"fine_psnr", json_number(fp)}};
+  }
+  return j;
+}
+
 /// Mean absolute relative depth error after one median scale per frame (rendered depth times the median of
 /// ground truth / rendered), over pixels with finite ground truth nearer than `far` and positive renders.
 /// Returns NaN when no pixel qualifies.
