@@ -28,6 +28,36 @@ inline double psnr(const Image& a, const Image& b) {
   return m <= 0 ? INFINITY : 10 * std::log10(1.0 / m);
 }
 
+/// One plane of W×H values (row-major) filtered by a Gaussian of `sigma` pixels truncated at `radius` and
+/// normalised over its taps, separably (rows, then columns), with 'reflect' borders (…2 1 0 | 0 1 2…, as
+/// scikit-image's SSIM and scipy's gaussian_filter use).
+inline std::vector<double> gaussian_filter(const std::vector<double>& in, int W, int H, double sigma, int radius) {
+  require(sigma > 0 && std::isfinite(sigma) && radius >= 0 && in.size() == static_cast<std::size_t>(W) * H, "gaussian_filter: bad arguments");
+  const int R = radius;
+  std::vector<double> k(static_cast<std::size_t>(2 * R + 1));
+  double ks = 0;
+  for (int i = -R; i <= R; ++i) ks += k[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (sigma * sigma));
+  for (double& v : k) v /= ks;
+  auto reflect = [](int i, int n) {
+    while (i < 0 || i >= n) i = i < 0 ? -i - 1 : 2 * n - i - 1;
+    return i;
+  };
+  std::vector<double> tmp(in.size()), out(in.size());
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      double s = 0;
+      for (int i = -R; i <= R; ++i) s += k[static_cast<std::size_t>(i + R)] * in[static_cast<std::size_t>(y) * W + reflect(x + i, W)];
+      tmp[static_cast<std::size_t>(y) * W + x] = s;
+    }
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      double s = 0;
+      for (int i = -R; i <= R; ++i) s += k[static_cast<std::size_t>(i + R)] * tmp[static_cast<std::size_t>(reflect(y + i, H)) * W + x];
+      out[static_cast<std::size_t>(y) * W + x] = s;
+    }
+  return out;
+}
+
 /// SSIM with an 11-tap Gaussian window (σ 1.5), K1 0.01, K2 0.03, data range 1, population covariances,
 /// 'reflect' borders and the mean over the interior (5 px cropped), per channel then averaged — the
 /// settings of skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5,
@@ -36,29 +66,7 @@ inline double ssim(const Image& a, const Image& b) {
   require_same_shape(a, b);
   const int W = a.width, H = a.height, C = a.channels, R = 5;
   require(W > 2 * R && H > 2 * R, "ssim: images must be larger than 11x11");
-  double k[2 * R + 1], ks = 0;
-  for (int i = -R; i <= R; ++i) ks += k[i + R] = std::exp(-0.5 * i * i / (1.5 * 1.5));
-  for (double& v : k) v /= ks;
-  auto reflect = [](int i, int n) {
-    while (i < 0 || i >= n) i = i < 0 ? -i - 1 : 2 * n - i - 1;
-    return i;
-  };
-  auto filter = [&](const std::vector<double>& in) {
-    std::vector<double> tmp(in.size()), out(in.size());
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) {
-        double s = 0;
-        for (int i = -R; i <= R; ++i) s += k[i + R] * in[static_cast<std::size_t>(y) * W + reflect(x + i, W)];
-        tmp[static_cast<std::size_t>(y) * W + x] = s;
-      }
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) {
-        double s = 0;
-        for (int i = -R; i <= R; ++i) s += k[i + R] * tmp[static_cast<std::size_t>(reflect(y + i, H)) * W + x];
-        out[static_cast<std::size_t>(y) * W + x] = s;
-      }
-    return out;
-  };
+  auto filter = [&](const std::vector<double>& in) { return gaussian_filter(in, W, H, 1.5, R); };
   const double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
   double total = 0;
   for (int c = 0; c < C; ++c) {
@@ -322,36 +330,18 @@ inline Scores mean(const std::vector<Scores>& s) {
   return m;
 }
 
-/// A Gaussian blur of standard deviation `sigma` pixels (separable, kernel truncated at 3σ, 'reflect'
-/// borders as in ssim()), each channel on its own. sigma must be positive.
+/// A Gaussian blur of standard deviation `sigma` pixels (gaussian_filter truncated at 3σ), each channel on
+/// its own. sigma must be positive.
 inline Image gaussian_blur(const Image& a, double sigma) {
   require(sigma > 0 && std::isfinite(sigma), "gaussian_blur: sigma must be positive");
-  const int W = a.width, H = a.height, C = a.channels, R = std::max(1, static_cast<int>(std::ceil(3 * sigma)));
-  std::vector<double> k(static_cast<std::size_t>(2 * R + 1));
-  double ks = 0;
-  for (int i = -R; i <= R; ++i) ks += k[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (sigma * sigma));
-  for (double& v : k) v /= ks;
-  auto reflect = [](int i, int n) {
-    if (n == 1) return 0;
-    while (i < 0 || i >= n) i = i < 0 ? -i - 1 : 2 * n - i - 1;
-    return i;
-  };
-  std::vector<double> tmp(a.data.size());
-  Image out(W, H, C);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < C; ++c) {
-        double s = 0;
-        for (int i = -R; i <= R; ++i) s += k[static_cast<std::size_t>(i + R)] * a.data[(static_cast<std::size_t>(y) * W + reflect(x + i, W)) * C + c];
-        tmp[(static_cast<std::size_t>(y) * W + x) * C + c] = s;
-      }
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < C; ++c) {
-        double s = 0;
-        for (int i = -R; i <= R; ++i) s += k[static_cast<std::size_t>(i + R)] * tmp[(static_cast<std::size_t>(reflect(y + i, H)) * W + x) * C + c];
-        out.data[(static_cast<std::size_t>(y) * W + x) * C + c] = static_cast<float>(s);
-      }
+  const int C = a.channels, R = std::max(1, static_cast<int>(std::ceil(3 * sigma)));
+  Image out(a.width, a.height, C);
+  std::vector<double> plane(a.pixels());
+  for (int c = 0; c < C; ++c) {
+    for (std::size_t i = 0; i < a.pixels(); ++i) plane[i] = a.data[i * C + c];
+    const auto f = gaussian_filter(plane, a.width, a.height, sigma, R);
+    for (std::size_t i = 0; i < a.pixels(); ++i) out.data[i * C + c] = static_cast<float>(f[i]);
+  }
   return out;
 }
 
