@@ -217,7 +217,7 @@ TEST_CASE("error_scales: a brightness offset is coarse error, a pixel-scale patt
   CHECK_THROWS_AS(eval::error_scales(truth, Image(3, 3, 1)), Error);
 }
 
-TEST_CASE("error_scales_json: per method from the primary alignment's aligned images; refused without them") {
+TEST_CASE("error_scales_json: per method from the primary alignment's aligned images, refused without them") {
   const Image truth = det(32, 24, 0.2, 0.3);
   Image brighter = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
   for (auto& v : brighter.data) v = static_cast<float>(std::exp(0.5 * std::log(v + 1e-3) - 0.7) - 1e-3);
