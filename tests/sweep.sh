@@ -21,6 +21,12 @@ done
 python3 "$HERE/../examples/slurm/gather.py" "$OUT" --csv "$work/all.csv" >"$work/table.txt"
 [ "$(grep -c '^| \(planes\|object\) |' "$work/table.txt")" = 4 ] || { cat "$work/table.txt"; fail "the table does not have 4 rows"; }
 grep -q "alignment global-log-affine" "$work/table.txt" || fail "the table does not state its alignment"
+grep -q "| coarse PSNR | fine PSNR |" "$work/table.txt" || fail "the table does not split the error by scale"
+python3 - "$work/all.csv" <<'PY' || fail "the CSV's coarse and fine PSNR are not numbers"
+import csv, sys
+for r in csv.DictReader(open(sys.argv[1])):
+    assert float(r["coarse_psnr"]) > 0 and float(r["fine_psnr"]) > 0, r
+PY
 [ "$(wc -l <"$work/all.csv")" = 5 ] || fail "the CSV does not have 4 runs"
 # Rerun: finished tasks are skipped; a task without metrics.json is redone (resuming its checkpoint).
 rm "$OUT/object/fast/seed1/metrics.json"

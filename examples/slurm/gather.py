@@ -3,7 +3,9 @@
     python3 examples/slurm/gather.py OUT [--csv FILE]
 
 One row per (scene, preset): the mean and spread over seeds of our PSNR and SSIM under metrics.json's primary
-alignment, and the baselines'; the alignment is printed with the table. Every run is also listed in the CSV.
+alignment, our error split by scale (eval's error_scales: the coarse and the fine part's PSNR; compare both
+before adopting a change, the coarse part varies most between seeds), and the baselines'; the alignment is
+printed with the table. Every run is also listed in the CSV.
 """
 import argparse
 import csv
@@ -11,6 +13,14 @@ import json
 import pathlib
 import statistics
 import sys
+
+
+def part(scales, key):
+    """A part's PSNR from error_scales: JSON null is an error-free part (infinite PSNR); None where the
+    evaluation predates the split."""
+    if key not in scales:
+        return None
+    return float("inf") if scales[key] is None else scales[key]
 
 
 def runs(out):
@@ -21,12 +31,16 @@ def runs(out):
         ours = [k for k in m["methods"] if k.startswith("evnerf_")]
         if len(ours) != 1:
             raise SystemExit(f"{f}: expected one evnerf_* method, found {ours}")
+        scales = m.get("error_scales", {}).get("methods", {}).get(ours[0], {})
         yield dict(scene=scene, preset=preset, seed=int(seed), alignment=m["alignment"],
                    psnr=m["methods"][ours[0]]["psnr"], ssim=m["methods"][ours[0]]["ssim"],
+                   coarse_psnr=part(scales, "coarse_psnr"), fine_psnr=part(scales, "fine_psnr"),
                    di_psnr=m["methods"]["direct_integration"]["psnr"], hpf_psnr=m["methods"]["high_pass_filter"]["psnr"])
 
 
 def spread(v, digits=2):
+    if any(x is None for x in v):
+        return "—"
     return f"{statistics.mean(v):.{digits}f} ± {statistics.stdev(v):.{digits}f}" if len(v) > 1 else f"{v[0]:.{digits}f}"
 
 
@@ -40,12 +54,13 @@ def main():
         sys.exit(f"{a.out}: no metrics.json (is the sweep finished?)")
     aligns = sorted({r["alignment"] for r in rows})
     print(f"{len(rows)} runs from {a.out}; PSNR dB / SSIM, alignment {', '.join(aligns)}, mean ± sd over seeds\n")
-    print("| scene | preset | seeds | PSNR | SSIM | direct integration PSNR | high-pass filter PSNR |")
-    print("|---|---|---|---|---|---|---|")
+    print("| scene | preset | seeds | PSNR | SSIM | coarse PSNR | fine PSNR | direct integration PSNR | high-pass filter PSNR |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for key in sorted({(r["scene"], r["preset"]) for r in rows}):
         g = [r for r in rows if (r["scene"], r["preset"]) == key]
         print(f"| {key[0]} | {key[1]} | {','.join(str(r['seed']) for r in g)} | {spread([r['psnr'] for r in g])} | "
-              f"{spread([r['ssim'] for r in g], 3)} | {spread([r['di_psnr'] for r in g])} | {spread([r['hpf_psnr'] for r in g])} |")
+              f"{spread([r['ssim'] for r in g], 3)} | {spread([r['coarse_psnr'] for r in g])} | {spread([r['fine_psnr'] for r in g])} | "
+              f"{spread([r['di_psnr'] for r in g])} | {spread([r['hpf_psnr'] for r in g])} |")
     if a.csv:
         with open(a.csv, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
