@@ -219,9 +219,9 @@ TEST_CASE("error_scales: a brightness offset is coarse error, a pixel-scale patt
 
 TEST_CASE("error_scales_json: per method from the primary alignment's aligned images, refused without them") {
   const Image truth = det(32, 24, 0.2, 0.3);
-  Image brighter = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
-  for (auto& v : brighter.data) v = static_cast<float>(std::exp(0.5 * std::log(v + 1e-3) - 0.7) - 1e-3);
-  eval::Method exact{"exact", {truth, truth}}, gain{"gain", {brighter, brighter}};
+  Image mapped = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
+  for (auto& v : mapped.data) v = static_cast<float>(std::exp(0.5 * std::log(v + 1e-3) - 0.7) - 1e-3);
+  eval::Method exact{"exact", {truth, truth}}, gain{"gain", {mapped, mapped}};
   const auto a = eval::score_methods({exact, gain}, {truth, truth}, eval::Alignment::GlobalLogAffine, true);
   const auto j = eval::error_scales_json(a, {truth, truth});
   CHECK(j.at("sigma_px").get<double>() == eval::kErrorScaleSigma);

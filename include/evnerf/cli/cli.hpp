@@ -99,9 +99,9 @@ inline void print_scores(const Scored& s, const Truth& truth) {
     fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(truth.hdr->offset));
   print_table(s.primary);
   if (s.json.contains("error_scales")) {
-    const auto& es = s.json["error_scales"];
+    const auto& es = s.json.at("error_scales");
     fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest):\n",
-               short_number(es["sigma_px"].get<double>()));
+               short_number(es.at("sigma_px").get<double>()));
     for (const auto& name : s.primary.names) {
       const auto& v = es.at("methods").at(name);
       auto db = [](const nlohmann::json& x) { return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf"); };
