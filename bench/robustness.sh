@@ -36,7 +36,8 @@ d, n = sys.argv[1:]
 metrics = json.load(open(f"{d}/eval/metrics.json"))
 m = metrics["methods"]
 truth = metrics.get("truth", {}).get("kind", "frames")
-ours = next(v for k, v in m.items() if k.startswith("evnerf"))
+name = next(k for k in m if k.startswith("evnerf"))
+ours = m[name]
 di, hpf = m["direct_integration"], m["high_pass_filter"]
 log = [json.loads(l) for l in open(f"{d}/run/log.jsonl")]
 fired = any(r.get("collapse_check", {}).get("collapsed", False) for r in log)
@@ -45,11 +46,10 @@ secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else
 path = next((l.split()[1] for l in open(f"{d}/scene/scene.txt") if l.startswith("path")), "?")
 events = sum(1 for _ in open(f"{d}/scene/events.txt"))
 ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for b in (di, hpf))
-name = next(k for k in m if k.startswith("evnerf"))
 scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
-db = lambda v: "inf" if v is None else f"{v:.2f}"
+db = lambda key: "" if key not in scales else "inf" if scales[key] is None else f"{scales[key]:.2f}"  # null: no error; absent: older eval
 print(f"{n},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
-      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db(scales.get('coarse_psnr'))},{db(scales.get('fine_psnr'))}")
+      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')}")
 PY
   tail -n 1 "$CSV"
 done
