@@ -23,6 +23,16 @@ ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" eval "$work/pc/channels.json" "$work/rec" --out "$work/eval_pc" > /dev/null 2>&1
 "$EV" render "$work/pc/channels.json" --out "$work/render_pc" --novel 1 > /dev/null 2>&1
 "$EV" render "$work/pc/channels.json" --out "$work/render_sites" --novel 1 --channel-upsampling sites > /dev/null 2>&1
+# Green trained on both its sites at the full sensor: the manifest says so, and eval and both upsamplings take it.
+"$EV" train "$work/rec" --out "$work/pc2" --per-channel --green-sites both "${ARGS[@]}" > "$work/pc2.log" 2>&1 || fail "--green-sites both: $(tail -3 "$work/pc2.log")"
+grep -q "channel G: 32x24 sensor, both green sites" "$work/pc2.log" || fail "--green-sites both: green did not train at the full sensor: $(grep channel "$work/pc2.log")"
+grep -q '"green_sites": "both"' "$work/pc2/channels.json" || fail "--green-sites both: channels.json does not say so"
+"$EV" eval "$work/pc2/channels.json" "$work/rec" --out "$work/eval_pc2" > /dev/null 2>&1 || fail "eval of a --green-sites both model"
+"$EV" render "$work/pc2/channels.json" --out "$work/render_pc2" --novel 1 --channel-upsampling sites > /dev/null 2>&1 || fail "render --channel-upsampling sites of a --green-sites both model"
+[ -f "$work/render_pc2/novel_0000.png" ] || fail "render of a --green-sites both model"
+sed 's/"green_sites": "both"/"green_sites": "first"/' "$work/pc2/channels.json" > "$work/pc2/wrong.json"
+if "$EV" eval "$work/pc2/wrong.json" "$work/rec" --out "$work/eval_wrong" > "$work/err" 2>&1; then fail "a green model of the full sensor was taken as a quarter-resolution one"; fi
+grep -q "its camera is not the G sites of the sensor" "$work/err" || fail "wrong green_sites: $(cat "$work/err")"
 if "$EV" render "$work/pc/channels.json" --out "$work/render_bad" --channel-upsampling nearest > "$work/err" 2>&1; then fail "--channel-upsampling nearest was taken"; fi
 [ -f "$work/render_pc/novel_0000.png" ] && [ -f "$work/render_pc/boundary_0001_depth.npy" ] || fail "render of channels.json"
 for c in r g b; do [ -f "$work/pc/$c/model.ckpt" ] || fail "per-channel: no $c/model.ckpt"; done

@@ -1081,5 +1081,27 @@ TEST_CASE("the paper's colour geometry: site sensors, their cameras and events, 
           if ((x & 1) == s.ox && (y & 1) == s.oy) CHECK(up.at(x, y) == img.at(x / 2, y / 2));
         }
     }
+    // Green on both its sites: the full sensor, every green event where it fired, the sites marked.
+    const auto g = io::channel_dataset(rec, p, 1, io::GreenSites::Both);
+    CHECK(g.camera.width() == 13);
+    CHECK(g.camera.height() == 9);
+    REQUIRE(g.sites.size() == 13u * 9u);
+    std::size_t greens = 0;
+    for (int y = 0; y < 9; ++y)
+      for (int x = 0; x < 13; ++x) {
+        CHECK(g.sites[static_cast<std::size_t>(y) * 13 + x] == (p.at(x, y) == 1 ? 1 : 0));
+        greens += p.at(x, y) == 1;
+      }
+    CHECK(g.events.size() == greens);  // one event per pixel in `rec`
+    g.events.validate("green");
+    for (std::size_t i = 0; i < g.events.size(); ++i) {
+      const int k = static_cast<int>(std::lround(g.events.t[i] / 0.001));
+      CHECK(k % 13 == g.events.x[i]);
+      CHECK(k / 13 == g.events.y[i]);
+      CHECK(p.at(g.events.x[i], g.events.y[i]) == 1);
+    }
+    // Red and blue have one site per block: Both changes nothing for them.
+    CHECK(io::channel_dataset(rec, p, 0, io::GreenSites::Both).camera.width() == geometry::site_camera(full, geometry::site_of(p, 0)).width());
+    CHECK(io::channel_dataset(rec, p, 0, io::GreenSites::Both).sites.empty());
   }
 }

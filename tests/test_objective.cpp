@@ -151,3 +151,67 @@ TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty
   CHECK(out.size() == 100);
   CHECK(std::count(taken.begin(), taken.end(), 1) == 0);
 }
+
+TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel at the full sensor); no sites draws as before") {
+  // 10×10 sensor, one slice; the sites are the pixels of even x + y (a green quincunx); events fire at the
+  // sites among pixels 0..29.
+  std::vector<std::uint8_t> mask(100, 0);
+  for (int p = 0; p < 100; ++p) mask[p] = ((p % 10) + (p / 10)) % 2 == 0;
+  const events::PixelSites sites(mask);
+  REQUIRE(sites.list.size() == 50);
+  CHECK(!sites.all());
+  CHECK(events::PixelSites().all());
+  CHECK_THROWS_WITH_AS(events::PixelSites(std::vector<std::uint8_t>(4, 0)), doctest::Contains("no site"), Error);
+  events::SliceSet set;
+  set.boundaries = {0.0, 1.0};
+  events::SliceCounts c;
+  c.width = c.height = 10;
+  c.pos.assign(100, 0);
+  c.neg.assign(100, 0);
+  for (int p = 0; p < 30; ++p)
+    if (mask[p]) (p % 4 ? c.pos : c.neg)[p] = 1;
+  set.slices.push_back(c);
+  const events::CountPrefix pre(set);
+  const events::PixelWindow w{100, 0, 1, &pre, &sites};
+  std::vector<std::uint8_t> taken(100, 0);
+  std::vector<std::uint32_t> out;
+  Rng rng(4);
+  auto on_sites = [&] { return std::all_of(out.begin(), out.end(), [&](std::uint32_t p) { return mask[p] == 1; }); };
+  events::UniformPixels::draw(w, 30, rng, out, taken);
+  CHECK(out.size() == 30);
+  CHECK(on_sites());
+  CHECK(std::set<std::uint32_t>(out.begin(), out.end()).size() == 30);
+  events::UniformPixels::draw(w, 80, rng, out, taken);  // more than there are sites: every site once
+  CHECK(out.size() == 50);
+  CHECK(on_sites());
+  CHECK(std::set<std::uint32_t>(out.begin(), out.end()).size() == 50);
+  events::EventPixels<500>::draw(w, 20, rng, out, taken);  // 10 empty pixels: sites without events
+  REQUIRE(out.size() == 20);
+  CHECK(on_sites());
+  CHECK(std::count_if(out.begin(), out.end(), [](std::uint32_t p) { return p >= 30; }) == 10);
+  events::EventPixels<100>::draw(w, 100, rng, out, taken);  // all sites, none of the other pixels
+  CHECK(out.size() == 50);
+  CHECK(on_sites());
+  CHECK(std::count(taken.begin(), taken.end(), 1) == 0);
+  // Noise lands on sites only; without sites it draws exactly what it drew before sites existed.
+  std::vector<events::NoiseEvent> noise, plain, none;
+  Rng a(11), b(11), n(11);
+  events::draw_noise(4000, 0.05, 100, 3, a, noise, &sites.list);
+  CHECK(noise.size() == 200);
+  CHECK(std::all_of(noise.begin(), noise.end(), [&](const events::NoiseEvent& e) { return mask[e.pixel] == 1; }));
+  events::draw_noise(4000, 0.05, 100, 3, b, plain);
+  events::draw_noise(4000, 0.05, 100, 3, n, none, nullptr);
+  REQUIRE(plain.size() == none.size());
+  CHECK(std::equal(plain.begin(), plain.end(), none.begin(), [](const auto& x, const auto& y) {
+    return x.pixel == y.pixel && x.slice == y.slice && x.positive == y.positive;
+  }));
+  CHECK(std::any_of(plain.begin(), plain.end(), [&](const events::NoiseEvent& e) { return mask[e.pixel] == 0; }));
+  // No sites in the window (null, or every pixel): the same draw as a window without the field.
+  const events::PixelSites everywhere;
+  const events::PixelWindow w0{100, 0, 1, &pre}, w1{100, 0, 1, &pre, &everywhere};
+  std::vector<std::uint32_t> o0, o1;
+  Rng r0(5), r1(5);
+  events::EventPixels<100>::draw(w0, 40, r0, o0, taken);
+  events::EventPixels<100>::draw(w1, 40, r1, o1, taken);
+  CHECK(o0 == o1);
+}

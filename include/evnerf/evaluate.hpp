@@ -156,13 +156,17 @@ inline BaselineRun run_baselines(const io::Dataset& d, const std::vector<eval::A
 }
 
 /// The paper's colour model (train --per-channel): a grey model per colour channel, each trained on its
-/// channel's quarter-resolution sites (io::channel_dataset), in these subfolders of the run.
+/// channel's quarter-resolution sites (io::channel_dataset; green optionally on both its sites at the full
+/// sensor), in these subfolders of the run.
 inline constexpr const char* kChannelDirs[3] = {"r", "g", "b"};
 
-/// channels.json: the full sensor's camera, the mosaic, and each channel's checkpoint (relative paths).
-inline nlohmann::json per_channel_manifest(const geometry::Camera& c, const geometry::BayerPattern& p) {
+/// channels.json: the full sensor's camera, the mosaic, which green sites trained green's model, and each
+/// channel's checkpoint (relative paths).
+inline nlohmann::json per_channel_manifest(const geometry::Camera& c, const geometry::BayerPattern& p,
+                                           io::GreenSites green = io::GreenSites::First) {
   nlohmann::json j = {{"kind", "evnerf per-channel colour"},
                       {"pattern", p.name()},
+                      {"green_sites", io::green_sites_name(green)},
                       {"camera", {{"width", c.width()}, {"height", c.height()}, {"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()},
                                   {"cy", c.cy()}, {"distortion", c.distortion()}}},
                       {"channels", nlohmann::json::array()}};
@@ -226,11 +230,13 @@ Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelU
   }
   geometry::Camera cam;
   geometry::BayerPattern pattern;
+  io::GreenSites green = io::GreenSites::First;  // manifests written before the option name none
   std::vector<fs::path> files;
   try {
     if (j.value("kind", "") != "evnerf per-channel colour") throw Error("its \"kind\" is not \"evnerf per-channel colour\"");
     if (!geometry::BayerPattern::parse(j.at("pattern").get<std::string>(), pattern))
       throw Error("unknown Bayer pattern '" + j.at("pattern").get<std::string>() + "'");
+    if (j.contains("green_sites")) green = io::parse_green_sites(j.at("green_sites").get<std::string>());
     const auto& c = j.at("camera");
     cam = geometry::Camera(c.at("width").get<int>(), c.at("height").get<int>(), c.at("fx").get<double>(), c.at("fy").get<double>(),
                            c.at("cx").get<double>(), c.at("cy").get<double>(), c.at("distortion").get<std::array<double, 5>>());
@@ -247,9 +253,11 @@ Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelU
   for (int k = 0; k < 3; ++k) {
     ch[k] = load_model<V...>(files[k]);
     sites[k] = geometry::site_of(pattern, k);
-    const auto expect = geometry::site_camera(cam, sites[k]);
+    const bool full = k == 1 && green == io::GreenSites::Both;  // green trained at the full sensor
+    const auto expect = full ? cam : geometry::site_camera(cam, sites[k]);
     if (ch[k].desc.camera.width() != expect.width() || ch[k].desc.camera.height() != expect.height())
-      throw Error(files[k].string(), 0, "its camera is not the " + std::string(1, "RGB"[k]) + " sites of the sensor in " + ckpt.string());
+      throw Error(files[k].string(), 0, "its camera is not " + std::string(full ? "the full sensor" : "the " + std::string(1, "RGB"[k]) + " sites") +
+                                            " of the sensor in " + ckpt.string() + " (green_sites: " + io::green_sites_name(green) + ")");
     if (ch[k].desc.times.empty()) throw Error(files[k].string(), 0, "no slice boundaries");
     lo = std::max(lo, ch[k].desc.times.front());
     hi = std::min(hi, ch[k].desc.times.back());
@@ -267,12 +275,16 @@ Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelU
       r.desc.times.push_back(ch[1].desc.times[i]);
       r.desc.poses.push_back(ch[1].desc.poses[i]);
     }
-  r.render = [ch, sites, cam, up](const geometry::Pose& pose) {
+  const bool green_full = green == io::GreenSites::Both;
+  r.render = [ch, sites, cam, up, green_full](const geometry::Pose& pose) {
     const int W = cam.width(), H = cam.height();
     Rendering out;
     out.luminance = Image(W, H, 3);
     for (int k = 0; k < 3; ++k) {
-      Rendering rk = up == ChannelUpsampling::Volume ? ch[k].render_with(cam, pose) : ch[k].render(pose);
+      // Sites: each volume seen at its channel's (first) sites; green trained on both sites is seen there too.
+      Rendering rk = up == ChannelUpsampling::Volume ? ch[k].render_with(cam, pose)
+                     : k == 1 && green_full ? ch[k].render_with(geometry::site_camera(cam, sites[k]), pose)
+                                            : ch[k].render(pose);
       if (up == ChannelUpsampling::Sites) {
         rk.luminance = geometry::upsample_sites(rk.luminance, sites[k], W, H);
         rk.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);

@@ -42,6 +42,9 @@ struct TrainingData {
                                                ///< window's counts need it; train::prepare builds it)
   geometry::BayerPattern bayer;                ///< colour models: the channel of each pixel's events (the
                                                ///< recording's mosaic; RGGB where it names none)
+  events::PixelSites sites;                    ///< the pixels that carry events (one colour channel's sites of
+                                               ///< a mosaic at the full sensor); all() = every pixel. Steps draw
+                                               ///< their pixels and noise among them only.
 };
 
 using render::Rendering;
@@ -234,7 +237,7 @@ class EvNerf {
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
     if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
     StepWindow& sw = window_;
-    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw);
+    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites);
     const std::size_t first = sw.first, L = sw.len;
     const int P = static_cast<int>(sw.pixels.size());
     const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
@@ -436,6 +439,8 @@ class EvNerf {
       throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
                   std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
     require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
+    require(data.sites.all() || data.sites.mask.size() == static_cast<std::size_t>(data.camera.width()) * data.camera.height(),
+            "train_step: the pixel sites do not match the camera");
   }
   static constexpr int default_tile_pixels() {
     // About 1–4 k samples per tile: the activations of the widest layer stay within L2.

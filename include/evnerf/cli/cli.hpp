@@ -288,6 +288,12 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_flag("--per-channel", per_channel,
                    "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
                    "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
+  std::string green_sites = "first";
+  trainc->add_option("--green-sites", green_sites,
+                     "--per-channel: green's model trains on the first of its two sites per 2x2 block, a quarter-resolution sensor "
+                     "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
+      ->check(CLI::IsMember({"first", "both"}))
+      ->capture_default_str();
   trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
   trainc->add_option("--shards", cfg.shards,
                      "shards per step, each its own window and --pixels pixels, gradients averaged (0: one per MPI process); "
@@ -476,13 +482,16 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         } else {
           const auto pattern = io::bayer_of(d);
           for (int c = 0; c < 3; ++c) {
-            const auto sub = io::channel_dataset(d, pattern, c);
-            if (lead) fmt::print(stderr, "channel {}: {}x{} sites, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(), sub.events.size());
+            const auto sub = io::channel_dataset(d, pattern, c, io::parse_green_sites(green_sites));
+            if (lead)
+              fmt::print(stderr, "channel {}: {}x{} {}, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(),
+                         sub.sites.empty() ? "sites" : "sensor, both green sites", sub.events.size());
             const int code = train_one.template operator()<Model>(name, train::prepare(sub, cfg), out / kChannelDirs[c], sub.events.size());
             if (code != 0) return code;
           }
           if (!lead) return 0;
-          write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern).dump(2) + "\n");
+          write_file_atomic(out / "channels.json",
+                            per_channel_manifest(d.camera, pattern, io::parse_green_sites(green_sites)).dump(2) + "\n");
           fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
           return 0;
         }

@@ -105,17 +105,20 @@ struct NoiseEvent {
   bool positive = false;
 };
 
-/// Ev-NeRF's noise injection, drawn: round(ratio × count) events, pixels uniform over `hw` pixels,
-/// polarity ±1 with probability ½, each in a uniformly drawn slice of a window of `window` slices (no draw
-/// when the window is one slice). `out` is cleared first.
-inline void draw_noise(std::size_t count, double ratio, std::size_t hw, std::size_t window, Rng& rng, std::vector<NoiseEvent>& out) {
+/// Ev-NeRF's noise injection, drawn: round(ratio × count) events, pixels uniform over `hw` pixels (over
+/// `sites`, the pixels that carry events, where given and not empty), polarity ±1 with probability ½, each
+/// in a uniformly drawn slice of a window of `window` slices (no draw when the window is one slice). `out`
+/// is cleared first.
+inline void draw_noise(std::size_t count, double ratio, std::size_t hw, std::size_t window, Rng& rng, std::vector<NoiseEvent>& out,
+                       const std::vector<std::uint32_t>* sites = nullptr) {
+  const bool some = sites && !sites->empty();
   require(ratio >= 0 && std::isfinite(ratio), "inject_noise: ratio must be finite and non-negative");
   out.clear();
   const auto n = static_cast<std::size_t>(std::llround(ratio * static_cast<double>(count)));
   out.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
     NoiseEvent e;
-    e.pixel = static_cast<std::uint32_t>(rng.below(hw));
+    e.pixel = some ? (*sites)[rng.below(sites->size())] : static_cast<std::uint32_t>(rng.below(hw));
     e.positive = (rng.next_u64() & 1) != 0;
     e.slice = window > 1 ? static_cast<std::uint32_t>(rng.below(window)) : 0u;
     out.push_back(e);

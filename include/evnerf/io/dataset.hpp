@@ -70,6 +70,9 @@ struct Dataset {
   std::int64_t time_origin = 0;
   /// The colour filter the events come through ("rggb", ...), where the recording says; "" otherwise.
   std::string bayer_pattern;
+  /// Per pixel of the camera, 1 where the events come from (channel_dataset's green at the full sensor: the
+  /// green sites of the mosaic); empty: every pixel. Training draws its pixels among these only.
+  std::vector<std::uint8_t> sites;
   bool from_cache = false;
 };
 
@@ -82,18 +85,47 @@ inline geometry::BayerPattern bayer_of(const Dataset& d) {
   return p;
 }
 
+/// Which of green's two sites per 2×2 block a per-channel green model trains on.
+enum class GreenSites {
+  First,  ///< the first one only: a quarter-resolution sensor like red's and blue's (the paper's geometry)
+  Both    ///< both: the full sensor, trained at the green sites only (Dataset::sites); twice the events
+};
+inline GreenSites parse_green_sites(const std::string& s) {
+  if (s == "first") return GreenSites::First;
+  if (s == "both") return GreenSites::Both;
+  throw Error("green sites '" + s + "': expected first or both");
+}
+inline const char* green_sites_name(GreenSites g) { return g == GreenSites::Both ? "both" : "first"; }
+
 /// The paper's colour geometry: the events of one channel's sites (geometry::site_of) as a grey recording
-/// of a quarter-resolution sensor (geometry::site_camera), event (2x'+ox, 2y'+oy) at (x', y'). Poses and
-/// frames stay the recording's (the frames' times still cut the slices; they are not at the new sensor's
-/// size, so evaluate against the full recording); depth and linear truth are dropped.
-inline Dataset channel_dataset(const Dataset& d, const geometry::BayerPattern& p, int channel) {
-  const auto s = geometry::site_of(p, channel);
+/// of a quarter-resolution sensor (geometry::site_camera), event (2x'+ox, 2y'+oy) at (x', y'). With
+/// GreenSites::Both, green instead keeps the full sensor and the events of both its sites, and
+/// Dataset::sites marks them. Poses and frames stay the recording's (the frames' times still cut the
+/// slices; they are not at the new sensor's size, so evaluate against the full recording); depth and linear
+/// truth are dropped.
+inline Dataset channel_dataset(const Dataset& d, const geometry::BayerPattern& p, int channel, GreenSites green = GreenSites::First) {
   Dataset c;
   c.folder = d.folder;
-  c.camera = geometry::site_camera(d.camera, s);
   c.trajectory = d.trajectory;
   c.frames = d.frames;
   c.time_origin = d.time_origin;
+  if (channel == 1 && green == GreenSites::Both) {
+    c.camera = d.camera;
+    c.events.width = d.events.width;
+    c.events.height = d.events.height;
+    const int W = d.camera.width(), H = d.camera.height();
+    c.sites.assign(static_cast<std::size_t>(W) * H, 0);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) c.sites[static_cast<std::size_t>(y) * W + x] = p.at(x, y) == 1 ? 1 : 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < d.events.size(); ++i) n += p.at(d.events.x[i], d.events.y[i]) == 1;
+    c.events.reserve(n);
+    for (std::size_t i = 0; i < d.events.size(); ++i)
+      if (p.at(d.events.x[i], d.events.y[i]) == 1) c.events.push_back(d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i]);
+    return c;
+  }
+  const auto s = geometry::site_of(p, channel);
+  c.camera = geometry::site_camera(d.camera, s);
   c.events.width = c.camera.width();
   c.events.height = c.camera.height();
   std::size_t n = 0;

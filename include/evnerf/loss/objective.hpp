@@ -138,10 +138,11 @@ struct StepDraw {
 /// then Ev-NeRF's noise (noise_ratio × the window's count, each event in a random slice of the window,
 /// redrawn at every step; drawn before the pixels, so a one-slice step draws as inject_noise does), then
 /// the pixels by O's pixel policy, then their counts with the noise added (saturating like inject_noise).
-/// `enabled` marks trainable slices (empty: all). Deterministic for a given rng.
+/// `enabled` marks trainable slices (empty: all); `sites`, where not null and not all(), restricts the pixels
+/// and the noise to the pixels that carry events. Deterministic for a given rng.
 template <Objective O>
 void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
-               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d) {
+               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr) {
   const std::size_t N = slices.size();
   auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
   d.starts.clear();
@@ -170,10 +171,12 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
   if (noise_ratio > 0) {
     std::size_t total = 0;
     for (std::size_t k = 0; k < L; ++k) total += slices.slices[first + k].total;
-    events::draw_noise(total, noise_ratio, hw, L, rng, d.noise);
+    events::draw_noise(total, noise_ratio, hw, L, rng, d.noise, sites ? &sites->list : nullptr);
   }
   if (d.taken.size() != hw) d.taken.assign(hw, 0);
-  O::pixels::draw(events::PixelWindow{hw, first, first + L, &prefix}, pixels_per_step, rng, d.pixels, d.taken);
+  if (sites && !sites->all()) require(sites->mask.size() == hw, "train_step: the pixel sites do not match the sensor");
+  O::pixels::draw(events::PixelWindow{hw, first, first + L, &prefix, sites && !sites->all() ? sites : nullptr}, pixels_per_step, rng,
+                  d.pixels, d.taken);
   const int P = static_cast<int>(d.pixels.size());
   require(P > 0, "train_step: no pixel to train on");
   d.npos.resize(static_cast<std::size_t>(P) * L);

@@ -188,6 +188,9 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   td.slice_enabled.assign(td.slices.size(), true);
   td.prefix = events::CountPrefix(td.slices);
   td.bayer = io::bayer_of(d);
+  require(d.sites.empty() || d.sites.size() == static_cast<std::size_t>(d.camera.width()) * d.camera.height(),
+          d.folder.string() + ": the pixel sites do not match the camera");
+  td.sites = events::PixelSites(d.sites);
   if (cfg.holdout_every > 0)
     for (std::size_t k = cfg.holdout_every; k + 1 < b.size(); k += cfg.holdout_every) {
       td.slice_enabled[k - 1] = false;  // both slices touching boundary k
