@@ -207,6 +207,35 @@ TEST_CASE("occupancy grid: marks the cells of a dense region, and round-trips") 
   CHECK_FALSE(render::OccupancyGrid(8).deserialize(g.serialize()));
 }
 
+TEST_CASE("occupancy skipping: a cell is occupied when its density gives the template's alpha at the sample spacing") {
+  // Box: near 0, far 8, density per world unit; 8 samples per ray, spacing 1. A density of σ gives a sample
+  // α = 1 − exp(−σ). Half the box (x < 0) holds σ = 0.05 (α ≈ 0.049), the other half σ = 2 (the mean,
+  // about 1, stays above both thresholds). Alpha 1 % keeps both halves, alpha 10 % only the dense one.
+  render::SceneBox box;
+  box.near = 0;
+  box.far = 8;
+  box.density_length = 1;
+  render::SamplerUpdate u;
+  u.box = box;
+  u.density = [](const float* p, std::size_t n, float* out) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = p[3 * i] < 0 ? 0.05f : 2.f;
+  };
+  const float thin[3] = {-0.5f, 0.1f, 0.1f}, dense[3] = {0.5f, 0.1f, 0.1f};
+  render::OccupancySkipping<8, 8, 1, 0> one_percent;
+  render::OccupancySkipping<8, 8, 1, 0, 100> ten_percent;
+  one_percent.update(u);
+  ten_percent.update(u);
+  CHECK(one_percent.evaluates(thin));
+  CHECK(one_percent.evaluates(dense));
+  CHECK_FALSE(ten_percent.evaluates(thin));
+  CHECK(ten_percent.evaluates(dense));
+  CHECK(one_percent.occupied_fraction() == 1.0);
+  CHECK(ten_percent.occupied_fraction() == doctest::Approx(0.5));
+  // The default's name is what checkpoints have always recorded; another alpha says so.
+  CHECK(decltype(one_percent)::name() == "occupancy 8 grid 8 every 1 after 0");
+  CHECK(decltype(ten_percent)::name() == "occupancy 8 grid 8 every 1 after 0 alpha 100/1000");
+}
+
 TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, and resumes exactly") {
   using TinyOcc = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8>>;
   Fixture f;

@@ -132,19 +132,21 @@ class OccupancyGrid {
 
 /// Sampler: N stratified samples per ray, one network, with a Res³ occupancy grid that it owns. The grid is
 /// refreshed every `Interval` steps once `Warmup` steps have passed; until then every sample is evaluated.
-/// A cell is occupied when its density can give a sample an alpha of kOccupiedAlpha at the stratified spacing.
-template <int N, int Res = 64, int Interval = 16, int Warmup = 256>
+/// A cell is occupied when its density can give a sample an alpha of kOccupiedAlpha = AlphaPerMille / 1000
+/// at the stratified spacing (or exceeds the mean density over the seen cells, whichever is lower).
+template <int N, int Res = 64, int Interval = 16, int Warmup = 256, int AlphaPerMille = 10>
 struct OccupancySkipping {
   static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");
   static_assert(Res >= 2 && Res <= 512, "OccupancySkipping: the grid resolution must be between 2 and 512.");
   static_assert(Interval >= 1 && Warmup >= 0, "OccupancySkipping: Interval must be positive and Warmup non-negative.");
+  static_assert(AlphaPerMille >= 1 && AlphaPerMille < 1000, "OccupancySkipping: the occupied alpha is in per mille (1..999).");
   static constexpr int n_coarse = N, n_fine = 0;
   static constexpr bool two_networks = false, skips_samples = true;
   static constexpr int grid_res = Res, update_interval = Interval, warmup_steps = Warmup;
-  static constexpr double kOccupiedAlpha = 0.01;
+  static constexpr double kOccupiedAlpha = AlphaPerMille / 1000.0;
   static std::string name() {
     return "occupancy " + std::to_string(N) + " grid " + std::to_string(Res) + " every " + std::to_string(Interval) +
-           " after " + std::to_string(Warmup);
+           " after " + std::to_string(Warmup) + (AlphaPerMille == 10 ? "" : " alpha " + std::to_string(AlphaPerMille) + "/1000");
   }
 
   template <class T>
