@@ -42,8 +42,8 @@ using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 /// for more; on random scenes exp radiance scored 0.6–0.9 dB higher, on the built-in ones the same
 /// (bench/README.md).
 template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
-          class Prec = Fp32, class Radiance = field::ExpRadiance>
-using FastModel = EvNerf<FastField<C, Prec, Radiance>, render::OccupancySkipping<64>, Th, No, Obj>;
+          class Prec = Fp32, class Radiance = field::ExpRadiance, class Sampler = render::OccupancySkipping<64>>
+using FastModel = EvNerf<FastField<C, Prec, Radiance>, Sampler, Th, No, Obj>;
 /// Fast with windows of 1..W slices (measurement presets).
 template <int W, class Pixels = events::UniformPixels, class Th = loss::ProjectedThresholds>
 using FastWindow = FastModel<Th, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
@@ -61,6 +61,11 @@ using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
 using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>;
 /// Fast learning only each slice's threshold ratio, the scale shared and fixed (loss::RatioThresholds).
 using FastRatio = FastModel<loss::RatioThresholds>;
+/// Fast whose occupancy grid keeps a cell only where its density gives a sample an alpha of 30 % (Fast:
+/// 1 %): Fast's grid keeps 83–93 % of the cells its cameras see, this one skips most free space in front
+/// of surfaces. Candidate for Fast's sampler (bench/README.md, session 19).
+using FastPrune = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance,
+                            render::OccupancySkipping<64, 64, 16, 256, 300>>;
 using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3>;
 /// The colour preset with the sigmoid (sessions 7–8's `colour`; its checkpoints load as this).
 using FastColourSigmoid = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastObjective, Fp32, field::SigmoidRadiance>;
