@@ -118,17 +118,26 @@ TEST_CASE("centred counts: the half-slack hinge plus weight · (change − μ)²
   CHECK(std::string(loss::CentredCounts<2500>::name) == "half-slack-centred");
 }
 
-TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty pixels and the rest where events fired") {
-  // 10×10 sensor, one slice, events at pixels 0..29.
+namespace {
+/// One slice of a 10×10 sensor with one event at each pixel p where fires(p) (odd p positive).
+template <class Fires>
+events::SliceSet one_slice_10x10(Fires&& fires) {
   events::SliceSet set;
   set.boundaries = {0.0, 1.0};
   events::SliceCounts c;
   c.width = c.height = 10;
   c.pos.assign(100, 0);
   c.neg.assign(100, 0);
-  for (int p = 0; p < 30; ++p) (p % 2 ? c.pos : c.neg)[p] = 1;
+  for (int p = 0; p < 100; ++p)
+    if (fires(p)) (p % 2 ? c.pos : c.neg)[p] = 1;
   set.slices.push_back(c);
-  const events::CountPrefix pre(set);
+  return set;
+}
+}  // namespace
+
+TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty pixels and the rest where events fired") {
+  // 10×10 sensor, one slice, events at pixels 0..29.
+  const events::CountPrefix pre(one_slice_10x10([](int p) { return p < 30; }));
   const events::PixelWindow w{100, 0, 1, &pre};
   std::vector<std::uint8_t> taken(100, 0);
   std::vector<std::uint32_t> out;
@@ -162,16 +171,7 @@ TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel a
   CHECK(!sites.all());
   CHECK(events::PixelSites().all());
   CHECK_THROWS_WITH_AS(events::PixelSites(std::vector<std::uint8_t>(4, 0)), doctest::Contains("no site"), Error);
-  events::SliceSet set;
-  set.boundaries = {0.0, 1.0};
-  events::SliceCounts c;
-  c.width = c.height = 10;
-  c.pos.assign(100, 0);
-  c.neg.assign(100, 0);
-  for (int p = 0; p < 30; ++p)
-    if (mask[p]) (p % 4 ? c.pos : c.neg)[p] = 1;
-  set.slices.push_back(c);
-  const events::CountPrefix pre(set);
+  const events::CountPrefix pre(one_slice_10x10([&](int p) { return p < 30 && mask[p]; }));
   const events::PixelWindow w{100, 0, 1, &pre, &sites};
   std::vector<std::uint8_t> taken(100, 0);
   std::vector<std::uint32_t> out;
