@@ -62,7 +62,7 @@ using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>
 /// Fast learning only each slice's threshold ratio, the scale shared and fixed (loss::RatioThresholds).
 using FastRatio = FastModel<loss::RatioThresholds>;
 /// Fast whose occupancy grid keeps a cell only where its density gives a sample an alpha of 30 % (Fast:
-/// 1 %): Fast's grid keeps 83–93 % of the cells its cameras see, this one skips most free space in front
+/// 1 %): Fast's grid keeps 84–99 % of the cells its cameras see, this one skips most free space in front
 /// of surfaces. Candidate for Fast's sampler (bench/README.md, session 19).
 using FastPrune = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance,
                             render::OccupancySkipping<64, 64, 16, 256, 300>>;
