@@ -439,8 +439,6 @@ class EvNerf {
       throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
                   std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
     require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
-    require(data.sites.all() || data.sites.mask.size() == static_cast<std::size_t>(data.camera.width()) * data.camera.height(),
-            "train_step: the pixel sites do not match the camera");
   }
   static constexpr int default_tile_pixels() {
     // About 1–4 k samples per tile: the activations of the widest layer stay within L2.

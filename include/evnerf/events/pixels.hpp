@@ -33,7 +33,6 @@ struct PixelSites {
   std::size_t count(std::size_t hw) const { return all() ? hw : list.size(); }
   /// The k-th drawable pixel (k < count(hw)).
   std::uint32_t at(std::size_t k) const { return all() ? static_cast<std::uint32_t>(k) : list[k]; }
-  bool contains(std::size_t p) const { return all() || mask[p] != 0; }
 };
 
 /// The pixels of one step's window of slices [first, last) (last exclusive) and its counts.
