@@ -4,13 +4,13 @@
 # $OUT/time_to_quality.csv (scene, steps, training seconds, samples per ray forward/backward, PSNR and
 # SSIM of ours and of the best baseline under eval's default alignment, global-log-affine) and a PNG plot.
 # Usage: bench/time_to_quality.sh [scenes…]   (default: planes room object)
-# Environment: PRESET (fast), STEPS (3000), EVERY (500), SEED (1), OUT (out/time_to_quality), BUILD (build).
+# Environment: PRESET (fast), STEPS (6000), EVERY (500), SEED (1), OUT (out/time_to_quality), BUILD (build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
 OUT=${OUT:-out/time_to_quality}
 PRESET=${PRESET:-fast}
-STEPS=${STEPS:-3000}
+STEPS=${STEPS:-6000}
 EVERY=${EVERY:-500}
 SEED=${SEED:-1}
 EV="$BUILD/examples/evnerf"

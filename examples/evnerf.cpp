@@ -18,7 +18,8 @@ int main(int argc, char** argv) {
 #endif
   return evnerf::cli::main<Variant<Fast, "fast">, Variant<FastOneSlice, "fast-slice">, Variant<FastBf16, "fast-bf16">,
                            Variant<FastNoJointThresholds, "no-joint">, Variant<FastNoNoiseInjection, "no-noise">,
-                           Variant<FastColour, "colour">, Variant<FastSigmoid, "fast-sigmoid">,
+                           Variant<FastColour, "colour">, Variant<FastDenseGrid, "fast-dense-grid">,
+                           Variant<FastColourDenseGrid, "colour-dense-grid">, Variant<FastSigmoid, "fast-sigmoid">,
                            Variant<FastColourSigmoid, "colour-sigmoid">, Variant<Paper, "paper">, Variant<PaperBf16, "paper-bf16">,
                            Variant<PaperNoJointThresholds, "paper-no-joint">, Variant<PaperNoNoiseInjection, "paper-no-noise">,
                            Variant<FastRatio, "fast-ratio">, Variant<FastPrune, "fast-prune">, Variant<FastWindow<8>, "fast-w8">, Variant<FastWindow<48>, "fast-w48">,

@@ -1,15 +1,18 @@
 #include <barrier>
 #include <csignal>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include <sys/resource.h>
 
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
+#include <evnerf/variants.hpp>
 
 #include "common.hpp"
 #include "tiny_scene.hpp"
@@ -270,6 +273,34 @@ TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, 
   Tiny t;
   CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", ""), "tiny", "x.ckpt"),
                     doctest::Contains("sampler occupancy 16 grid 16 every 4 after 8'; this model is"));
+}
+
+// Fast's sampler changed in session 20 (occupied alpha 1 % → 30 %): a file written as "fast" by the old
+// model must go to the variant that still has the old grid, and a file of the new model to its own name.
+TEST_CASE("checkpoint_variant: a file goes to the variant of its architecture, by name among equals") {
+  using Dense = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8>>;
+  using Pruned = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8, 300>>;
+  REQUIRE(Dense::architecture() != Pruned::architecture());
+  Fixture f;
+  const auto box = train::scene_box(f.td, f.cfg);
+  const auto dir = std::filesystem::temp_directory_path() / ("evnerf_test_variant_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto write = [&](const std::string& bytes, const std::string& file) {
+    std::ofstream(dir / file, std::ios::binary) << bytes;
+    return dir / file;
+  };
+  const auto old_fast = write(Dense(f.td.slices.size(), box, 7).serialize("fast", ""), "old.ckpt");
+  const auto new_fast = write(Pruned(f.td.slices.size(), box, 7).serialize("fast-prune", ""), "new.ckpt");
+  using List = std::tuple<Variant<Pruned, "fast">, Variant<Dense, "fast-dense-grid">, Variant<Pruned, "fast-prune">>;
+  auto pick = [](const std::filesystem::path& p) {
+    return [&]<class... V>(std::tuple<V...>*) { return checkpoint_variant<V...>(p); }(static_cast<List*>(nullptr));
+  };
+  CHECK(pick(old_fast) == "fast-dense-grid");  // its name is a label; its grid decides
+  CHECK(pick(new_fast) == "fast-prune");       // two names of one type: the file's own name
+  // Without a variant of the old grid, the old file is refused with what it was written by.
+  using OnlyNew = Variant<Pruned, "fast">;
+  CHECK_THROWS_WITH(checkpoint_variant<OnlyNew>(old_fast), doctest::Contains("written by variant 'fast'"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with a clear error") {

@@ -8,7 +8,7 @@
 #
 # Settings (environment): EVNERF (the binary; default build/examples/evnerf), OUT (default sweep_out),
 # SCENES (built-in scenes, 'random' is not one; default "planes object room"), PRESETS (default "fast
-# fast-slice"), SEEDS (default "1 2 3"), ITERS (default 3000), THREADS (default: Slurm's CPUs per task,
+# fast-slice"), SEEDS (default "1 2 3"), ITERS (default 6000), THREADS (default: Slurm's CPUs per task,
 # else all), WIDTH and HEIGHT (the simulated sensor; default 240×180).
 # Then: python3 examples/slurm/gather.py $OUT  (one table of every metrics.json).
 set -euo pipefail
@@ -18,7 +18,7 @@ OUT=${OUT:-sweep_out}
 read -r -a scenes <<<"${SCENES:-planes object room}"
 read -r -a presets <<<"${PRESETS:-fast fast-slice}"
 read -r -a seeds <<<"${SEEDS:-1 2 3}"
-ITERS=${ITERS:-3000}
+ITERS=${ITERS:-6000}
 THREADS=${THREADS:-${SLURM_CPUS_PER_TASK:-0}}
 WIDTH=${WIDTH:-240}
 HEIGHT=${HEIGHT:-180}

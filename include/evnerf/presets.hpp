@@ -41,8 +41,15 @@ using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 /// exp(raw) (field::ExpRadiance): the sigmoid's log spans at most 6.9 nats, scenes of high dynamic range ask
 /// for more; on random scenes exp radiance scored 0.6–0.9 dB higher, on the built-in ones the same
 /// (bench/README.md).
+/// Fast's sampler: 64 stratified samples per ray, skipping cells of a 64³ occupancy grid (updated every 16
+/// steps after the first 256) whose density cannot give a sample an alpha of 30 %. With the 1 % of sessions
+/// 9–19 (FastDenseGrid) the grid kept 84–99 % of the cells the cameras see; at 30 % a training step takes
+/// 18–31 % less time and the scores at equal steps stay within the seed spread (bench/README.md, session 19).
+using FastSampler = render::OccupancySkipping<64, 64, 16, 256, 300>;
+/// The grid of sessions 9–19: a cell kept while its density gives a sample an alpha of 1 %.
+using DenseGridSampler = render::OccupancySkipping<64>;
 template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
-          class Prec = Fp32, class Radiance = field::ExpRadiance, class Sampler = render::OccupancySkipping<64>>
+          class Prec = Fp32, class Radiance = field::ExpRadiance, class Sampler = FastSampler>
 using FastModel = EvNerf<FastField<C, Prec, Radiance>, Sampler, Th, No, Obj>;
 /// Fast with windows of 1..W slices (measurement presets).
 template <int W, class Pixels = events::UniformPixels, class Th = loss::ProjectedThresholds>
@@ -52,23 +59,30 @@ using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
 using PaperNoNoiseInjection = PaperModel<loss::JointThresholds, loss::NoNoise>;
 using Fast = FastModel<>;
-/// Fast with the paper's sigmoid radiance (the Fast preset of sessions 7–8; its checkpoints load as this).
-using FastSigmoid = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::SigmoidRadiance>;
-/// Fast with the paper's one-slice objective and sigmoid (the Fast preset before windows; an ablation).
-using FastOneSlice =
-    FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts, Fp32, field::SigmoidRadiance>;
+/// Fast as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).
+using FastDenseGrid = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance, DenseGridSampler>;
+/// Fast with the paper's sigmoid radiance (the Fast preset of sessions 7–8, with their sampler; their
+/// checkpoints load as this).
+using FastSigmoid =
+    FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::SigmoidRadiance, DenseGridSampler>;
+/// Fast with the paper's one-slice objective and sigmoid (the Fast preset before windows, with its sampler;
+/// an ablation).
+using FastOneSlice = FastModel<loss::JointThresholds, loss::DefaultNoise, 1, loss::HalfSlackCounts, Fp32,
+                               field::SigmoidRadiance, DenseGridSampler>;
 using FastNoJointThresholds = FastModel<loss::FixedThresholds>;
 using FastNoNoiseInjection = FastModel<loss::ProjectedThresholds, loss::NoNoise>;
 /// Fast learning only each slice's threshold ratio, the scale shared and fixed (loss::RatioThresholds).
 using FastRatio = FastModel<loss::RatioThresholds>;
-/// Fast whose occupancy grid keeps a cell only where its density gives a sample an alpha of 30 % (Fast:
-/// 1 %): Fast's grid keeps 84–99 % of the cells its cameras see, this one skips most free space in front
-/// of surfaces. Candidate for Fast's sampler (bench/README.md, session 19).
-using FastPrune = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance,
-                            render::OccupancySkipping<64, 64, 16, 256, 300>>;
+/// Session 19's `fast-prune`, Fast's sampler since session 20: the same type as Fast (its checkpoints load
+/// under either name).
+using FastPrune = Fast;
 using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3>;
-/// The colour preset with the sigmoid (sessions 7–8's `colour`; its checkpoints load as this).
-using FastColourSigmoid = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastObjective, Fp32, field::SigmoidRadiance>;
+/// The colour preset as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).
+using FastColourDenseGrid =
+    FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastObjective, Fp32, field::ExpRadiance, DenseGridSampler>;
+/// The colour preset with the sigmoid (sessions 7–8's `colour`, with their sampler; their checkpoints load as this).
+using FastColourSigmoid =
+    FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastObjective, Fp32, field::SigmoidRadiance, DenseGridSampler>;
 /// The same models with mixed-precision networks (bf16 factors, FP32 accumulation, parameters and
 /// gradients); checkpoints are interchangeable with the FP32 presets'.
 using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;

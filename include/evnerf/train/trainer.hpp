@@ -30,7 +30,7 @@ namespace fs = std::filesystem;
 /// command line and the examples alike (spec §9, but lr 5e-3: the hash-grid presets want it; pass 5e-4 for
 /// the paper's).
 struct Config {
-  long iterations = 3000;
+  long iterations = 6000;
   int pixels_per_step = 1024;  ///< each rendered at both poses
   double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
