@@ -36,11 +36,6 @@ using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128
 /// noisy recordings the hash-grid field never leaves it), pixels uniform over the sensor. Chosen by
 /// measurement (bench/README.md).
 using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
-/// Fast learns its thresholds jointly, kept beyond the floor by projection (loss::ProjectedThresholds): the
-/// λ = 1000 floor loss fought the event loss for the first few hundred steps of every run. Its radiance is
-/// exp(raw) (field::ExpRadiance): the sigmoid's log spans at most 6.9 nats, scenes of high dynamic range ask
-/// for more; on random scenes exp radiance scored 0.6–0.9 dB higher, on the built-in ones the same
-/// (bench/README.md).
 /// Fast's sampler: 64 stratified samples per ray, skipping cells of a 64³ occupancy grid (updated every 16
 /// steps after the first 256) whose density cannot give a sample an alpha of 30 %. With the 1 % of sessions
 /// 9–19 (FastDenseGrid) the grid kept 84–99 % of the cells the cameras see; at 30 % a training step takes
@@ -48,6 +43,11 @@ using FastObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 using FastSampler = render::OccupancySkipping<64, 64, 16, 256, 300>;
 /// The grid of sessions 9–19: a cell kept while its density gives a sample an alpha of 1 %.
 using DenseGridSampler = render::OccupancySkipping<64>;
+/// Fast learns its thresholds jointly, kept beyond the floor by projection (loss::ProjectedThresholds): the
+/// λ = 1000 floor loss fought the event loss for the first few hundred steps of every run. Its radiance is
+/// exp(raw) (field::ExpRadiance): the sigmoid's log spans at most 6.9 nats, scenes of high dynamic range ask
+/// for more; on random scenes exp radiance scored 0.6–0.9 dB higher, on the built-in ones the same
+/// (bench/README.md).
 template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
           class Prec = Fp32, class Radiance = field::ExpRadiance, class Sampler = FastSampler>
 using FastModel = EvNerf<FastField<C, Prec, Radiance>, Sampler, Th, No, Obj>;
