@@ -91,10 +91,11 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 template <class Model>
-void check_model(double distortion = 0) {
+void check_model(double distortion = 0, double tv = 0) {
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
+  m.set_tv(tv);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
   Rng rng(11);
@@ -121,6 +122,9 @@ void check_model(double distortion = 0) {
     REQUIRE(st.loss > 0);
     if (distortion > 0) CHECK(st.distortion_loss > 0);
     else CHECK(st.distortion_loss == 0);
+    if (tv > 0) CHECK(st.tv_loss > 0);
+    else CHECK(st.tv_loss == 0);
+    CHECK(st.rays == (tv > 0 ? 3u : 2u) * 16u);
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
       CHECK(st.samples < st.rays * Model::Nc);
@@ -160,6 +164,53 @@ TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every 
 TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite differences in double", Model, StratifiedModel<1>,
                    OccupancyModel<1>, ExpRadianceModel<3>) {
   check_model<Model>(0.05);
+}
+
+// The total-variation regulariser: a third ray per pixel (a neighbour from the window's first pose), its
+// term in every pass; with the distortion term too, whose mean then runs over all three rays.
+TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: finite differences in double", Model,
+                   StratifiedModel<1>, OccupancyModel<1>, ExpRadianceModel<3>) {
+  SUBCASE("alone") { check_model<Model>(0, 0.3); }
+  SUBCASE("with the distortion term") { check_model<Model>(0.05, 0.3); }
+}
+
+TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; its draw ignores tiling and threads") {
+  const evtest::Fixture f;
+  using M = OccupancyModel<1>;
+  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  b.set_tv(0.0);
+  const auto sa = a.gradients(f.td, 16, 3, 4);
+  const std::vector<double> ga = a.params().grads;
+  b.gradients(f.td, 16, 3, 4);
+  CHECK(ga == b.params().grads);
+  b.set_tv(0.2);
+  const auto sb = b.gradients(f.td, 16, 3, 4);
+  CHECK(sb.event_loss == sa.event_loss);  // the pairs' rays and their random streams are the same
+  CHECK(sb.tv_loss > 0);
+  CHECK(sb.loss == doctest::Approx(sa.loss + sb.tv_loss).epsilon(1e-12));
+  CHECK(b.params().grads != ga);
+  const std::vector<double> gb = b.params().grads;
+  b.gradients(f.td, 16, 3, 1);  // one pixel per tile
+  double worst = 0;  // summed in another order only
+  for (std::size_t i = 0; i < gb.size(); ++i)
+    worst = std::max(worst, std::abs(b.params().grads[i] - gb[i]) / std::max(1e-12, std::abs(gb[i])));
+  CHECK(worst < 1e-9);
+  CHECK_THROWS_WITH_AS(b.set_tv(-1), doctest::Contains("total-variation weight"), Error);
+  CHECK(M::default_tv == 0.0);
+  CHECK(a.tv() == 0.0);
+  // An objective with the term on by default (loss::WithTv): a new or restored model starts at its weight,
+  // set_tv overrides it, and checkpoints record the inner objective's loss (the weight is a training setting).
+  using T = EvNerf<HashTiny<1>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise,
+                   loss::WithTv<Window, 250>, double>;
+  static_assert(T::default_tv == 0.25);
+  T t(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  CHECK(t.tv() == 0.25);
+  CHECK(T::loss_description() == M::loss_description());
+  const auto st = t.gradients(f.td, 16, 3, 4);
+  CHECK(st.tv_loss > 0);
+  CHECK(st.rays == 48u);
+  t.set_tv(0);
+  CHECK(t.gradients(f.td, 16, 3, 4).tv_loss == 0);
 }
 
 TEST_CASE("examples' parts: inverse-depth samples, the triangle-wave encoding's input gradient, the shot-noise interval") {

@@ -118,6 +118,27 @@ TEST_CASE("centred counts: the half-slack hinge plus weight · (change − μ)²
   CHECK(std::string(loss::CentredCounts<2500>::name) == "half-slack-centred");
 }
 
+TEST_CASE("total variation of log-luminance: Charbonnier of the log step, symmetric, its gradient matches finite differences") {
+  const loss::LogTv f{1e-3, 1e-2};
+  // Equal neighbours cost nothing; a step well above δ costs about its height minus δ, from either side.
+  CHECK(f.evaluate(0.4, 0.4)[0] == 0.0);
+  const double d = std::log(0.8 + 1e-3) - std::log(0.2 + 1e-3);
+  CHECK(f.evaluate(0.8, 0.2)[0] == doctest::Approx(std::sqrt(d * d + 1e-4) - 1e-2));
+  CHECK(f.evaluate(0.2, 0.8)[0] == doctest::Approx(f.evaluate(0.8, 0.2)[0]));
+  CHECK(f.evaluate(0.8, 0.2)[0] == doctest::Approx(d - 1e-2).epsilon(1e-3));
+  // A step twice as high costs about twice as much (L1-like: edges are not smoothed out preferentially).
+  const double big = f.evaluate(0.8, 0.05)[0], small = f.evaluate(0.8, 0.2)[0];
+  CHECK(big / small == doctest::Approx((std::log(0.801 / 0.051) - 1e-2) / (d - 1e-2)).epsilon(1e-3));
+  // Gradients against central differences, across the quadratic and the linear regime.
+  for (const auto& x : std::vector<std::vector<double>>{{0.3, 0.3015}, {0.8, 0.2}, {0.01, 0.5}, {2.0, 1.9}}) {
+    const auto r = f.evaluate(x[0], x[1]);
+    CAPTURE(x[0]);
+    CAPTURE(x[1]);
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& p) { return f.evaluate(p[0], p[1])[0]; }, x, {r[1], r[2]}) < 1e-7);
+    CHECK(r[1] == doctest::Approx(-r[2] * (x[1] + 1e-3) / (x[0] + 1e-3)));  // opposite pulls in log space
+  }
+}
+
 namespace {
 /// One slice of a 10×10 sensor with one event at each pixel p where fires(p) (odd p positive).
 template <class Fires>

@@ -619,11 +619,22 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.subslices = 65; }, "subslices must be between 1 and 64");
   refused([](train::Config& c) { c.distortion = -0.1; }, "distortion weight must be finite and non-negative");
   refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion weight must be finite and non-negative");
+  refused([](train::Config& c) { c.tv = -0.1; }, "total-variation weight must be finite and non-negative");
+  refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "total-variation weight must be finite and non-negative");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
   CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", "meta"), doctest::Contains("threads must be between 0"), Error);
   CHECK(m.step() == 0);
+  // The total-variation weight: unset, the model keeps its own; set, the Config's replaces it.
+  train::Config two = cfg;
+  two.iterations = 2;
+  m.set_tv(0.125);
+  train::run(m, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(m.tv() == 0.125);
+  two.tv = 0.0;
+  train::run(m, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(m.tv() == 0.0);
 }
 
 TEST_CASE("lazy Adam: a threshold of a slice no step touched keeps its value and its moments") {

@@ -59,6 +59,7 @@ struct StepShards {
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   double distortion_loss = 0;  ///< the distortion regulariser's term (0 unless set_distortion() was given a weight)
+  double tv_loss = 0;          ///< the total-variation regulariser's term (0 unless set_tv() was given a weight)
   std::size_t rays = 0;
   std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
@@ -92,6 +93,12 @@ class EvNerf {
   static constexpr int n_fields = renderer_type::networks;
   static constexpr std::size_t field_params = FieldT::n_params;
   static constexpr int Nc = renderer_type::n_coarse, Nf = renderer_type::n_fine;
+  /// The weight of the total-variation regulariser a new model starts with: its objective's (loss::WithTv),
+  /// else 0.
+  static constexpr double default_tv = [] {
+    if constexpr (requires { objective::tv_weight; }) return static_cast<double>(objective::tv_weight);
+    else return 0.0;
+  }();
   static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
   static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "EvNerf: Scalar must be float or double.");
 
@@ -244,7 +251,7 @@ class EvNerf {
     const int n_tiles = (P + tile - 1) / tile;
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.begin_accumulate(threads);
-    std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0);
+    std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), loss_tv(threads, 0.0);
     std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
     std::vector<std::array<double, 2>> pass_loss(threads);
     const geometry::Pose& pose0 = data.boundary_poses[first];
@@ -255,7 +262,7 @@ class EvNerf {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.rw.evaluated = w.rw.backward_samples = 0;
       w.pass_loss = {};
-      w.distortion = 0;
+      w.distortion = w.tv = 0;
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
@@ -265,6 +272,7 @@ class EvNerf {
       evaluated[th] = w.rw.evaluated;
       pass_loss[th] = w.pass_loss;
       loss_dist[th] = w.distortion;
+      loss_tv[th] = w.tv;
       backward[th] = w.rw.backward_samples;
     });
     params_.end_accumulate(threads);
@@ -273,6 +281,7 @@ class EvNerf {
     st.window = L;
     for (double l : loss_ev) st.event_loss += l;
     for (double l : loss_dist) st.distortion_loss += l;
+    for (double l : loss_tv) st.tv_loss += l;
     for (const auto& l : pass_loss)
       for (int net = 0; net < 2; ++net) st.pass_event_loss[net] += l[net];
     for (std::size_t e : evaluated) st.samples += e;
@@ -291,8 +300,8 @@ class EvNerf {
         params_.grads[to] = params_.grads[to + 1] = Scalar(0);
       }
     }
-    st.loss = st.event_loss + st.threshold_loss + st.distortion_loss;
-    st.rays = static_cast<std::size_t>(2 * P);
+    st.loss = st.event_loss + st.threshold_loss + st.distortion_loss + st.tv_loss;
+    st.rays = static_cast<std::size_t>((tv_ > 0 ? 3 : 2) * P);
     touched_.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
     return st;
@@ -411,13 +420,24 @@ class EvNerf {
     distortion_ = weight;
   }
   double distortion() const { return distortion_; }
+  /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
+  /// or below, or left or above at the border, drawn per pixel and step) rendered from the window's first
+  /// pose; `weight` × the mean over the step's pixels (and channels) of their difference's Charbonnier cost
+  /// joins the loss, in every pass. A third ray per pixel: about half as much work again per step. 0 leaves
+  /// the step bit-identical. A new model starts at default_tv (its objective's). A training setting like the
+  /// learning rate: not checkpointed.
+  void set_tv(double weight) {
+    require(std::isfinite(weight) && weight >= 0, "the total-variation weight must be finite and non-negative");
+    tv_ = weight;
+  }
+  double tv() const { return tv_; }
  private:
   /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
   /// samples, backward samples and the two passes' event losses.
-  static constexpr std::size_t kTotals = 9;
+  static constexpr std::size_t kTotals = 10;
   static void add_totals(std::vector<double>& t, const StepStats& s) {
     const double v[kTotals] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
-                               s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss};
+                               s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss, s.tv_loss};
     for (std::size_t i = 0; i < kTotals; ++i) t[i] += v[i];
   }
   StepStats from_totals(const std::vector<double>& t, int count) const {
@@ -430,6 +450,7 @@ class EvNerf {
     s.backward_samples = static_cast<std::size_t>(t[5]);
     s.pass_event_loss = {t[6] / count, t[7] / count};
     s.distortion_loss = t[8] / count;
+    s.tv_loss = t[9] / count;
     s.first_slice = window_.first;
     s.window = window_.len;
     return s;
@@ -452,9 +473,11 @@ class EvNerf {
     typename renderer_type::Workspace rw;
     std::vector<Vec3> origin, dir;
     std::vector<Rng> rng;
+    std::vector<std::uint32_t> neighbour;  ///< the TV term's neighbour of each pixel of the tile
     std::vector<double> bp, bm, gbp, gbm;
     std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
     double distortion = 0;              ///< the thread's distortion term, this step
+    double tv = 0;                      ///< the thread's total-variation term, this step
   };
 
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
@@ -496,12 +519,32 @@ class EvNerf {
     return total;
   }
 
+  /// The total-variation term of one pass over the tile's P pixels and their neighbours (rays 2i and
+  /// 2P + i, both from the window's first pose): adds its gradient to the pass's dcolor (after pair_loss)
+  /// and returns its share of the loss.
+  double tv_loss(int P, int batch, int net, TileWork& w) const {
+    const auto& comp = renderer_type::composites(w.rw, net);
+    auto& dcolor = w.rw.pass[net].dcolor;
+    const double scale = tv_ / (double(batch) * channels);
+    const loss::LogTv f{FieldT::radiance::log_eps};
+    double total = 0;
+    for (int i = 0; i < P; ++i)
+      for (int c = 0; c < channels; ++c) {
+        const auto r = f.evaluate(comp[2 * i].color[c], comp[2 * P + i].color[c]);
+        total += scale * r[0];
+        dcolor[static_cast<std::size_t>(2 * i) * channels + c] += static_cast<Scalar>(scale * r[1]);
+        dcolor[static_cast<std::size_t>(2 * P + i) * channels + c] += static_cast<Scalar>(scale * r[2]);
+      }
+    return total;
+  }
+
   /// One tile of the step: pixel i's rays at the window's two end poses (Camera::ray_along of its cached
   /// direction), each with a random stream keyed by (pixel, end) so that the result depends on neither the
   /// tiling nor the thread count; forward through every pass, the objective, backward.
   double train_tile(const TrainingData& data, const StepWindow& sw, int p0, const geometry::Pose& pose0,
                     const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
-    const int R = 2 * P;
+    const bool tv = tv_ > 0;
+    const int R = (tv ? 3 : 2) * P;  // the pixels' pairs, then (with the TV term) their neighbours
     const std::uint32_t* pix = sw.pixels.data() + p0;
     w.origin.resize(R);
     w.dir.resize(R);
@@ -514,8 +557,27 @@ class EvNerf {
       w.origin[2 * i + 1] = b.origin;
       w.dir[2 * i + 1] = b.dir;
     }
-    for (int r = 0; r < R; ++r)
+    for (int r = 0; r < 2 * P; ++r)
       w.rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
+    if (tv) {
+      const int width = data.camera.width(), height = data.camera.height();
+      w.neighbour.resize(static_cast<std::size_t>(P));
+      for (int i = 0; i < P; ++i) {
+        // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
+        const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
+        const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));
+        int nx = x, ny = y;
+        if (h & 1) nx = x + 1 < width ? x + 1 : x - 1;
+        else ny = y + 1 < height ? y + 1 : y - 1;
+        if (nx < 0 || ny < 0) nx = x, ny = y;  // a one-pixel-wide sensor: no neighbour, no cost
+        const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
+        w.neighbour[static_cast<std::size_t>(i)] = q;
+        const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
+        w.origin[2 * P + i] = n.origin;
+        w.dir[2 * P + i] = n.dir;
+        w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 40) + q));
+      }
+    }
     const Scalar* params = params_.values.data();
     renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
     double loss = 0;
@@ -523,9 +585,10 @@ class EvNerf {
       const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width(), data.bayer);
       w.pass_loss[net] += l;
       loss += l;
+      if (tv) w.tv += tv_loss(P, batch, net, w);
     }
-    // The distortion regulariser: its weight times the mean over the step's 2·batch rays, every pass.
-    if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (2.0 * batch));
+    // The distortion regulariser: its weight times the mean over the step's rays, every pass.
+    if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (double(R / P) * batch));
     renderer_.backward(params, w.rw, grads);
     return loss;
   }
@@ -540,6 +603,7 @@ class EvNerf {
   std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
   double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
+  double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
 };
 
 }  // namespace evnerf

@@ -267,6 +267,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  trainc->add_option("--tv", cfg.tv,
+                     "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (a third ray "
+                     "per pixel; 0 = off; default: the preset's)")
+      ->check(CLI::NonNegativeNumber);
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);

@@ -99,6 +99,25 @@ struct ThresholdFloor {
   }
 };
 
+/// Total variation of the rendered log-luminance between two neighbouring pixels seen from one pose, in the
+/// Charbonnier form √(d² + δ²) − δ of d = log(ℓ_a + eps) − log(ℓ_b + eps): about |d| for steps well above δ
+/// (edges keep their height: the cost of a step does not grow with its sharpness), quadratic below δ
+/// (smooth at 0, so finite differences and Adam see no kink). A regulariser of ours against the grain a
+/// hash grid leaves where few events constrain the scene (EvNerf::set_tv).
+struct LogTv {
+  double eps = 1e-3, delta = 1e-2;
+  template <class LA, class LB>
+  auto operator()(const LA& la, const LB& lb) const {
+    const auto d = ad::log(la + eps) - ad::log(lb + eps);
+    return ad::sqrt(ad::square(d) + delta * delta) - delta;
+  }
+  /// Value and gradient w.r.t. (ℓ_a, ℓ_b).
+  std::array<double, 3> evaluate(double la, double lb) const {
+    const auto vg = ad::value_and_grad(*this, std::array<double, 2>{la, lb});
+    return {vg.value, vg.grad[0], vg.grad[1]};
+  }
+};
+
 /// Per-slice thresholds B_i^± learned jointly with the field, with the floor loss at weight λ = 1000.
 struct JointThresholds {
   static constexpr bool learnable = true;

@@ -109,6 +109,15 @@ concept Objective = requires {
   { O::description() } -> std::convertible_to<std::string>;
 } && BoundPolicy<typename O::bound>;
 
+/// Objective O with the total-variation regulariser (loss::LogTv, EvNerf::set_tv) on by default at weight
+/// PerMille/1000. A training setting like the learning rate: the checkpoints' loss text is O's, and
+/// EvNerf::set_tv (train --tv) overrides the weight.
+template <Objective O, int PerMille>
+struct WithTv : O {
+  static_assert(PerMille >= 0, "WithTv: the weight must not be negative.");
+  static constexpr double tv_weight = PerMille / 1000.0;
+};
+
 template <class P>
 struct as_objective {
   static_assert(Objective<P>, "EvNerf: the fifth parameter must be an objective (loss::SliceInterval, loss::WindowInterval, ...) "

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -34,6 +35,8 @@ struct Config {
   int pixels_per_step = 1024;  ///< each rendered at both poses
   double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
+  std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
+                               ///< model's own, its variant's default_tv unless set_tv changed it)
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
@@ -78,6 +81,7 @@ inline void check(const Config& c) {
   need(c.lr > 0 && std::isfinite(c.lr), "the learning rate must be positive, got " + short_number(c.lr));
   need(c.lr_decay > 0 && c.lr_decay_steps > 0, "the learning-rate decay and its steps must be positive");
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
+  need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
                                                                  short_number(c.near) + " and " + short_number(c.far));
   need(c.checkpoint_every >= 0, "the checkpoint period must not be negative");
@@ -327,6 +331,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   }
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
+  if (cfg.tv) model.set_tv(*cfg.tv);
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
     std::string kept, line;
     std::istringstream in(read_file(out / "log.jsonl"));
@@ -345,7 +350,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   Progress bar(cfg.iterations, "train", cfg.progress && rank == 0);
   RunResult r;
   const double t_start = bar.elapsed();
-  double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_distortion = 0, sum_samples = 0, sum_backward = 0;
+  double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_distortion = 0, sum_tv = 0, sum_samples = 0, sum_backward = 0;
   double start_event = 0, recent_event = 0;  // event loss: mean of the first kLogEvery steps, and of the last period
   long start_steps = 0;
   long window = 0;
@@ -385,6 +390,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     sum_event += st.event_loss;
     sum_threshold += st.threshold_loss;
     sum_distortion += st.distortion_loss;
+    sum_tv += st.tv_loss;
     sum_samples += static_cast<double>(st.samples) / std::max<std::size_t>(1, st.rays);
     sum_backward += static_cast<double>(st.backward_samples) / std::max<std::size_t>(1, st.rays);
     ++window;
@@ -412,6 +418,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
       if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
+      if (model.tv() > 0) j["tv_loss"] = sum_tv / window;
       if (shard_count > 1) {
         j["shards"] = shard_count;
         if (group) {
@@ -460,7 +467,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
         log << j.dump() << "\n";
         log.flush();
       }
-      sum_loss = sum_event = sum_threshold = sum_distortion = sum_samples = sum_backward = 0;
+      sum_loss = sum_event = sum_threshold = sum_distortion = sum_tv = sum_samples = sum_backward = 0;
       window = 0;
       if (r.collapsed && !cfg.allow_collapse) {
         ++r.steps;
