@@ -118,17 +118,23 @@ TEST_CASE("centred counts: the half-slack hinge plus weight · (change − μ)²
   CHECK(std::string(loss::CentredCounts<2500>::name) == "half-slack-centred");
 }
 
-TEST_CASE("total variation of log-luminance: Charbonnier of the log step, symmetric, its gradient matches finite differences") {
-  const loss::LogTv f{1e-3, 1e-2};
-  // Equal neighbours cost nothing; a step well above δ costs about its height minus δ, from either side.
+TEST_CASE("total variation of log-luminance: Cauchy penalty of the log step, symmetric, its gradient matches finite differences") {
+  const loss::LogTv f{1e-3, 0.1};
+  // Equal neighbours cost nothing; the cost is δ² log(1 + d²/δ²), the same from either side.
   CHECK(f.evaluate(0.4, 0.4)[0] == 0.0);
   const double d = std::log(0.8 + 1e-3) - std::log(0.2 + 1e-3);
-  CHECK(f.evaluate(0.8, 0.2)[0] == doctest::Approx(std::sqrt(d * d + 1e-4) - 1e-2));
+  CHECK(f.evaluate(0.8, 0.2)[0] == doctest::Approx(0.01 * std::log(1 + d * d / 0.01)));
   CHECK(f.evaluate(0.2, 0.8)[0] == doctest::Approx(f.evaluate(0.8, 0.2)[0]));
-  CHECK(f.evaluate(0.8, 0.2)[0] == doctest::Approx(d - 1e-2).epsilon(1e-3));
-  // A step twice as high costs about twice as much (L1-like: edges are not smoothed out preferentially).
-  const double big = f.evaluate(0.8, 0.05)[0], small = f.evaluate(0.8, 0.2)[0];
-  CHECK(big / small == doctest::Approx((std::log(0.801 / 0.051) - 1e-2) / (d - 1e-2)).epsilon(1e-3));
+  // Small steps: about d² (grain is penalised like a square).
+  const double s = std::log(0.3015 + 1e-3) - std::log(0.3 + 1e-3);
+  CHECK(f.evaluate(0.3015, 0.3)[0] == doctest::Approx(s * s).epsilon(1e-3));
+  // Edges: the pull on a step of height d is 2d/(1 + d²/δ²), weaker on a high step than on one of δ.
+  auto pull = [&](double a, double b) { return std::abs(f.evaluate(a, b)[1]) * (a + 1e-3); };  // |∂/∂d|
+  CHECK(pull(0.8, 0.2) == doctest::Approx(2 * d / (1 + d * d / 0.01)));
+  const double at_delta = 0.3 * std::exp(0.1) - 1e-3 * (1 - std::exp(0.1));  // log step of exactly δ
+  CHECK(pull(at_delta, 0.3) == doctest::Approx(0.1).epsilon(1e-6));
+  CHECK(pull(0.8, 0.05) < pull(0.8, 0.2));
+  CHECK(pull(0.8, 0.2) < 0.2 * pull(at_delta, 0.3));
   // Gradients against central differences, across the quadratic and the linear regime.
   for (const auto& x : std::vector<std::vector<double>>{{0.3, 0.3015}, {0.8, 0.2}, {0.01, 0.5}, {2.0, 1.9}}) {
     const auto r = f.evaluate(x[0], x[1]);

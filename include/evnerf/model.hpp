@@ -422,7 +422,7 @@ class EvNerf {
   double distortion() const { return distortion_; }
   /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
   /// or below, or left or above at the border, drawn per pixel and step) rendered from the window's first
-  /// pose; `weight` × the mean over the step's pixels (and channels) of their difference's Charbonnier cost
+  /// pose; `weight` × the mean over the step's pixels (and channels) of their log difference's Cauchy penalty
   /// joins the loss, in every pass. A third ray per pixel: about half as much work again per step. 0 leaves
   /// the step bit-identical. A new model starts at default_tv (its objective's). A training setting like the
   /// learning rate: not checkpointed.
