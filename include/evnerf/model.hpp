@@ -473,7 +473,6 @@ class EvNerf {
     typename renderer_type::Workspace rw;
     std::vector<Vec3> origin, dir;
     std::vector<Rng> rng;
-    std::vector<std::uint32_t> neighbour;  ///< the TV term's neighbour of each pixel of the tile
     std::vector<double> bp, bm, gbp, gbm;
     std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
     double distortion = 0;              ///< the thread's distortion term, this step
@@ -561,7 +560,6 @@ class EvNerf {
       w.rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
     if (tv) {
       const int width = data.camera.width(), height = data.camera.height();
-      w.neighbour.resize(static_cast<std::size_t>(P));
       for (int i = 0; i < P; ++i) {
         // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
         const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
@@ -571,7 +569,6 @@ class EvNerf {
         else ny = y + 1 < height ? y + 1 : y - 1;
         if (nx < 0 || ny < 0) nx = x, ny = y;  // a one-pixel-wide sensor: no neighbour, no cost
         const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
-        w.neighbour[static_cast<std::size_t>(i)] = q;
         const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
         w.origin[2 * P + i] = n.origin;
         w.dir[2 * P + i] = n.dir;
