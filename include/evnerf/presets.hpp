@@ -38,8 +38,9 @@ using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128
 using FastEventObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 /// The grey Fast presets' objective since session 21: the event objective plus the total-variation
 /// regulariser at weight 0.3 (loss::LogTv, Cauchy δ = 0.1: it smooths the grain a hash grid leaves where
-/// few events constrain the scene and leaves edges their height). On random scenes +0.7–0.8 dB, on the
-/// built-in ones level; a third ray per pixel (bench/README.md, session 21). Its checkpoints record
+/// few events constrain the scene and leaves edges their height). Random scenes 1–10: +0.4 dB mean, 9 of 10
+/// pass (8 without); `planes` +0.1–0.25 dB, but `object` −0.03 to −1.6 dB over three seeds: not yet a
+/// clean gain (bench/README.md, session 21). A third ray per pixel. Its checkpoints record
 /// FastEventObjective's loss text (the weight is a training setting: `train --tv W` sets it).
 using FastObjective = loss::WithTv<FastEventObjective, 300>;
 static_assert(FastObjective::tv_weight == 0.3 && std::is_base_of_v<FastEventObjective, FastObjective>,
