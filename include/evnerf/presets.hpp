@@ -36,15 +36,16 @@ using PaperModel = EvNerf<PaperField<C, 256, Prec>, render::Hierarchical<64, 128
 /// sparse or noisy recordings the hash-grid field never leaves it), pixels uniform over the sensor. Chosen
 /// by measurement (bench/README.md).
 using FastEventObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
-/// The grey Fast presets' objective since session 21: the event objective plus the total-variation
-/// regulariser at weight 0.3 (loss::LogTv, Cauchy δ = 0.1: it smooths the grain a hash grid leaves where
-/// few events constrain the scene and leaves edges their height). Random scenes 1–10: +0.4 dB mean, 9 of 10
-/// pass (8 without); `planes` +0.1–0.25 dB, but `object` −0.03 to −1.6 dB over three seeds: not yet a
-/// clean gain (bench/README.md, session 21). A third ray per pixel. Its checkpoints record
-/// FastEventObjective's loss text (the weight is a training setting: `train --tv W` sets it).
-using FastObjective = loss::WithTv<FastEventObjective, 300>;
-static_assert(FastObjective::tv_weight == 0.3 && std::is_base_of_v<FastEventObjective, FastObjective>,
-              "FastObjective: the event objective (its loss text) plus the total-variation term at 0.3");
+/// Fast's objective: the event objective alone.
+using FastObjective = FastEventObjective;
+/// The event objective plus the total-variation regulariser at weight 0.3 (loss::LogTv, Cauchy δ = 0.1: it
+/// smooths the grain a hash grid leaves where few events constrain the scene and leaves edges their
+/// height). Random scenes 1–10: +0.4 dB mean, 9 of 10 pass (8 without); `planes` +0.1–0.25 dB, but
+/// `object` −0.03 to −1.6 dB over three seeds: not a clean gain, so not Fast's default (bench/README.md,
+/// session 21). A third ray per pixel. Its checkpoints record FastEventObjective's loss text.
+using FastTvObjective = loss::WithTv<FastEventObjective, 300>;
+static_assert(FastTvObjective::tv_weight == 0.3 && std::is_base_of_v<FastEventObjective, FastTvObjective>,
+              "FastTvObjective: the event objective (its loss text) plus the total-variation term at 0.3");
 /// Fast's sampler: 64 stratified samples per ray, skipping cells of a 64³ occupancy grid (updated every 16
 /// steps after the first 256) whose density cannot give a sample an alpha of 30 %. With the 1 % of sessions
 /// 9–19 (FastDenseGrid) the grid kept 84–99 % of the cells the cameras see; at 30 % a training step takes
@@ -68,9 +69,8 @@ using Paper = PaperModel<>;
 using PaperNoJointThresholds = PaperModel<loss::FixedThresholds>;
 using PaperNoNoiseInjection = PaperModel<loss::JointThresholds, loss::NoNoise>;
 using Fast = FastModel<>;
-/// Fast without the total-variation term: session 20's Fast (the ablation of the term; the same
-/// checkpoints as Fast).
-using FastNoTv = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastEventObjective>;
+/// Fast with the total-variation term at weight 0.3 (session 21's measurements; the same checkpoints as Fast).
+using FastTv = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastTvObjective>;
 /// Fast as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).
 using FastDenseGrid =
     FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastEventObjective, Fp32, field::ExpRadiance, DenseGridSampler>;
@@ -89,7 +89,6 @@ using FastRatio = FastModel<loss::RatioThresholds>;
 /// Session 19's `fast-prune`, Fast's sampler since session 20: the same type as Fast (its checkpoints load
 /// under either name).
 using FastPrune = Fast;
-/// The colour preset keeps the event objective alone: the total-variation term is not measured on colour.
 using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, FastEventObjective>;
 /// The colour preset as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).
 using FastColourDenseGrid =
