@@ -143,6 +143,44 @@ TEST_CASE("radiance policies: the sigmoid cannot render more than 6.9 nats of lo
             .find("radiance") == std::string::npos);
 }
 
+TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminance view-independent, degree 2 does not", Dir,
+                   nn::SphericalHarmonics<1>, nn::SphericalHarmonics<2>) {
+  // presets::FastDiffuse is Fast with the degree-1 (constant) direction encoding: the same point seen along
+  // other directions must give the same density and luminance, exactly; with degree 2 the luminance moves.
+  using F = field::FieldOf<nn::HashGrid<4, 2, 10, 4, 32>, Dir, nn::MlpShape{.width = 8, .hidden_layers = 1}, 3,
+                           nn::MlpShape{.width = 8, .hidden_layers = 1}, 1, nn::ReLU, nn::Fp32, nn::ReLU, field::ExpRadiance>;
+  std::vector<float> params(F::n_params);
+  Rng rng(7);
+  F::template init<float>(params.data(), rng);
+  const int n = 16;
+  std::vector<float> pts(3 * n), dirs_a(3 * n), dirs_b(3 * n);
+  for (int j = 0; j < n; ++j) {
+    Vec3 a(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)), b(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    a.normalize();
+    b.normalize();
+    for (int d = 0; d < 3; ++d) {
+      pts[3 * j + d] = static_cast<float>(rng.uniform(-0.9, 0.9));
+      dirs_a[3 * j + d] = static_cast<float>(a[d]);
+      dirs_b[3 * j + d] = static_cast<float>(b[d]);
+    }
+  }
+  typename F::template Workspace<float> wa, wb;
+  const float *sa = nullptr, *la = nullptr, *sb = nullptr, *lb = nullptr;
+  F::forward(params.data(), pts.data(), dirs_a.data(), n, wa, &sa, &la);
+  F::forward(params.data(), pts.data(), dirs_b.data(), n, wb, &sb, &lb);
+  double dlum = 0;
+  for (int j = 0; j < n; ++j) {
+    CHECK(sa[j * F::density_net::out_dims] == sb[j * F::density_net::out_dims]);
+    dlum = std::max(dlum, std::abs(double(la[j]) - double(lb[j])));
+  }
+  if constexpr (Dir::out_dims == 1) {
+    CHECK(dlum == 0.0);
+    CHECK(F::architecture().find("direction spherical harmonics 1,") != std::string::npos);
+  } else {
+    CHECK(dlum > 1e-4);
+  }
+}
+
 TEST_CASE("compositing: an opaque sample at depth d gives depth d and its luminance") {
   const int S = 4;
   std::vector<double> sigma{-5, -5, 50, -5}, raw{0, 0, 2, 0}, t{1, 2, 3, 4};
