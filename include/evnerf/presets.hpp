@@ -74,9 +74,9 @@ using Fast = FastModel<>;
 /// SphericalHarmonics<1>), the right model of a diffuse scene such as the simulator's. Session 23: `planes`
 /// +0.40, +0.66, +0.88 dB at seeds 1–3 (all in the coarse part), `object` −1.88, +0.64, +1.23 (level on
 /// average), `room` +0.70, the real slider chunk −0.72, random scenes 1–10 −0.53 dB on average and 7 of 10
-/// passing (Fast 8): with no view to explain
-/// them, the brightness offsets that no event constrains (across a horizon a slider moves along) land
-/// elsewhere, better on some scenes and worse on others. Not Fast's default (bench/README.md, session 23).
+/// passing (Fast 8). The brightness steps that no event constrains (along a horizon the camera moves
+/// along) come out differently, better on some scenes and worse on others. Not Fast's default
+/// (bench/README.md, session 23).
 using FastDiffuse = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance, FastSampler,
                               SphericalHarmonics<1>>;
 /// Fast with the total-variation term at weight 0.3 (session 21's measurements; the same checkpoints as Fast).
