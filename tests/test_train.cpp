@@ -349,7 +349,7 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   fs::remove_all(dir);
 }
 
-TEST_CASE("checkpoints: version 5 records the architecture, 4 the loss; versions 4, 3 and 2 load") {
+TEST_CASE("checkpoints: version 6 records the parameter average, 5 the architecture, 4 the loss; versions 5, 4, 3 and 2 load") {
   Fixture f;
   f.cfg.density_per_box = true;
   const auto box = train::scene_box(f.td, f.cfg);
@@ -357,12 +357,35 @@ TEST_CASE("checkpoints: version 5 records the architecture, 4 the loss; versions
   CHECK(box.density_length == box.scale);
   Tiny a(f.td.slices.size(), box, 7);
   for (int s = 0; s < 4; ++s) a.train_step(f.td, 128, 3);
-  const std::string v5 = a.serialize("tiny", "meta");
+  REQUIRE_FALSE(a.average().active());
+  const std::string v6 = a.serialize("tiny", "meta");
   auto with_sum = [](std::string b) {
     const std::uint64_t sum = fnv1a64(b);
     b.append(reinterpret_cast<const char*>(&sum), 8);
     return b;
   };
+  // Rewrite as version 5: no parameter average (its count, 0 here, and its decay) after Adam's moments.
+  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + (8 + Tiny::loss_description().size()) +
+                             (8 + Tiny::architecture().size());
+  const std::size_t moments_end = header + 12 * a.params().size();
+  std::string v5 = v6.substr(0, v6.size() - 8);
+  {
+    std::uint64_t count = 1;
+    double decay = 1;
+    std::memcpy(&count, v5.data() + moments_end, 8);
+    std::memcpy(&decay, v5.data() + moments_end + 8, 8);
+    REQUIRE(count == 0);
+    REQUIRE(decay == 0.0);
+    v5.erase(moments_end, 16);
+    const std::uint64_t five = 5;
+    std::memcpy(v5.data() + 8, &five, 8);
+    v5 = with_sum(v5);
+    Tiny t;
+    CHECK(t.deserialize(v5, "tiny", "m.ckpt") == "meta");
+    CHECK(t.params().values == a.params().values);
+    CHECK_FALSE(t.average().active());
+    CHECK(t.load_note().empty());
+  }
   // Rewrite as version 4: no architecture after the loss; the variant's name is checked instead.
   const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
   std::string v4 = v5.substr(0, v5.size() - 8);
@@ -426,10 +449,79 @@ TEST_CASE("checkpoints: version 5 records the architecture, 4 the loss; versions
   const double zero = 0.0;
   std::memcpy(bad.data() + at, &zero, 8);
   CHECK_THROWS_WITH(b.deserialize(with_sum(bad), "tiny", "x.ckpt"), doctest::Contains("density length is not a positive number"));
-  std::string future = v5.substr(0, v5.size() - 8);
-  const std::uint64_t six = 6;
-  std::memcpy(future.data() + 8, &six, 8);
-  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 6"));
+  std::string future = v6.substr(0, v6.size() - 8);
+  const std::uint64_t seven = 7;
+  std::memcpy(future.data() + 8, &seven, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(future), "tiny", "x.ckpt"), doctest::Contains("unsupported version 7"));
+  // A version-6 file whose average does not match the model, or whose decay is out of range, is refused.
+  Tiny avg(f.td.slices.size(), box, 7);
+  avg.set_average(0.9);
+  avg.train_step(f.td, 128, 3);
+  const std::string with_average = avg.serialize("tiny", "meta");
+  std::string wrong = with_average.substr(0, with_average.size() - 8);
+  const std::uint64_t three_values = 3;
+  std::memcpy(wrong.data() + moments_end, &three_values, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(wrong), "tiny", "x.ckpt"), doctest::Contains("the parameter average has 3 values"));
+  wrong = with_average.substr(0, with_average.size() - 8);
+  const double one = 1.0;
+  std::memcpy(wrong.data() + moments_end + 8, &one, 8);
+  CHECK_THROWS_WITH(b.deserialize(with_sum(wrong), "tiny", "x.ckpt"), doctest::Contains("decay is not in (0, 1)"));
+}
+
+TEST_CASE("parameter average: TensorFlow's warm-up; never changes training; renders use it; checkpoints keep it") {
+  // The weight of step n's parameters: 1 − min(decay, (1 + n) / (10 + n)).
+  CHECK(nn::ParameterAverage<float>::weight(0.998, 1) == doctest::Approx(9.0 / 11));
+  CHECK(nn::ParameterAverage<float>::weight(0.998, 90) == doctest::Approx(0.09));
+  CHECK(nn::ParameterAverage<float>::weight(0.998, 4490) == doctest::Approx(0.002));
+  CHECK(nn::ParameterAverage<float>::weight(0.998, 100000) == doctest::Approx(0.002));
+  Fixture f;
+  const auto box = train::scene_box(f.td, f.cfg);
+  Tiny a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
+  a.set_average(0.9);
+  REQUIRE(a.average().active());
+  CHECK(a.average().values() == a.params().values);  // it starts at the parameters
+  // Against a plain average in double: a_n = a_{n-1} + w(n) (p_n − a_{n-1}).
+  std::vector<double> ref(a.params().values.begin(), a.params().values.end());
+  for (int s = 0; s < 6; ++s) {
+    a.train_step(f.td, 128, 3);
+    b.train_step(f.td, 128, 3);
+    const double w = nn::ParameterAverage<float>::weight(0.9, a.step());
+    for (std::size_t i = 0; i < ref.size(); ++i) ref[i] += w * (double(a.params().values[i]) - ref[i]);
+  }
+  CHECK(a.params().values == b.params().values);  // averaging never feeds back into training
+  CHECK(a.average().values() != a.params().values);
+  double worst = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i)
+    worst = std::max(worst, std::abs(double(a.average().values()[i]) - ref[i]) / (1e-3 + std::abs(ref[i])));
+  CHECK(worst < 1e-5);
+  // Renders use the average: the same as a model holding the average as its parameters.
+  const auto dirs = render::pixel_directions(f.td.camera);
+  const auto& pose = f.td.boundary_poses[1];
+  Tiny as_params = a;
+  as_params.set_average(0);
+  CHECK_FALSE(as_params.average().active());
+  as_params.params().values = a.average().values();
+  CHECK(a.render(f.td.camera, dirs, pose).luminance.data == as_params.render(f.td.camera, dirs, pose).luminance.data);
+  CHECK(a.render(f.td.camera, dirs, pose).luminance.data != b.render(f.td.camera, dirs, pose).luminance.data);
+  // Checkpoints keep it; a restored model goes on as the original does.
+  Tiny c;
+  CHECK(c.deserialize(a.serialize("tiny", "meta"), "tiny", "mem") == "meta");
+  CHECK(c.average().decay() == 0.9);
+  CHECK(c.average().values() == a.average().values());
+  for (int s = 0; s < 3; ++s) {
+    a.train_step(f.td, 128, 3);
+    c.train_step(f.td, 128, 3);
+  }
+  CHECK(c.params().values == a.params().values);
+  CHECK(c.average().values() == a.average().values());
+  // A new decay keeps the values; a model without an average loads as one without.
+  c.set_average(0.99);
+  CHECK(c.average().decay() == 0.99);
+  CHECK(c.average().values() == a.average().values());
+  Tiny d;
+  d.deserialize(b.serialize("tiny", ""), "tiny", "mem");
+  CHECK_FALSE(d.average().active());
+  CHECK_THROWS_WITH(d.set_average(1.0), doctest::Contains("decay must be in [0, 1)"));
 }
 
 TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {
@@ -621,6 +713,8 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion weight must be finite and non-negative");
   refused([](train::Config& c) { c.tv = -0.1; }, "total-variation weight must be finite and non-negative");
   refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "total-variation weight must be finite and non-negative");
+  refused([](train::Config& c) { c.average = 1.0; }, "parameter average's decay must be in [0, 1)");
+  refused([](train::Config& c) { c.average = std::nan(""); }, "parameter average's decay must be in [0, 1)");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
@@ -710,6 +804,10 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   second.run();
   CHECK(second.model().step() == 30);
   CHECK(second.model().params().values == whole.model().params().values);
+  // The default Config keeps the parameter average, and the checkpoint carries it across the resume.
+  CHECK(whole.model().average().active());
+  CHECK(whole.model().average().decay() == 0.998);
+  CHECK(second.model().average().values() == whole.model().average().values());
   fs::remove_all(base);
 }
 

@@ -130,6 +130,25 @@ class EvNerf {
   nn::Adam<Scalar>& optimizer() { return adam_; }
   long step() const { return adam_.step(); }
 
+  /// Keeps a moving average of the parameters (nn::ParameterAverage with `decay`), updated after every
+  /// train_step; the model then renders with the average. Averaging never changes training itself. A model
+  /// that keeps no average (or one of another size) starts one from its current parameters; one that
+  /// does keeps its values and takes the new decay. 0 drops the average: renders use the parameters.
+  void set_average(double decay) {
+    require(std::isfinite(decay) && decay >= 0 && decay < 1, "the parameter average's decay must be in [0, 1), got " + std::to_string(decay));
+    if (decay == 0) {
+      average_ = {};
+    } else if (!average_.active() || average_.values().size() != params_.size()) {
+      average_ = nn::ParameterAverage<Scalar>(decay, params_.values);
+    } else {
+      average_ = nn::ParameterAverage<Scalar>(decay, std::move(average_.values()));
+    }
+  }
+  /// The parameter average (inactive when the model keeps none).
+  const nn::ParameterAverage<Scalar>& average() const { return average_; }
+  /// The parameters renders use: the average when the model keeps one, else params().values.
+  const std::vector<Scalar>& render_params() const { return average_.active() ? average_.values() : params_.values; }
+
   /// Lets the sampler refresh its state (an occupancy grid, say) as it would before training step `step`;
   /// train_step() calls this itself. `seen` comes from the training data's cameras: a world ball is seen
   /// when its centre projects (Camera::project) into the image of one of up to 64 boundary poses spread over
@@ -228,6 +247,7 @@ class EvNerf {
       }
       if constexpr (requires { ThresholdP::shared_scale; }) ThresholdP::project(bp, bm);
     }
+    if (average_.active()) average_.update(params_.values, adam_.step());
     return st;
   }
 
@@ -312,10 +332,11 @@ class EvNerf {
   /// What the last gradients() (or train_step()) drew: window, pixels and their counts with the noise.
   const StepWindow& last_draw() const { return window_; }
 
-  /// Renders the full image at `pose` (the fine network where there is one); see Renderer::render.
+  /// Renders the full image at `pose` (the fine network where there is one) with render_params(); see
+  /// Renderer::render.
   Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
                    bool early_termination = true) const {
-    return renderer_.render(params_.values.data(), cam, pixel_dirs, pose, early_termination);
+    return renderer_.render(render_params().data(), cam, pixel_dirs, pose, early_termination);
   }
 
   // ---- checkpoints -----------------------------------------------------------------------------------
@@ -333,6 +354,7 @@ class EvNerf {
     h.loss = loss_description();
     h.architecture = architecture();
     return io::write_checkpoint(h, {params_.values.data(), adam_.m().data(), adam_.v().data(), params_.size(),
+                                    average_.active() ? average_.values().data() : nullptr, average_.decay(),
                                     sampler().serialize(), extra});
   }
   /// Restores from serialize()'s bytes (format: io/checkpoint.hpp); errors name the file and what does not
@@ -371,6 +393,19 @@ class EvNerf {
     r.get(adam.m().data(), n * 4);
     r.get(adam.v().data(), n * 4);
     adam.set_step(h.step);
+    nn::ParameterAverage<Scalar> average;
+    if (h.version >= 6) {  // version 6 added the parameter average
+      const std::uint64_t m = r.u64();
+      double decay = 0;
+      r.get(&decay, 8);
+      if (m != 0) {
+        if (m != n) r.fail("the parameter average has " + std::to_string(m) + " values, the model " + std::to_string(n));
+        if (!(decay > 0 && decay < 1)) r.fail("the parameter average's decay is not in (0, 1)");
+        std::vector<Scalar> values(n);
+        r.get(values.data(), n * 4);
+        average = nn::ParameterAverage<Scalar>(decay, values);
+      }
+    }
     SamplerT sampler;
     if (h.version >= 2) {  // version 2 added the sampler's state (the occupancy grid)
       if (!sampler.deserialize(r.str()))
@@ -387,6 +422,7 @@ class EvNerf {
     n_slices_ = h.n_slices;
     params_ = std::move(params);
     adam_ = std::move(adam);
+    average_ = std::move(average);
     load_note_ = std::move(note);
     return extra;
   }
@@ -394,8 +430,8 @@ class EvNerf {
   /// the sampler's. Two variants with the same architecture and loss can load each other's files (the
   /// FP32 and bf16 twins do).
   static std::string architecture() { return FieldT::architecture() + "; sampler " + SamplerT::name(); }
-  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description, 5 the architecture
-  /// (io/checkpoint.hpp).
+  /// 2 added the occupancy grid, 3 the box's density length, 4 the loss description, 5 the architecture,
+  /// 6 the parameter average (io/checkpoint.hpp).
   static constexpr std::uint64_t checkpoint_version = io::kCheckpointVersion;
   /// The loss this model trains with, as checkpoints record it: interval policy, threshold policy, noise.
   /// A checkpoint written under another one is refused (resuming would silently change the objective).
@@ -594,6 +630,7 @@ class EvNerf {
   std::size_t n_slices_ = 0;
   nn::ParameterBuffer<Scalar> params_;
   nn::Adam<Scalar> adam_;
+  nn::ParameterAverage<Scalar> average_;  ///< inactive unless set_average(); renders use it when active
   std::vector<TileWork> work_;  ///< gradients()'s per-thread scratch (no state: any content gives the same step)
   StepWindow window_;           ///< the last gradients()'s window (train_step applies Adam to its thresholds)
   std::vector<std::size_t> touched_;  ///< the last step's threshold entries (lazy Adam)

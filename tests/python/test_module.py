@@ -73,6 +73,12 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m3.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="total-variation weight must be finite and non-negative"):
         evnerf.train(d, iterations=2, threads=1, tv=-1.0)
+    # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
+    # renders are those of the trained parameters; a decay of 1 is refused.
+    m4 = evnerf.train(d, iterations=20, threads=2, seed=3, average=0.0)
+    assert np.array_equal(m4.thresholds, m.thresholds) and not np.array_equal(m4.render(P)[0], img)
+    with pytest.raises(evnerf.Error, match=r"parameter average's decay must be in \[0, 1\)"):
+        evnerf.train(d, iterations=2, threads=1, average=1.0)
 
 
 def quaternion_of(R):

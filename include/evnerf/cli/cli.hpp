@@ -267,6 +267,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  trainc->add_option("--average", cfg.average,
+                     "decay of the moving average of the parameters that the model renders with (exponential, with "
+                     "TensorFlow's warm-up; 0 = off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.999999));
   trainc->add_option("--tv", cfg.tv,
                      "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (a third ray "
                      "per pixel; 0 = off; default: the preset's)")

@@ -2,11 +2,13 @@
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
 //   f64×6 box (centre, scale, near, far) | f64 density length (v ≥ 3) | str loss (v ≥ 4) |
 //   str architecture (v ≥ 5) |
-//   f32 parameters | f32 Adam m | f32 Adam v | str occupancy grid (v ≥ 2) | str caller's metadata |
-//   u64 FNV-1a of everything before it
+//   f32 parameters | f32 Adam m | f32 Adam v |
+//   u64 average count (0 or the parameter count) + f64 its decay + f32 average (v ≥ 6) |
+//   str occupancy grid (v ≥ 2) | str caller's metadata | u64 FNV-1a of everything before it
 // (u64/i64/f64 little-endian as stored by this machine; str = u64 length + bytes). Versions: 2 added the
 // occupancy grid, 3 the density length, 4 the loss, 5 the architecture (the model's types: encodings,
-// networks, sampler; the variant's name is then only a label). write_checkpoint writes it (EvNerf::serialize
+// networks, sampler; the variant's name is then only a label), 6 the parameter average the model renders
+// with (nn::ParameterAverage; count 0 when it keeps none). write_checkpoint writes it (EvNerf::serialize
 // fills it in); EvNerf::deserialize and the command line (which variant wrote this file?) read it through
 // this header. Depends on core/ only.
 #pragma once
@@ -22,7 +24,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 5;
+inline constexpr std::uint64_t kCheckpointVersion = 6;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -95,10 +97,13 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
 }
 
 /// What a checkpoint holds besides its header: the parameters with Adam's two moments (n floats each),
-/// the sampler's state and the caller's metadata.
+/// the parameter average (n floats, or null for none) and its decay, the sampler's state and the caller's
+/// metadata.
 struct CheckpointBody {
   const float *params = nullptr, *adam_m = nullptr, *adam_v = nullptr;
   std::size_t n = 0;
+  const float* average = nullptr;
+  double average_decay = 0;
   std::string sampler_state, extra;
 };
 
@@ -124,6 +129,10 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put(body.params, body.n * 4);
   put(body.adam_m, body.n * 4);
   put(body.adam_v, body.n * 4);
+  put_u64(body.average ? body.n : 0);
+  const double decay = body.average ? body.average_decay : 0.0;
+  put(&decay, 8);
+  if (body.average) put(body.average, body.n * 4);
   put_str(body.sampler_state);
   put_str(body.extra);
   put_u64(fnv1a64(b));

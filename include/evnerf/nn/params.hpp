@@ -1,9 +1,11 @@
 // nn/params.hpp — a model's parameters and gradients in one flat buffer (so optimisers, checkpoints and
-// gradient checks see one array), per-thread gradient accumulators reduced in a fixed order, and Adam.
-// Depends on core/ only.
+// gradient checks see one array), per-thread gradient accumulators reduced in a fixed order, Adam, and a
+// moving average of the parameters. Depends on core/ only.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "../core/error.hpp"
@@ -95,6 +97,44 @@ class Adam {
   AdamConfig cfg_;
   std::vector<T> m_, v_;
   long step_ = 0;
+};
+
+/// An exponential moving average of the parameters (Polyak averaging), the weights a model renders with.
+/// After training step n the average moves towards the parameters by w(n) = 1 − min(decay, (1 + n)/(10 + n))
+/// (TensorFlow's ExponentialMovingAverage with its step-count warm-up): early in a run it follows the
+/// parameters closely, and from step (10·decay − 1)/(1 − decay) on (4490 for decay 0.998) it averages over
+/// about 1/(1 − decay) steps. It never feeds back into training. Element-wise, so deterministic for any
+/// thread count.
+template <class T = float>
+class ParameterAverage {
+ public:
+  ParameterAverage() = default;
+  /// An average of `decay` in (0, 1) starting at `start` (the parameters it is first set from).
+  ParameterAverage(double decay, const std::vector<T>& start) : decay_(decay), values_(start) {
+    require(decay > 0 && decay < 1, "ParameterAverage: the decay must be in (0, 1), got " + std::to_string(decay));
+  }
+  double decay() const { return decay_; }
+  bool active() const { return !values_.empty(); }
+  /// The weight the parameters of step n get.
+  static double weight(double decay, long n) {
+    return 1.0 - std::min(decay, (1.0 + static_cast<double>(n)) / (10.0 + static_cast<double>(n)));
+  }
+  /// Moves the average towards `params` as after step n.
+  void update(const std::vector<T>& params, long n) {
+    require(params.size() == values_.size(), "ParameterAverage: parameter count changed");
+    const T w = static_cast<T>(weight(decay_, n));
+    T* a = values_.data();
+    const T* p = params.data();
+    parallel_blocks(values_.size(), 1 << 16, [&](std::size_t b, std::size_t e, int) {
+      for (std::size_t i = b; i < e; ++i) a[i] += w * (p[i] - a[i]);
+    });
+  }
+  const std::vector<T>& values() const { return values_; }
+  std::vector<T>& values() { return values_; }
+
+ private:
+  double decay_ = 0;
+  std::vector<T> values_;
 };
 
 }  // namespace evnerf::nn

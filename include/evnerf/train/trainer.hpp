@@ -37,6 +37,8 @@ struct Config {
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
   std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
                                ///< model's own, its variant's default_tv unless set_tv changed it)
+  double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
+                               ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
@@ -81,6 +83,7 @@ inline void check(const Config& c) {
   need(c.lr > 0 && std::isfinite(c.lr), "the learning rate must be positive, got " + short_number(c.lr));
   need(c.lr_decay > 0 && c.lr_decay_steps > 0, "the learning-rate decay and its steps must be positive");
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
+  need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
   need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
                                                                  short_number(c.near) + " and " + short_number(c.far));
@@ -332,6 +335,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
   if (cfg.tv) model.set_tv(*cfg.tv);
+  model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
     std::string kept, line;
     std::istringstream in(read_file(out / "log.jsonl"));
