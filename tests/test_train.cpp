@@ -364,6 +364,10 @@ TEST_CASE("checkpoints: version 6 records the parameter average, 5 the architect
     b.append(reinterpret_cast<const char*>(&sum), 8);
     return b;
   };
+  auto as_version = [&](std::string b, std::uint64_t version) {  // b without its checksum
+    std::memcpy(b.data() + 8, &version, 8);
+    return with_sum(std::move(b));
+  };
   // Rewrite as version 5: no parameter average (its count, 0 here, and its decay) after Adam's moments.
   const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + (8 + Tiny::loss_description().size()) +
                              (8 + Tiny::architecture().size());
@@ -377,9 +381,9 @@ TEST_CASE("checkpoints: version 6 records the parameter average, 5 the architect
     REQUIRE(count == 0);
     REQUIRE(decay == 0.0);
     v5.erase(moments_end, 16);
-    const std::uint64_t five = 5;
-    std::memcpy(v5.data() + 8, &five, 8);
-    v5 = with_sum(v5);
+    v5 = as_version(std::move(v5), 5);
+  }
+  {
     Tiny t;
     CHECK(t.deserialize(v5, "tiny", "m.ckpt") == "meta");
     CHECK(t.params().values == a.params().values);
@@ -396,9 +400,7 @@ TEST_CASE("checkpoints: version 6 records the parameter average, 5 the architect
     REQUIRE(len == Tiny::architecture().size());
     REQUIRE(v4.substr(arch + 8, len) == Tiny::architecture());
     v4.erase(arch, 8 + len);
-    const std::uint64_t four = 4;
-    std::memcpy(v4.data() + 8, &four, 8);
-    v4 = with_sum(v4);
+    v4 = as_version(std::move(v4), 4);
   }
   {
     Tiny t;
