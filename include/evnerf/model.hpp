@@ -403,7 +403,7 @@ class EvNerf {
         if (!(decay > 0 && decay < 1)) r.fail("the parameter average's decay is not in (0, 1)");
         std::vector<Scalar> values(n);
         r.get(values.data(), n * 4);
-        average = nn::ParameterAverage<Scalar>(decay, values);
+        average = nn::ParameterAverage<Scalar>(decay, std::move(values));
       }
     }
     SamplerT sampler;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "../core/error.hpp"
@@ -110,7 +111,7 @@ class ParameterAverage {
  public:
   ParameterAverage() = default;
   /// An average of `decay` in (0, 1) starting at `start` (the parameters it is first set from).
-  ParameterAverage(double decay, const std::vector<T>& start) : decay_(decay), values_(start) {
+  ParameterAverage(double decay, std::vector<T> start) : decay_(decay), values_(std::move(start)) {
     require(decay > 0 && decay < 1, "ParameterAverage: the decay must be in (0, 1), got " + std::to_string(decay));
   }
   double decay() const { return decay_; }
