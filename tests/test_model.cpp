@@ -31,6 +31,10 @@ template <int C>
 using HierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
 template <int C>
 using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+// Samples spaced in log depth (FastLog's render::LogDepth): uneven intervals between samples.
+template <int C>
+using LogOccupancyModel =
+    EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
 
@@ -155,8 +159,19 @@ void check_model(double distortion = 0, double tv = 0) {
 
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
-                   OccupancyModel<3>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>, CustomParts) {
+                   OccupancyModel<3>, LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>,
+                   CustomParts) {
   check_model<Model>();
+}
+
+TEST_CASE("samples spaced in log depth: a box with near <= 0 is refused when the model is made, not inside a render") {
+  const evtest::Fixture f;
+  render::SceneBox bx = train::scene_box(f.td, f.cfg);
+  REQUIRE(bx.near > 0);
+  CHECK_NOTHROW(LogOccupancyModel<1>(f.td.slices.size(), bx, 5));
+  bx.near = 0;
+  CHECK_THROWS_WITH_AS(LogOccupancyModel<1>(f.td.slices.size(), bx, 5), doctest::Contains("log depth need 0 < near < far, got near 0"), Error);
+  CHECK_NOTHROW(OccupancyModel<1>(f.td.slices.size(), bx, 5));  // uniform spacing has no such need
 }
 
 // The distortion regulariser joins the loss of every pass; one-network models, where the loss is one sum

@@ -1,8 +1,11 @@
 #include <array>
+#include <cmath>
+#include <vector>
 
 #include <evnerf/field/field.hpp>
 #include <evnerf/loss/event_loss.hpp>
 #include <evnerf/render/compositing.hpp>
+#include <evnerf/render/occupancy.hpp>
 #include <evnerf/render/sampler.hpp>
 
 #include "common.hpp"
@@ -247,6 +250,50 @@ TEST_CASE("threshold floor: zero above |B| >= 0.3, gradient pushes thresholds ba
   CHECK(vg.grad[1] == doctest::Approx(1.0));   // descending decreases B⁻
   const std::vector<double> x{0.25, -0.21};
   CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return ad::value(f, v[0], v[1]); }, x, {vg.grad[0], vg.grad[1]}) < 1e-6);
+}
+
+TEST_CASE("samplers: depth spacing policies; uniform is stratified_depths bit for bit, log bins grow with depth") {
+  constexpr int n = 32;
+  const float near = 0.3f, far = 7.0f;
+  std::vector<float> a(n), b(n), t(n);
+  Rng r1(5), r2(5);
+  render::stratified_depths(n, near, far, &r1, a.data());
+  render::UniformDepth::depths(n, near, far, &r2, b.data());
+  CHECK(a == b);
+  // Log: bin centres near·r^((k + ½)/n), r = far/near, a constant ratio between neighbours.
+  std::vector<double> c(n);
+  render::LogDepth::depths<double>(n, 0.3, 7.0, nullptr, c.data());
+  for (int k = 0; k < n; ++k) CHECK(c[k] == doctest::Approx(0.3 * std::pow(7.0 / 0.3, (k + 0.5) / n)).epsilon(1e-12));
+  for (int k = 1; k < n; ++k) CHECK(c[k] / c[k - 1] == doctest::Approx(std::pow(7.0 / 0.3, 1.0 / n)).epsilon(1e-12));
+  // Jittered: sample k inside bin k, so the samples are sorted and inside [near, far]; drawn uniformly in log depth.
+  Rng rng(9);
+  std::vector<double> logs;
+  for (int rep = 0; rep < 200; ++rep) {
+    render::LogDepth::depths<double>(n, 0.3, 7.0, &rng, c.data());
+    for (int k = 0; k < n; ++k) {
+      CHECK(c[k] >= 0.3 * std::pow(7.0 / 0.3, double(k) / n) * (1 - 1e-12));
+      CHECK(c[k] <= 0.3 * std::pow(7.0 / 0.3, double(k + 1) / n) * (1 + 1e-12));
+      logs.push_back(std::log(c[k] / 0.3) / std::log(7.0 / 0.3));  // uniform on [0, 1]
+    }
+  }
+  double mean = 0;
+  for (double u : logs) mean += u;
+  mean /= static_cast<double>(logs.size());
+  CHECK(mean == doctest::Approx(0.5).epsilon(0.01));
+  // Float rays get the same depths to float precision.
+  render::LogDepth::depths(n, near, far, nullptr, t.data());
+  for (int k = 0; k < n; ++k) CHECK(t[k] == doctest::Approx(0.3 * std::pow(7.0 / 0.3, (k + 0.5) / n)).epsilon(1e-6));
+  CHECK_THROWS_WITH_AS(render::LogDepth::check(0.0, 7.0), doctest::Contains("near 0 and far 7"), Error);
+  CHECK_THROWS_WITH_AS(render::LogDepth::check(2.0, 1.0), doctest::Contains("0 < near < far"), Error);
+  CHECK_NOTHROW(render::LogDepth::check(0.3, 7.0));
+  // The policy names the sampler (so checkpoints tell the two apart); the uniform default keeps the old name.
+  CHECK(render::OccupancySkipping<64, 64, 16, 256, 300>::name() == "occupancy 64 grid 64 every 16 after 256 alpha 300/1000");
+  CHECK(render::OccupancySkipping<128, 64, 16, 256, 150, render::LogDepth>::name() ==
+        "occupancy 128 grid 64 every 16 after 256 alpha 150/1000 log-spaced");
+  CHECK(render::Stratified<8>::name() == "stratified 8");
+  CHECK(render::Stratified<8, render::LogDepth>::name() == "stratified 8 log-spaced");
+  static_assert(render::Sampler<render::Stratified<8, render::LogDepth>>);
+  static_assert(render::Sampler<render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>>);
 }
 
 TEST_CASE("samplers: stratified depths cover [near, far] in order; importance samples follow the weights") {

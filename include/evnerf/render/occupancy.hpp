@@ -133,8 +133,9 @@ class OccupancyGrid {
 /// Sampler: N stratified samples per ray, one network, with a Res³ occupancy grid that it owns. The grid is
 /// refreshed every `Interval` steps once `Warmup` steps have passed; until then every sample is evaluated.
 /// A cell is occupied when its density can give a sample an alpha of kOccupiedAlpha = AlphaPerMille / 1000
-/// at the stratified spacing (or exceeds the mean density over the seen cells, whichever is lower).
-template <int N, int Res = 64, int Interval = 16, int Warmup = 256, int AlphaPerMille = 10>
+/// at the mean spacing (far − near)/N (or exceeds the mean density over the seen cells, whichever is lower).
+/// `Spacing` places the N bins along the ray (UniformDepth, or LogDepth: FastLog's; render/sampler.hpp).
+template <int N, int Res = 64, int Interval = 16, int Warmup = 256, int AlphaPerMille = 10, DepthSpacing Spacing = UniformDepth>
 struct OccupancySkipping {
   static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");
   static_assert(Res >= 2 && Res <= 512, "OccupancySkipping: the grid resolution must be between 2 and 512.");
@@ -146,12 +147,14 @@ struct OccupancySkipping {
   static constexpr double kOccupiedAlpha = AlphaPerMille / 1000.0;
   static std::string name() {
     return "occupancy " + std::to_string(N) + " grid " + std::to_string(Res) + " every " + std::to_string(Interval) +
-           " after " + std::to_string(Warmup) + (AlphaPerMille == 10 ? "" : " alpha " + std::to_string(AlphaPerMille) + "/1000");
+           " after " + std::to_string(Warmup) + (AlphaPerMille == 10 ? "" : " alpha " + std::to_string(AlphaPerMille) + "/1000") +
+           std::string(Spacing::name);
   }
+  using spacing = Spacing;
 
   template <class T>
   void coarse_depths(int n, T near, T far, Rng* rng, T* t) const {
-    stratified_depths(n, near, far, rng, t);
+    Spacing::depths(n, near, far, rng, t);
   }
   bool skipping() const { return grid_.active(); }
   template <class T>

@@ -69,7 +69,9 @@ class Renderer {
   };
 
   Renderer() = default;
-  explicit Renderer(SceneBox box, SamplerT sampler = {}) : box_(box), sampler_(std::move(sampler)) {}
+  explicit Renderer(SceneBox box, SamplerT sampler = {}) : box_(box), sampler_(std::move(sampler)) {
+    if constexpr (requires { SamplerT::spacing::check(box.near, box.far); }) SamplerT::spacing::check(box.near, box.far);
+  }
   const SceneBox& box() const { return box_; }
   SceneBox& box() { return box_; }
   const SamplerT& sampler() const { return sampler_; }
