@@ -1,15 +1,22 @@
 """Gathers the metrics.json files of a sweep (examples/slurm/sweep.sh) into one table.
 
-    python3 examples/slurm/gather.py OUT [--csv FILE]
+    python3 examples/slurm/gather.py OUT [--csv FILE] [--against PRESET]
 
 One row per (scene, preset): the mean and spread over seeds of our PSNR and SSIM under metrics.json's primary
 alignment, our error split by scale (eval's error_scales: the coarse and the fine part's PSNR; compare both
 before adopting a change, the coarse part varies most between seeds), and the baselines'; the alignment is
 printed with the table. Every run is also listed in the CSV.
+
+--against PRESET adds a paired table: for every other preset, scene by scene, the differences from PRESET
+at the seeds both ran (preset minus PRESET): their mean ± sd in PSNR, SSIM and the coarse and fine parts,
+how many seeds gained PSNR, and each seed's PSNR difference. A training seed fixes the initial field and the
+steps' draws, so the spread between seeds (often 0.5–1 dB) is largely shared by two presets at one seed;
+the paired differences show a change's effect where the means' spreads hide it.
 """
 import argparse
 import csv
 import json
+import math
 import pathlib
 import statistics
 import sys
@@ -38,16 +45,50 @@ def runs(out):
                    di_psnr=m["methods"]["direct_integration"]["psnr"], hpf_psnr=m["methods"]["high_pass_filter"]["psnr"])
 
 
-def spread(v, digits=2):
+def spread(v, digits=2, signed=False):
     if any(x is None for x in v):
         return "—"
-    return f"{statistics.mean(v):.{digits}f} ± {statistics.stdev(v):.{digits}f}" if len(v) > 1 else f"{v[0]:.{digits}f}"
+    if any(math.isinf(x) for x in v):  # an error-free part's PSNR: the mean is infinite, the spread undefined
+        return "inf"
+    sign = "+" if signed else ""
+    return f"{statistics.mean(v):{sign}.{digits}f} ± {statistics.stdev(v):.{digits}f}" if len(v) > 1 else f"{v[0]:{sign}.{digits}f}"
+
+
+def diff(a, b):
+    """a − b, or None where either is missing or infinite (an error-free part has no finite difference)."""
+    if a is None or b is None or math.isinf(a) or math.isinf(b):
+        return None
+    return a - b
+
+
+def paired(rows, reference):
+    """The paired table's lines: per (scene, preset ≠ reference), the per-seed differences from the
+    reference at the seeds both have."""
+    lines = [f"Paired with {reference} (each preset minus {reference} at the same training seed; mean ± sd over seeds)\n",
+             "| scene | preset | seeds | Δ PSNR | Δ SSIM | Δ coarse PSNR | Δ fine PSNR | PSNR higher | Δ PSNR per seed |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    ref = {(r["scene"], r["seed"]): r for r in rows if r["preset"] == reference}
+    if not ref:
+        sys.exit(f"--against {reference}: no run of that preset")
+    for scene, preset in sorted({(r["scene"], r["preset"]) for r in rows if r["preset"] != reference}):
+        g = sorted((r for r in rows if (r["scene"], r["preset"]) == (scene, preset) and (scene, r["seed"]) in ref),
+                   key=lambda r: r["seed"])
+        if not g:
+            continue
+        d = {k: [diff(r[k], ref[(scene, r["seed"])][k]) for r in g] for k in ("psnr", "ssim", "coarse_psnr", "fine_psnr")}
+        wins = sum(x is not None and x > 0 for x in d["psnr"])
+        per_seed = ", ".join(f"{r['seed']}: " + ("—" if x is None else f"{x:+.2f}") for r, x in zip(g, d["psnr"]))
+        lines.append(f"| {scene} | {preset} | {','.join(str(r['seed']) for r in g)} | {spread(d['psnr'], signed=True)} | "
+                     f"{spread(d['ssim'], 3, signed=True)} | {spread(d['coarse_psnr'], signed=True)} | "
+                     f"{spread(d['fine_psnr'], signed=True)} | {wins} of {len(g)} | {per_seed} |")
+    return lines
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out")
     ap.add_argument("--csv")
+    ap.add_argument("--against", metavar="PRESET", help="add the differences from this preset, paired by seed")
     a = ap.parse_args()
     rows = list(runs(a.out))
     if not rows:
@@ -61,6 +102,8 @@ def main():
         print(f"| {key[0]} | {key[1]} | {','.join(str(r['seed']) for r in g)} | {spread([r['psnr'] for r in g])} | "
               f"{spread([r['ssim'] for r in g], 3)} | {spread([r['coarse_psnr'] for r in g])} | {spread([r['fine_psnr'] for r in g])} | "
               f"{spread([r['di_psnr'] for r in g])} | {spread([r['hpf_psnr'] for r in g])} |")
+    if a.against:
+        print("\n" + "\n".join(paired(rows, a.against)))
     if a.csv:
         with open(a.csv, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
