@@ -9,9 +9,9 @@ printed with the table. Every run is also listed in the CSV.
 
 --against PRESET adds a paired table: for every other preset, scene by scene, the differences from PRESET
 at the seeds both ran (preset minus PRESET): their mean ± sd in PSNR, SSIM and the coarse and fine parts,
-how many seeds gained PSNR, and each seed's PSNR difference. A training seed fixes the initial field and the
-steps' draws, so the spread between seeds (often 0.5–1 dB) is largely shared by two presets at one seed;
-the paired differences show a change's effect where the means' spreads hide it.
+how many seeds gained PSNR, and each seed's PSNR difference. Two presets trained at one seed share the
+recording and, where their parts agree, what the seed draws (the initial field, the windows, the pixels),
+so the seed's share of the spread between seeds (often 0.5–1 dB) can cancel in the differences.
 """
 import argparse
 import csv
