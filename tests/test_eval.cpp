@@ -2,6 +2,9 @@
 #include <evnerf/eval/metrics.hpp>
 #include <evnerf/eval/report.hpp>
 
+#include <cmath>
+#include <numbers>
+
 #include "common.hpp"
 
 using namespace evnerf;
@@ -217,6 +220,39 @@ TEST_CASE("error_scales: a brightness offset is coarse error, a pixel-scale patt
   CHECK_THROWS_AS(eval::error_scales(truth, Image(3, 3, 1)), Error);
 }
 
+TEST_CASE("error_scales: the row and column parts are the error's row and column means") {
+  // Error = f(y) + g(x) with f and g of zero mean: every row's mean error is f(y), every column's g(x).
+  const int W = 40, H = 30;
+  const Image truth = det(W, H, 0.2, 0.3);
+  Image pred = truth;
+  double f2 = 0, g2 = 0;
+  auto f = [](int y) { return 0.02 * std::cos(2 * std::numbers::pi * (y + 0.5) / 30.0) + (y % 2 ? 0.01 : -0.01); };
+  auto g = [](int x) { return 0.03 * std::sin(2 * std::numbers::pi * (x + 0.5) / 40.0); };
+  for (int y = 0; y < H; ++y) f2 += f(y) * f(y) / H;
+  for (int x = 0; x < W; ++x) g2 += g(x) * g(x) / W;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) pred.at(x, y) = static_cast<float>(truth.at(x, y) + f(y) + g(x));
+  const auto e = eval::error_scales(pred, truth);
+  CHECK(e.row_mse == doctest::Approx(f2).epsilon(1e-4));
+  CHECK(e.column_mse == doctest::Approx(g2).epsilon(1e-4));
+  CHECK(e.row_psnr() == doctest::Approx(10 * std::log10(1 / f2)).epsilon(1e-4));
+  // A pattern with zero mean along every row and every column has neither part; the exact prediction neither.
+  Image checker = truth;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) checker.at(x, y) += ((x + y) % 2 ? 0.05f : -0.05f);
+  const auto c = eval::error_scales(checker, truth);
+  CHECK(c.row_mse < 1e-12);
+  CHECK(c.column_mse < 1e-12);
+  CHECK(eval::error_scales(truth, truth).row_psnr() == INFINITY);
+  // Per channel: opposite offsets in two channels do not cancel.
+  Image rgb(4, 3, 3), rgb_pred(4, 3, 3);
+  for (std::size_t i = 0; i < rgb.pixels(); ++i) {
+    rgb_pred.data[i * 3] = 0.1f;
+    rgb_pred.data[i * 3 + 1] = -0.1f;
+  }
+  CHECK(eval::error_scales(rgb_pred, rgb).row_mse == doctest::Approx(0.02 / 3).epsilon(1e-5));
+}
+
 TEST_CASE("error_scales_json: per method from the primary alignment's aligned images, refused without them") {
   const Image truth = det(32, 24, 0.2, 0.3);
   Image mapped = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
@@ -229,6 +265,8 @@ TEST_CASE("error_scales_json: per method from the primary alignment's aligned im
   CHECK((exact_coarse.is_null() || exact_coarse.get<double>() > 100));
   CHECK(j.at("methods").at("gain").at("fine_psnr").get<double>() > 60);
   CHECK(j.at("methods").at("gain").at("coarse_psnr").get<double>() > 60);
+  CHECK(j.at("methods").at("gain").at("row_psnr").get<double>() > 60);
+  CHECK(j.at("methods").at("gain").contains("column_mse"));
   const auto kept_not = eval::score_methods({exact}, {truth, truth}, eval::Alignment::GlobalLogAffine, false);
   CHECK_THROWS_AS(eval::error_scales_json(kept_not, {truth, truth}), Error);
 }

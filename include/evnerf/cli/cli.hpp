@@ -100,12 +100,18 @@ inline void print_scores(const Scored& s, const Truth& truth) {
   print_table(s.primary);
   if (s.json.contains("error_scales")) {
     const auto& es = s.json.at("error_scales");
-    fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest):\n",
+    fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
+               "each row's, column's mean error):\n",
                short_number(es.at("sigma_px").get<double>()));
     for (const auto& name : s.primary.names) {
       const auto& v = es.at("methods").at(name);
-      auto db = [](const nlohmann::json& x) { return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf"); };
-      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}\n", name, db(v.at("coarse_psnr")), db(v.at("fine_psnr")));
+      auto db = [&v](const char* key) {
+        if (!v.contains(key)) return std::string("-");
+        const auto& x = v.at(key);
+        return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
+      };
+      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name, db("coarse_psnr"),
+                 db("fine_psnr"), db("row_psnr"), db("column_psnr"));
     }
   }
   for (const auto& o : s.others) print_table(o);

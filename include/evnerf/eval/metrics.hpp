@@ -351,10 +351,19 @@ inline Image gaussian_blur(const Image& a, double sigma) {
 /// fine part e − blur_σ(e) (edges and texture: sharpness and registration). Each part's MSE and PSNR as if
 /// it were the only error. The two MSEs add up to about the whole MSE (exactly where the parts are
 /// uncorrelated); a method can gain in one part and lose in the other, which the whole PSNR hides.
+/// Two more views of the same error, not a third part: its row part, each image row's mean error (per
+/// channel) spread along the row, and its column part, likewise per column. A camera translating along its
+/// x axis (a slider) never moves a point to another row, so adding any function of the row to the log
+/// brightness changes no event: the row part is close to what no event of such a motion can see (and the
+/// column part, of a motion along y). Compare the row part with the whole to see how much of an error on
+/// a slider recording is in that blind spot.
 struct ErrorScales {
-  double coarse_mse = 0, fine_mse = 0;
-  double coarse_psnr() const { return coarse_mse <= 0 ? INFINITY : 10 * std::log10(1.0 / coarse_mse); }
-  double fine_psnr() const { return fine_mse <= 0 ? INFINITY : 10 * std::log10(1.0 / fine_mse); }
+  double coarse_mse = 0, fine_mse = 0, row_mse = 0, column_mse = 0;
+  static double psnr_of(double mse) { return mse <= 0 ? INFINITY : 10 * std::log10(1.0 / mse); }
+  double coarse_psnr() const { return psnr_of(coarse_mse); }
+  double fine_psnr() const { return psnr_of(fine_mse); }
+  double row_psnr() const { return psnr_of(row_mse); }
+  double column_psnr() const { return psnr_of(column_mse); }
 };
 /// The scale at which eval splits the error (pixels).
 inline constexpr double kErrorScaleSigma = 8.0;
@@ -372,6 +381,22 @@ inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, d
   if (!e.data.empty()) {
     s.coarse_mse /= static_cast<double>(e.data.size());
     s.fine_mse /= static_cast<double>(e.data.size());
+  }
+  // Row and column parts: each row's (column's) mean error, per channel, counted at every pixel of it.
+  const int W = e.width, H = e.height, C = e.channels;
+  std::vector<double> row(static_cast<std::size_t>(H) * C, 0.0), col(static_cast<std::size_t>(W) * C, 0.0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int c = 0; c < C; ++c) {
+        const double v = e.data[(static_cast<std::size_t>(y) * W + x) * C + c];
+        row[static_cast<std::size_t>(y) * C + c] += v;
+        col[static_cast<std::size_t>(x) * C + c] += v;
+      }
+  if (!e.data.empty()) {
+    for (const double r : row) s.row_mse += (r / W) * (r / W) * W;
+    for (const double k : col) s.column_mse += (k / H) * (k / H) * H;
+    s.row_mse /= static_cast<double>(e.data.size());
+    s.column_mse /= static_cast<double>(e.data.size());
   }
   return s;
 }

@@ -89,13 +89,13 @@ inline nlohmann::json metrics_json(const AlignedScores& primary, const std::vect
 
 /// The primary alignment's error split by scale (ErrorScales), per method, averaged over the frames (PSNR in
 /// dB, as the scores): {"sigma_px", "methods": {"<name>": {"coarse_mse", "coarse_psnr", "fine_mse",
-/// "fine_psnr"}}}. `a` must hold the aligned predictions (score_methods with keep_aligned) and `truths` the
+/// "fine_psnr", "row_mse", "row_psnr", "column_mse", "column_psnr"}}}. `a` must hold the aligned predictions (score_methods with keep_aligned) and `truths` the
 /// truth as it was scored (tone-mapped for HDR truth, normalised under min-max).
 inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vector<Image>& truths, double sigma = kErrorScaleSigma) {
   nlohmann::json j = {{"sigma_px", sigma}, {"methods", nlohmann::json::object()}};
   for (std::size_t m = 0; m < a.names.size(); ++m) {
     require(a.aligned[m].size() == truths.size(), "error_scales_json: the aligned predictions were not kept");
-    double cm = 0, fm = 0, cp = 0, fp = 0;
+    double cm = 0, fm = 0, cp = 0, fp = 0, rm = 0, rp = 0, km = 0, kp = 0;
     const double n = static_cast<double>(truths.size());
     for (std::size_t f = 0; f < truths.size(); ++f) {
       const auto e = error_scales(a.aligned[m][f], truths[f], sigma);
@@ -103,9 +103,14 @@ inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vecto
       fm += e.fine_mse / n;
       cp += e.coarse_psnr() / n;
       fp += e.fine_psnr() / n;
+      rm += e.row_mse / n;
+      rp += e.row_psnr() / n;
+      km += e.column_mse / n;
+      kp += e.column_psnr() / n;
     }
     j["methods"][a.names[m]] = {{"coarse_mse", json_number(cm)}, {"coarse_psnr", json_number(cp)}, {"fine_mse", json_number(fm)},
-                                {"fine_psnr", json_number(fp)}};
+                                {"fine_psnr", json_number(fp)},   {"row_mse", json_number(rm)},    {"row_psnr", json_number(rp)},
+                                {"column_mse", json_number(km)},  {"column_psnr", json_number(kp)}};
   }
   return j;
 }
