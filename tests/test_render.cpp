@@ -294,6 +294,25 @@ TEST_CASE("samplers: depth spacing policies; uniform is stratified_depths bit fo
   CHECK(render::Stratified<8, render::LogDepth>::name() == "stratified 8 log-spaced");
   static_assert(render::Sampler<render::Stratified<8, render::LogDepth>>);
   static_assert(render::Sampler<render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>>);
+  // Log(z + c), c = 1: centres exp(a + (k + ½)·s/n) − 1, bins (z + 1)·s/n long, jittered samples inside their bins.
+  using Off = render::OffsetLogDepth<100>;
+  const double la = std::log(1.3), ls = std::log(8.0) - std::log(1.3);
+  Off::depths<double>(n, 0.3, 7.0, nullptr, c.data());
+  for (int k = 0; k < n; ++k) CHECK(c[k] == doctest::Approx(std::exp(la + (k + 0.5) * ls / n) - 1).epsilon(1e-12));
+  for (int k = 1; k < n; ++k) CHECK((c[k] + 1) / (c[k - 1] + 1) == doctest::Approx(std::exp(ls / n)).epsilon(1e-12));
+  for (int rep = 0; rep < 50; ++rep) {
+    Off::depths<double>(n, 0.3, 7.0, &rng, c.data());
+    for (int k = 0; k < n; ++k) {
+      CHECK(c[k] >= (std::exp(la + k * ls / n) - 1) * (1 - 1e-12));
+      CHECK(c[k] <= (std::exp(la + (k + 1) * ls / n) - 1) * (1 + 1e-12));
+    }
+  }
+  CHECK_NOTHROW(Off::check(0.0, 7.0));  // near 0 is fine with an offset
+  CHECK_THROWS_WITH_AS(Off::check(-1.5, 7.0), doctest::Contains("near + offset > 0"), Error);
+  CHECK_THROWS_WITH_AS(Off::check(2.0, 1.0), doctest::Contains("near 2 and far 1"), Error);
+  CHECK(render::OccupancySkipping<128, 64, 16, 256, 150, Off>::name() ==
+        "occupancy 128 grid 64 every 16 after 256 alpha 150/1000 log-spaced offset 1");
+  static_assert(render::Sampler<render::OccupancySkipping<8, 8, 1, 0, 10, Off>>);
 }
 
 TEST_CASE("samplers: stratified depths cover [near, far] in order; importance samples follow the weights") {

@@ -59,6 +59,11 @@ using FastSampler = render::OccupancySkipping<64, 64, 16, 256, 300>;
 /// times on `planes`. Not Fast's default: `planes` +0.63 dB over three seeds (the fine part up at every
 /// seed), `object` level with seed 2 −2.0 dB, random seed 1 −1.0 dB (bench/README.md, session 28).
 using LogSampler = render::OccupancySkipping<128, 64, 16, 256, 150, render::LogDepth>;
+/// FastLogOffset's sampler (session 29): 128 samples per ray spaced evenly in log(z + 1 m)
+/// (render::OffsetLogDepth<100>), otherwise LogSampler. Its bins are 2.8 cm long at 1 m (LogDepth's 2.5) and
+/// 11.4 cm at 7 m (LogDepth's 17): nowhere much longer than Fast's 10.5 cm, where LogDepth's bins pass them
+/// beyond 4.3 m and cost `object` (median depth 3.6 m) its fine part at 64 bins (session 28).
+using LogOffsetSampler = render::OccupancySkipping<128, 64, 16, 256, 150, render::OffsetLogDepth<100>>;
 /// The grid of sessions 9–19: a cell kept while its density gives a sample an alpha of 1 %.
 using DenseGridSampler = render::OccupancySkipping<64>;
 /// Fast learns its thresholds jointly, kept beyond the floor by projection (loss::ProjectedThresholds): the
@@ -88,6 +93,10 @@ using FastDiffuse = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, 
                               SphericalHarmonics<1>>;
 /// Fast with LogSampler: samples spaced in log depth (session 28, `fast-log`).
 using FastLog = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance, LogSampler>;
+/// Fast with LogOffsetSampler: samples spaced in log(z + 1 m) (session 29, `fast-log-offset`). Measured on
+/// `planes` and `object` only (bench/README.md, session 29); not Fast's default.
+using FastLogOffset =
+    FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance, LogOffsetSampler>;
 /// Fast with the total-variation term at weight 0.3 (session 21's measurements; the same checkpoints as Fast).
 using FastTv = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastTvObjective>;
 /// Fast as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).
