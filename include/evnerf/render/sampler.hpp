@@ -44,6 +44,17 @@ struct UniformDepth {
     stratified_depths(n, near, far, rng, t);
   }
 };
+/// LogDepth's and OffsetLogDepth's bins: n equal bins in log(z + c) between near and far; bin k's centre, or
+/// a point drawn uniformly in log(z + c) inside it (c = 0 is LogDepth, bit for bit as before the two shared it).
+template <class T>
+void log_spaced_depths(int n, double near, double far, double c, Rng* rng, T* t) {
+  const double a = std::log(near + c), span = std::log(far + c) - a;
+  for (int k = 0; k < n; ++k) {
+    const double u = (k + (rng ? rng->uniform() : 0.5)) / n;
+    t[k] = static_cast<T>(std::exp(a + u * span) - c);
+  }
+}
+
 struct LogDepth {
   static constexpr std::string_view name = " log-spaced";
   /// The renderer calls this when it is given a box (outside any parallel region).
@@ -55,11 +66,7 @@ struct LogDepth {
   /// drawn uniformly in log depth inside it. Needs check(near, far).
   template <class T>
   static void depths(int n, T near, T far, Rng* rng, T* t) {
-    const double a = std::log(static_cast<double>(near)), span = std::log(static_cast<double>(far)) - a;
-    for (int k = 0; k < n; ++k) {
-      const double u = (k + (rng ? rng->uniform() : 0.5)) / n;
-      t[k] = static_cast<T>(std::exp(a + u * span));
-    }
+    log_spaced_depths(n, static_cast<double>(near), static_cast<double>(far), 0.0, rng, t);
   }
 };
 
@@ -82,11 +89,7 @@ struct OffsetLogDepth {
   /// centre in log(z + c), or a point drawn uniformly in log(z + c) inside it.
   template <class T>
   static void depths(int n, T near, T far, Rng* rng, T* t) {
-    const double a = std::log(static_cast<double>(near) + offset), span = std::log(static_cast<double>(far) + offset) - a;
-    for (int k = 0; k < n; ++k) {
-      const double u = (k + (rng ? rng->uniform() : 0.5)) / n;
-      t[k] = static_cast<T>(std::exp(a + u * span) - offset);
-    }
+    log_spaced_depths(n, static_cast<double>(near), static_cast<double>(far), offset, rng, t);
   }
 };
 
