@@ -62,6 +62,15 @@ for m in (c, g):
     for name, v in es["methods"].items():
         whole = m["methods"][name]["mse"]
         assert abs(v["coarse_mse"] + v["fine_mse"] - whole) < 0.25 * whole, (name, v, whole)
+    # The fine part by true depth (the simulator writes depth): three bands, cut at rising depths, whose
+    # pixel shares and fine errors add up to no more than the whole.
+    fd = es["fine_by_depth"]
+    assert len(fd["edges_m"]) == 4 and fd["edges_m"] == sorted(fd["edges_m"]) and fd["edges_m"][0] > 0, fd
+    assert 0.5 < sum(fd["pixel_share"]) <= 1 + 1e-9, fd
+    assert set(fd["methods"]) == set(m["methods"]), fd
+    for name, v in fd["methods"].items():
+        assert len(v["fine_mse"]) == 3 and min(v["fine_mse"]) >= 0, (name, v)
+        assert sum(v["fine_mse"]) <= es["methods"][name]["fine_mse"] * (1 + 1e-6) + 1e-12, (name, v, es["methods"][name])
 assert png_colour_type(f"{w}/eval_grey/montage.png") == 0
 b = json.load(open(f"{w}/base/baselines.json"))
 assert b["channels"] == 3, "baselines on a colour recording are scored in colour"

@@ -220,6 +220,44 @@ TEST_CASE("error_scales: a brightness offset is coarse error, a pixel-scale patt
   CHECK_THROWS_AS(eval::error_scales(truth, Image(3, 3, 1)), Error);
 }
 
+TEST_CASE("fine_error_by_depth: a pixel-scale error on the near pixels lands in the near band, and the bands add up") {
+  // Left third of the image 1 m away, middle 3 m, right 6 m; a 1-px checker error on the near third only,
+  // then on every pixel.
+  const int W = 48, H = 32;
+  const Image truth = det(W, H, 0.2, 0.3);
+  Image near_err = truth, all_err = truth;
+  std::vector<float> depth(static_cast<std::size_t>(W) * H);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const float c = ((x + y) % 2 ? 0.05f : -0.05f);
+      depth[static_cast<std::size_t>(y) * W + x] = x < 16 ? 1.0f : x < 32 ? 3.0f : 6.0f;
+      if (x < 12) near_err.at(x, y) += c;  // away from the band's border, where the blur mixes bands
+      all_err.at(x, y) += c;
+    }
+  const std::vector<std::vector<float>> d{depth, depth};
+  const auto n = eval::fine_error_by_depth({near_err, near_err}, {truth, truth}, d, 7.0);
+  REQUIRE(n.edges.size() == 4);
+  CHECK(n.edges == std::vector<double>{1.0, 3.0, 6.0, 6.0});
+  for (const double s : n.pixel_share) CHECK(s == doctest::Approx(1.0 / 3));
+  CHECK(n.fine_mse[0] == doctest::Approx(0.0025 * 12 / W).epsilon(0.05));
+  CHECK(n.fine_mse[1] < 1e-3 * n.fine_mse[0]);
+  CHECK(n.fine_mse[2] < 1e-6);
+  // Every pixel in error: the bands add up to the whole fine MSE.
+  const auto a = eval::fine_error_by_depth({all_err}, {truth}, {depth}, 7.0);
+  const auto whole = eval::error_scales(all_err, truth);
+  CHECK(a.fine_mse[0] + a.fine_mse[1] + a.fine_mse[2] == doctest::Approx(whole.fine_mse).epsilon(1e-9));
+  // Depths that are not finite or not nearer than far count in no band; none usable gives no bands.
+  std::vector<float> holes = depth;
+  for (int y = 0; y < H; ++y) holes[static_cast<std::size_t>(y) * W + W - 1] = INFINITY;
+  for (int y = 0; y < H; ++y) holes[static_cast<std::size_t>(y) * W] = 7.5f;
+  const auto h = eval::fine_error_by_depth({all_err}, {truth}, {holes}, 7.0);
+  CHECK(h.pixel_share[0] + h.pixel_share[1] + h.pixel_share[2] == doctest::Approx(double(W - 2) / W));
+  CHECK(eval::fine_error_by_depth({truth}, {truth}, {std::vector<float>(depth.size(), 9.0f)}, 7.0).edges.empty());
+  CHECK_THROWS_WITH_AS(eval::fine_error_by_depth({truth}, {truth}, {std::vector<float>(5, 1.0f)}, 7.0), doctest::Contains("5 values for 1536 pixels"),
+                       Error);
+  CHECK_THROWS_AS(eval::fine_error_by_depth({truth}, {truth, truth}, d, 7.0), Error);
+}
+
 TEST_CASE("error_scales: the row and column parts are the error's row and column means") {
   // Error = f(y) + g(x) with f and g of zero mean: every row's mean error is f(y), every column's g(x).
   const int W = 40, H = 30;

@@ -104,6 +104,7 @@ struct Scored {
   eval::AlignedScores primary;
   std::vector<eval::AlignedScores> others;
   std::optional<eval::AlignedScores> grey;  ///< colour truth only: every method and the truth in luminance
+  std::vector<Image> scored_truth;           ///< the truth as the primary alignment compared it
   nlohmann::json json;
 };
 inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& truth, const std::vector<eval::Alignment>& als,
@@ -117,7 +118,7 @@ inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& t
   j = eval::metrics_json(s.primary, s.others, ids);
   j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
                    : nlohmann::json{{"kind", "frames"}};
-  std::vector<Image> scored_truth;  // the truth as the primary alignment compared it
+  auto& scored_truth = s.scored_truth;
   for (const auto& g : truth.images)
     scored_truth.push_back(als.front() == eval::Alignment::MinMax ? (hdr ? hdr->log_min_max(g) : eval::min_max(g)) : (hdr ? hdr->apply(g) : g));
   j["error_scales"] = eval::error_scales_json(s.primary, scored_truth);
@@ -353,6 +354,15 @@ inline Evaluation evaluate(const Renderable& model, const io::Dataset& d, const 
     for (auto i : e.ids) gtd.push_back(io::load_npy<float>(d.depth[i]).data);
     const double absrel = eval::depth_absrel_median_scaled(gtd, depths, model.far);
     if (std::isfinite(absrel)) e.json["depth_absrel_median_scaled"] = absrel;
+    // The fine part of each method's error split into thirds of the true depth.
+    nlohmann::json fd = nlohmann::json::object();
+    for (std::size_t m = 0; m < e.scored.primary.names.size(); ++m) {
+      const auto b = eval::fine_error_by_depth(e.scored.primary.aligned[m], e.scored.scored_truth, gtd, model.far);
+      if (b.edges.empty()) break;
+      if (fd.empty()) fd = {{"edges_m", b.edges}, {"pixel_share", b.pixel_share}, {"methods", nlohmann::json::object()}};
+      fd["methods"][e.scored.primary.names[m]] = {{"fine_mse", b.fine_mse}};
+    }
+    if (!fd.empty()) e.json["error_scales"]["fine_by_depth"] = fd;
   }
   if (holdout > 0) {
     for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))

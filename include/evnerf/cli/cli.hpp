@@ -531,6 +531,18 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       const auto model = load_renderable<V...>(ckpt, parse_channel_upsampling(channel_up));
       auto e = evaluate(model, d, als, holdout);
       print_scores(e.scored, e.truth);
+      if (e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth")) {
+        const auto& fd = e.json.at("error_scales").at("fine_by_depth");
+        const auto z = fd.at("edges_m").template get<std::vector<double>>();
+        const auto p = fd.at("pixel_share").template get<std::vector<double>>();
+        fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {:.2f}-{:.2f} m ({:.0f} % of pixels), {:.2f}-{:.2f} m ({:.0f} %), "
+                   "{:.2f}-{:.2f} m ({:.0f} %)\n",
+                   z[0], z[1], 100 * p[0], z[1], z[2], 100 * p[1], z[2], z[3], 100 * p[2]);
+        for (const auto& [name, v] : fd.at("methods").items()) {
+          const auto f = v.at("fine_mse").template get<std::vector<double>>();
+          fmt::print("{:<22} {:>8.3f} {:>8.3f} {:>8.3f}\n", name, f[0] * 1e3, f[1] * 1e3, f[2] * 1e3);
+        }
+      }
       for (std::size_t q = 0; q < e.ids.size(); ++q)
         write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], float(model.near), float(model.far * 0.6));
       write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");

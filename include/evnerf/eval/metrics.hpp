@@ -401,6 +401,68 @@ inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, d
   return s;
 }
 
+/// The fine part of a sequence's error (ErrorScales' e − blur_σ(e)) split by the true depth of each pixel:
+/// where sampler and geometry changes act (a texture 1 m away needs shorter depth bins than one 6 m away).
+/// `edges` are the depth quantiles k/B of the pixels with a usable true depth (finite, > 0, < far) over the
+/// whole sequence, so each of the B bands holds about a B-th of them. `pixel_share[b]` is band b's share of
+/// all pixels, `fine_mse[b]` its pixels' squared fine error summed over the channels and divided by all
+/// values (as ErrorScales::fine_mse), so the bands add up to the whole fine MSE less the pixels without a
+/// usable depth.
+struct FineByDepth {
+  std::vector<double> edges, pixel_share, fine_mse;
+};
+inline FineByDepth fine_error_by_depth(const std::vector<Image>& aligned, const std::vector<Image>& truths,
+                                       const std::vector<std::vector<float>>& depth, double far, int bands = 3,
+                                       double sigma = kErrorScaleSigma) {
+  require(bands >= 1, "fine_error_by_depth: need at least one band, got " + std::to_string(bands));
+  require(aligned.size() == truths.size() && depth.size() == truths.size(),
+          "fine_error_by_depth: need as many renders and depth maps as frames, got " + std::to_string(aligned.size()) + ", " +
+              std::to_string(depth.size()) + " and " + std::to_string(truths.size()));
+  const auto usable = [far](float z) { return std::isfinite(z) && z > 0 && z < far; };
+  std::vector<float> all;
+  for (std::size_t f = 0; f < truths.size(); ++f) {
+    require_same_shape(aligned[f], truths[f]);
+    require(depth[f].size() == truths[f].pixels(), "fine_error_by_depth: frame " + std::to_string(f) + "'s depth map has " +
+                                                       std::to_string(depth[f].size()) + " values for " +
+                                                       std::to_string(truths[f].pixels()) + " pixels");
+    for (const float z : depth[f])
+      if (usable(z)) all.push_back(z);
+  }
+  FineByDepth r;
+  if (all.empty()) return r;
+  std::sort(all.begin(), all.end());
+  for (int b = 0; b <= bands; ++b)
+    r.edges.push_back(all[std::min(all.size() - 1, static_cast<std::size_t>(double(b) / bands * static_cast<double>(all.size())))]);
+  r.pixel_share.assign(static_cast<std::size_t>(bands), 0.0);
+  r.fine_mse.assign(static_cast<std::size_t>(bands), 0.0);
+  double values = 0, pixels = 0;
+  for (std::size_t f = 0; f < truths.size(); ++f) {
+    Image e = aligned[f];
+    for (std::size_t i = 0; i < e.data.size(); ++i) e.data[i] = aligned[f].data[i] - truths[f].data[i];
+    const Image lo = gaussian_blur(e, sigma);
+    const int C = e.channels;
+    for (std::size_t p = 0; p < e.pixels(); ++p) {
+      const float z = depth[f][p];
+      if (usable(z)) {
+        // band b holds edges[b] <= z < edges[b + 1] (the last band includes its top edge)
+        const auto b = std::min<std::size_t>(static_cast<std::size_t>(bands) - 1,
+                                             static_cast<std::size_t>(std::upper_bound(r.edges.begin() + 1, r.edges.end() - 1, z) -
+                                                                      (r.edges.begin() + 1)));
+        r.pixel_share[b] += 1;
+        for (int c = 0; c < C; ++c) {
+          const double v = double(e.data[p * C + c]) - lo.data[p * C + c];
+          r.fine_mse[b] += v * v;
+        }
+      }
+    }
+    values += static_cast<double>(e.data.size());
+    pixels += static_cast<double>(e.pixels());
+  }
+  for (auto& v : r.fine_mse) v /= values;
+  for (auto& v : r.pixel_share) v /= pixels;
+  return r;
+}
+
 /// Converts a colour image to grey luminance (Rec. 601 weights); grey images pass through.
 inline Image to_grey(const Image& a) {
   if (a.channels == 1) return a;
