@@ -367,11 +367,19 @@ struct ErrorScales {
 };
 /// The scale at which eval splits the error (pixels).
 inline constexpr double kErrorScaleSigma = 8.0;
-inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, double sigma = kErrorScaleSigma) {
+/// The error image e = prediction − truth and its coarse part blur_σ(e) (the fine part is e − blur_σ(e)).
+struct ErrorParts {
+  Image error, coarse;
+};
+inline ErrorParts error_parts(const Image& aligned_pred, const Image& truth, double sigma = kErrorScaleSigma) {
   require_same_shape(aligned_pred, truth);
   Image e = aligned_pred;
   for (std::size_t i = 0; i < e.data.size(); ++i) e.data[i] = aligned_pred.data[i] - truth.data[i];
-  const Image lo = gaussian_blur(e, sigma);
+  Image lo = gaussian_blur(e, sigma);
+  return {std::move(e), std::move(lo)};
+}
+inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, double sigma = kErrorScaleSigma) {
+  const auto [e, lo] = error_parts(aligned_pred, truth, sigma);
   ErrorScales s;
   for (std::size_t i = 0; i < e.data.size(); ++i) {
     const double c = lo.data[i], f = double(e.data[i]) - lo.data[i];
@@ -421,7 +429,7 @@ inline FineByDepth fine_error_by_depth(const std::vector<Image>& aligned, const 
   const auto usable = [far](float z) { return std::isfinite(z) && z > 0 && z < far; };
   std::vector<float> all;
   for (std::size_t f = 0; f < truths.size(); ++f) {
-    require_same_shape(aligned[f], truths[f]);
+    require_same_shape(aligned[f], truths[f]);  // before any work, as the depth sizes
     require(depth[f].size() == truths[f].pixels(), "fine_error_by_depth: frame " + std::to_string(f) + "'s depth map has " +
                                                        std::to_string(depth[f].size()) + " values for " +
                                                        std::to_string(truths[f].pixels()) + " pixels");
@@ -437,9 +445,7 @@ inline FineByDepth fine_error_by_depth(const std::vector<Image>& aligned, const 
   r.fine_mse.assign(static_cast<std::size_t>(bands), 0.0);
   double values = 0, pixels = 0;
   for (std::size_t f = 0; f < truths.size(); ++f) {
-    Image e = aligned[f];
-    for (std::size_t i = 0; i < e.data.size(); ++i) e.data[i] = aligned[f].data[i] - truths[f].data[i];
-    const Image lo = gaussian_blur(e, sigma);
+    const auto [e, lo] = error_parts(aligned[f], truths[f], sigma);
     const int C = e.channels;
     for (std::size_t p = 0; p < e.pixels(); ++p) {
       const float z = depth[f][p];
