@@ -915,6 +915,27 @@ TEST_CASE("training data: subslices put evenly spaced boundaries between frames 
   CHECK_THROWS_WITH(train::prepare(f.d, cfg), doctest::Contains("subslices and holdout cannot be combined"));
 }
 
+TEST_CASE("training data: with subslices a window objective's windows span W frame intervals, not W slices") {
+  Fixture f;
+  train::Config cfg = f.cfg;
+  cfg.subslices = 3;
+  TrainingData td = train::prepare(f.d, cfg);
+  REQUIRE(td.slices.size() == 12);
+  CHECK(td.slices_per_interval == 3);
+  TinyWindow m(td.slices.size(), train::scene_box(td, f.cfg), 7);  // W = 4 intervals: 1..12 slices
+  std::size_t longest = 0;
+  for (int s = 0; s < 40; ++s) {
+    const auto st = m.train_step(td, 64, 3);
+    REQUIRE(st.first_slice + st.window <= 12);
+    longest = std::max(longest, st.window);
+  }
+  CHECK(longest > 4);
+  td.slices_per_interval = 1;  // the same slices taken as the recording's own cut: at most W slices
+  for (int s = 0; s < 40; ++s) CHECK(m.train_step(td, 64, 3).window <= 4);
+  td.slices_per_interval = 0;
+  CHECK_THROWS_WITH(m.train_step(td, 64, 3), doctest::Contains("slices per interval"));
+}
+
 // ---- faults a long run meets (the process-level ones, SIGKILL and SIGINT, are in tests/faults.sh) ----
 
 namespace {

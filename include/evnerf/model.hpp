@@ -45,6 +45,9 @@ struct TrainingData {
   events::PixelSites sites;                    ///< the pixels that carry events (one colour channel's sites of
                                                ///< a mosaic at the full sensor); all() = every pixel. Steps draw
                                                ///< their pixels and noise among them only.
+  int slices_per_interval = 1;                 ///< slices per interval of the recording's own cut (train's
+                                               ///< --subslices): a window objective's W counts such intervals,
+                                               ///< so its windows span 1..W·this slices, the same time at any cut
 };
 
 using render::Rendering;
@@ -264,7 +267,8 @@ class EvNerf {
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
     if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
     StepWindow& sw = window_;
-    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites);
+    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites,
+                               data.slices_per_interval);
     const std::size_t first = sw.first, L = sw.len;
     const int P = static_cast<int>(sw.pixels.size());
     const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();

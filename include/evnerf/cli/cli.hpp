@@ -285,7 +285,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  trainc->add_option("--subslices", cfg.subslices, "slices per frame interval (boundaries between frames, poses interpolated)")
+  trainc->add_option("--subslices", cfg.subslices, "slices per frame interval (boundaries between frames, poses interpolated); a window objective's windows keep their span in time, 1..W frame intervals")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
   trainc->add_option("--holdout", cfg.holdout_every, "hold out every K-th slice boundary (novel views; 0 = none)")

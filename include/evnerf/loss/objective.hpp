@@ -142,8 +142,10 @@ struct StepDraw {
 };
 
 /// Draws a step of objective O from `rng`: the window (one slice when O::max_window = 1: uniform among
-/// the trainable slices, as the paper; otherwise the length uniform in 1..max_window, then the start
-/// uniform among the windows of that length whose slices are all trainable, shorter when there is none),
+/// the trainable slices, as the paper; otherwise the length uniform in 1..max_window × `per_interval`, then
+/// the start uniform among the windows of that length whose slices are all trainable, shorter when there is
+/// none; `per_interval` is the slices per interval of the recording's own cut, TrainingData's
+/// slices_per_interval, so finer cuts move the windows' ends, not their span in time),
 /// then Ev-NeRF's noise (noise_ratio × the window's count, each event in a random slice of the window,
 /// redrawn at every step; drawn before the pixels, so a one-slice step draws as inject_noise does), then
 /// the pixels by O's pixel policy, then their counts with the noise added (saturating like inject_noise).
@@ -151,7 +153,9 @@ struct StepDraw {
 /// and the noise to the pixels that carry events. Deterministic for a given rng.
 template <Objective O>
 void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
-               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr) {
+               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr,
+               int per_interval = 1) {
+  require(per_interval >= 1, "train_step: slices per interval must be at least 1, got " + std::to_string(per_interval));
   const std::size_t N = slices.size();
   auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
   d.starts.clear();
@@ -164,7 +168,7 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
   } else {
     std::vector<std::size_t> run(N + 1, 0);  // run[i]: trainable slices in a row from i
     for (std::size_t i = N; i-- > 0;) run[i] = trainable(i) ? run[i + 1] + 1 : 0;
-    std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(O::max_window));
+    std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(O::max_window) * static_cast<std::uint64_t>(per_interval));
     for (; L >= 1; --L) {
       for (std::size_t i = 0; i + L <= N; ++i)
         if (run[i] >= L) d.starts.push_back(i);

@@ -45,7 +45,8 @@ struct Config {
   double near = 0.3, far = 7.0;
   int holdout_every = 0;       ///< hold out every k-th slice boundary (0 = none)
   int subslices = 1;           ///< slices per frame interval: k − 1 more boundaries, evenly spaced in time, between
-                               ///< consecutive frames (poses interpolated); windows then start and end between frames
+                               ///< consecutive frames (poses interpolated); windows then start and end between
+                               ///< frames and span the same time (a window objective's W counts frame intervals)
   bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
   bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
                                  ///< (render::SceneBox::density_length)
@@ -194,6 +195,7 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   td.pixel_dirs = render::pixel_directions(d.camera);
   td.slice_enabled.assign(td.slices.size(), true);
   td.prefix = events::CountPrefix(td.slices);
+  td.slices_per_interval = cfg.subslices;
   td.bayer = io::bayer_of(d);
   require(d.sites.empty() || d.sites.size() == static_cast<std::size_t>(d.camera.width()) * d.camera.height(),
           d.folder.string() + ": the pixel sites do not match the camera");
