@@ -74,7 +74,8 @@ using DenseGridSampler = render::OccupancySkipping<64>;
 template <class Th = loss::ProjectedThresholds, class No = loss::DefaultNoise, int C = 1, class Obj = FastObjective,
           class Prec = Fp32, class Radiance = field::ExpRadiance, class Sampler = FastSampler, class Dir = SphericalHarmonics<4>>
 using FastModel = EvNerf<FastField<C, Prec, Radiance, Dir>, Sampler, Th, No, Obj>;
-/// Fast with windows of 1..W slices (measurement presets; no total-variation term).
+/// Fast with windows of 1..W frame intervals (W slices at train's --subslices 1; measurement presets; no
+/// total-variation term).
 template <int W, class Pixels = events::UniformPixels, class Th = loss::ProjectedThresholds>
 using FastWindow = FastModel<Th, loss::DefaultNoise, 1, loss::WindowInterval<W, loss::HalfSlackCounts, Pixels>>;
 

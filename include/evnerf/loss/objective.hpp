@@ -2,8 +2,9 @@
 // end poses a step renders, the pixels it renders there (an events/pixels.hpp policy), and scores each
 // pixel's rendered log change against the events counted in the window through the per-slice thresholds.
 //   SliceInterval<Bound>             the paper's: one slice, its two ends (spec §2).
-//   WindowInterval<W, Bound, Pixels> poses 1..W slices apart, drawn uniformly per step: the counts of every
-//                                    slice in the window, each with its own learned thresholds.
+//   WindowInterval<W, Bound, Pixels> poses 1..W frame intervals apart (slices where each interval is one),
+//                                    drawn uniformly per step: the counts of every slice in the window,
+//                                    each with its own learned thresholds.
 // A new objective is one type with the members the `Objective` concept names. draw_step() draws a step of
 // any objective: its window, its noise, its pixels and their counts. Depends on ad/ and events/.
 #pragma once
@@ -81,8 +82,9 @@ struct SliceInterval {
   static std::string description() { return {}; }  // the checkpoints' loss text before windows existed
 };
 
-/// Windows of 1..W consecutive slices, the length uniform per step, then the start uniform among the
-/// windows of that length made of trainable slices. Ours (after EventNeRF and Robust e-NeRF, which also
+/// Windows of 1..W intervals of the recording's own cut (1..W·K consecutive slices where train's --subslices
+/// cuts each interval into K), the length uniform per step, then the start uniform among the windows of that
+/// length made of trainable slices. Ours (after EventNeRF and Robust e-NeRF, which also
 /// compare poses a random interval apart); the paper compares only the two ends of one slice, which leaves
 /// low spatial frequencies free. `Pixels` chooses the rendered pixels.
 template <int W, BoundPolicy Bound = HalfSlackCounts, class Pixels = events::UniformPixels>
