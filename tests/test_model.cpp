@@ -35,6 +35,11 @@ using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>
 template <int C>
 using LogOccupancyModel =
     EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+// Three poses per pixel (the window's ends and an inner boundary drawn per pixel, each pair a term).
+using Window3 = loss::WindowInterval<4, loss::HalfSlackCounts, events::UniformPixels, 3>;
+template <int C>
+using ThreePoseModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window3, double>;
+using ThreePoseHierarchical = EvNerf<FreqTiny<1>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window3, double>;
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
 
@@ -118,7 +123,7 @@ void check_model(double distortion = 0, double tv = 0) {
     REQUIRE(occ > 0);
     REQUIRE(occ < 1);
   }
-  int threshold_grads = 0;
+  int threshold_grads = 0, inner = 0;
   for (const std::uint64_t seed : {1u, 2u}) {
     const auto st = m.gradients(f.td, 16, seed, 4);
     CAPTURE(seed);
@@ -128,7 +133,11 @@ void check_model(double distortion = 0, double tv = 0) {
     else CHECK(st.distortion_loss == 0);
     if (tv > 0) CHECK(st.tv_loss > 0);
     else CHECK(st.tv_loss == 0);
-    CHECK(st.rays == (tv > 0 ? 3u : 2u) * 16u);
+    // Two rays per pixel, a third at the inner boundary (three poses, windows of two slices or more), one
+    // more for the TV neighbour.
+    const bool three = Model::poses == 3 && st.window >= 2;
+    inner += three;
+    CHECK(st.rays == (2u + three + (tv > 0 ? 1u : 0u)) * 16u);
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
       CHECK(st.samples < st.rays * Model::Nc);
@@ -154,13 +163,14 @@ void check_model(double distortion = 0, double tv = 0) {
     }
   }
   CHECK(threshold_grads > 0);  // and some of them did (the comparison above covered them)
+  if constexpr (Model::poses == 3) CHECK(inner > 0);  // the check covered a step with an inner boundary
 }
 }  // namespace
 
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
                    OccupancyModel<3>, LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>,
-                   CustomParts) {
+                   CustomParts, ThreePoseModel<1>, ThreePoseModel<3>, ThreePoseHierarchical) {
   check_model<Model>();
 }
 
@@ -184,7 +194,7 @@ TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite 
 // The total-variation regulariser: a third ray per pixel (a neighbour from the window's first pose), its
 // term in every pass; with the distortion term too, whose mean then runs over all three rays.
 TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: finite differences in double", Model,
-                   StratifiedModel<1>, OccupancyModel<1>, ExpRadianceModel<3>) {
+                   StratifiedModel<1>, OccupancyModel<1>, ExpRadianceModel<3>, ThreePoseModel<1>) {
   SUBCASE("alone") { check_model<Model>(0, 0.3); }
   SUBCASE("with the distortion term") { check_model<Model>(0.05, 0.3); }
 }
@@ -289,4 +299,39 @@ TEST_CASE("colour models: each pixel's channel follows the recording's Bayer pat
   CHECK(worst < 1e-12);
   // and the same model on the RGGB recording sees another loss (the test can fail)
   CHECK(std::abs(b.gradients(f.td, 64, 7, 2).loss - sa.loss) > 1e-9);
+}
+
+TEST_CASE("three poses: the ends' rays are two poses' to the bit, the parts' terms add to the loss; the draw ignores tiling") {
+  const evtest::Fixture f;
+  using M2 = OccupancyModel<1>;
+  using M3 = ThreePoseModel<1>;
+  static_assert(M2::poses == 2 && M3::poses == 3 && M2::field_params == M3::field_params);
+  CHECK(M3::loss_description() == M2::loss_description() + ", 3 poses");
+  M2 a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  M3 b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  b.params().values = a.params().values;
+  int inner = 0;
+  for (const std::uint64_t seed : {1u, 2u, 3u, 4u}) {
+    CAPTURE(seed);
+    const auto sa = a.gradients(f.td, 16, seed, 4);
+    const auto sb = b.gradients(f.td, 16, seed, 4);
+    REQUIRE(sa.first_slice == sb.first_slice);
+    REQUIRE(sa.window == sb.window);
+    CHECK(a.last_draw().pixels == b.last_draw().pixels);
+    if (sb.window == 1) {  // no inner boundary: the same step exactly
+      CHECK(sb.loss == sa.loss);
+      CHECK(b.params().grads == a.params().grads);
+      CHECK(sb.rays == 32u);
+      continue;
+    }
+    ++inner;
+    CHECK(sb.rays == 48u);
+    CHECK(sb.event_loss > sa.event_loss);  // the span's term, the same, plus the parts' (positive here)
+    const std::vector<double> g = b.params().grads;
+    b.gradients(f.td, 16, seed, 1);  // one pixel per tile: the same draw, summed in another order
+    double worst = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) worst = std::max(worst, std::abs(b.params().grads[i] - g[i]) / std::max(1e-12, std::abs(g[i])));
+    CHECK(worst < 1e-9);
+  }
+  CHECK(inner > 0);
 }

@@ -92,6 +92,8 @@ class EvNerf {
   using pixel_policy = typename objective::pixels;
   using scalar = Scalar;
   static constexpr int max_window = objective::max_window;
+  /// Poses per pixel of a step's window (loss::poses_of): 2, its ends; 3, also one inner boundary.
+  static constexpr int poses = loss::poses_of<objective>();
   static constexpr int channels = FieldT::channels;
   static constexpr int n_fields = renderer_type::networks;
   static constexpr std::size_t field_params = FieldT::n_params;
@@ -325,7 +327,7 @@ class EvNerf {
       }
     }
     st.loss = st.event_loss + st.threshold_loss + st.distortion_loss + st.tv_loss;
-    st.rays = static_cast<std::size_t>((tv_ > 0 ? 3 : 2) * P);
+    st.rays = static_cast<std::size_t>((extra_rays(sw) + (tv_ > 0 ? 3 : 2)) * P);
     touched_.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
     return st;
@@ -503,7 +505,7 @@ class EvNerf {
   }
   static constexpr int default_tile_pixels() {
     // About 1–4 k samples per tile: the activations of the widest layer stay within L2.
-    constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
+    constexpr int per_pixel = poses * (Nc + (n_fields == 2 ? Nc + Nf : 0));
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
 
@@ -524,6 +526,7 @@ class EvNerf {
   /// contribution (already divided by the batch size).
   double pair_loss(const StepWindow& sw, int p0, int P, int batch, int net, Scalar* grads, TileWork& w, int width,
                    const geometry::BayerPattern& bayer) const {
+    const bool three = extra_rays(sw) == 1;
     const auto& comp = renderer_type::composites(w.rw, net);
     auto& dcolor = w.rw.pass[net].dcolor;  // zeroed by the forward
     const int L = static_cast<int>(sw.len);
@@ -543,9 +546,19 @@ class EvNerf {
       std::fill(w.gbp.begin(), w.gbp.end(), 0.0);
       std::fill(w.gbm.begin(), w.gbm.end(), 0.0);
       const std::size_t o = static_cast<std::size_t>(p0 + i) * L;
-      const auto r = loss::window_pixel_loss<bound_policy>(comp[2 * i].color[c], comp[2 * i + 1].color[c], L, &sw.npos[o],
-                                                           &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data(),
-                                                           FieldT::radiance::log_eps);
+      const double l0 = comp[2 * i].color[c], l1 = comp[2 * i + 1].color[c];
+      loss::PixelLoss r;
+      if (three) {  // ray 2P + i is the pixel at its inner boundary first + m
+        const int m = static_cast<int>(sw.mid[static_cast<std::size_t>(p0 + i)]);
+        const auto t = loss::three_pose_pixel_loss<bound_policy>(l0, comp[2 * P + i].color[c], l1, m, L, &sw.npos[o], &sw.nneg[o],
+                                                                 w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data(),
+                                                                 FieldT::radiance::log_eps);
+        r = {t.value, t.dl0, t.dl1};
+        dcolor[static_cast<std::size_t>(2 * P + i) * channels + c] = static_cast<Scalar>(t.dlm / batch);
+      } else {
+        r = loss::window_pixel_loss<bound_policy>(l0, l1, L, &sw.npos[o], &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(),
+                                                  w.gbm.data(), FieldT::radiance::log_eps);
+      }
       total += r.value / batch;
       dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<Scalar>(r.dl0 / batch);
       dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<Scalar>(r.dl1 / batch);
@@ -559,9 +572,9 @@ class EvNerf {
   }
 
   /// The total-variation term of one pass over the tile's P pixels and their neighbours (rays 2i and
-  /// 2P + i, both from the window's first pose): adds its gradient to the pass's dcolor (after pair_loss)
-  /// and returns its share of the loss.
-  double tv_loss(int P, int batch, int net, TileWork& w) const {
+  /// (2 + extra) P + i, both from the window's first pose; extra = extra_rays()): adds its gradient to the
+  /// pass's dcolor (after pair_loss) and returns its share of the loss.
+  double tv_loss(int P, int extra, int batch, int net, TileWork& w) const {
     const auto& comp = renderer_type::composites(w.rw, net);
     auto& dcolor = w.rw.pass[net].dcolor;
     const double scale = tv_ / (double(batch) * channels);
@@ -569,13 +582,18 @@ class EvNerf {
     double total = 0;
     for (int i = 0; i < P; ++i)
       for (int c = 0; c < channels; ++c) {
-        const auto r = f.evaluate(comp[2 * i].color[c], comp[2 * P + i].color[c]);
+        const std::size_t n = static_cast<std::size_t>((2 + extra) * P + i);
+        const auto r = f.evaluate(comp[2 * i].color[c], comp[n].color[c]);
         total += scale * r[0];
         dcolor[static_cast<std::size_t>(2 * i) * channels + c] += static_cast<Scalar>(scale * r[1]);
-        dcolor[static_cast<std::size_t>(2 * P + i) * channels + c] += static_cast<Scalar>(scale * r[2]);
+        dcolor[n * channels + c] += static_cast<Scalar>(scale * r[2]);
       }
     return total;
   }
+
+  /// Rays per pixel beyond the window's two ends: 1 where the objective renders an inner boundary and the
+  /// window has one (two slices or more), else 0.
+  static int extra_rays(const StepWindow& sw) { return poses == 3 && sw.len >= 2 ? 1 : 0; }
 
   /// One tile of the step: pixel i's rays at the window's two end poses (Camera::ray_along of its cached
   /// direction), each with a random stream keyed by (pixel, end) so that the result depends on neither the
@@ -583,7 +601,9 @@ class EvNerf {
   double train_tile(const TrainingData& data, const StepWindow& sw, int p0, const geometry::Pose& pose0,
                     const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
     const bool tv = tv_ > 0;
-    const int R = (tv ? 3 : 2) * P;  // the pixels' pairs, then (with the TV term) their neighbours
+    const int extra = extra_rays(sw);
+    // The pixels' pairs, then (three poses) their inner boundaries, then (with the TV term) their neighbours.
+    const int R = (2 + extra + (tv ? 1 : 0)) * P;
     const std::uint32_t* pix = sw.pixels.data() + p0;
     w.origin.resize(R);
     w.dir.resize(R);
@@ -598,6 +618,13 @@ class EvNerf {
     }
     for (int r = 0; r < 2 * P; ++r)
       w.rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
+    for (int i = 0; i < P && extra; ++i) {
+      const std::size_t m = sw.first + sw.mid[static_cast<std::size_t>(p0 + i)];
+      const auto a = geometry::Camera::ray_along(data.boundary_poses[m], data.pixel_dirs[pix[i]].cast<double>());
+      w.origin[2 * P + i] = a.origin;
+      w.dir[2 * P + i] = a.dir;
+      w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 41) + pix[i]));  // keyed apart from the ends and the neighbours
+    }
     if (tv) {
       const int width = data.camera.width(), height = data.camera.height();
       for (int i = 0; i < P; ++i) {
@@ -610,8 +637,8 @@ class EvNerf {
         if (nx < 0 || ny < 0) nx = x, ny = y;  // a one-pixel-wide sensor: no neighbour, no cost
         const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
         const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
-        w.origin[2 * P + i] = n.origin;
-        w.dir[2 * P + i] = n.dir;
+        w.origin[(2 + extra) * P + i] = n.origin;
+        w.dir[(2 + extra) * P + i] = n.dir;
         w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 40) + q));
       }
     }
@@ -622,7 +649,7 @@ class EvNerf {
       const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width(), data.bayer);
       w.pass_loss[net] += l;
       loss += l;
-      if (tv) w.tv += tv_loss(P, batch, net, w);
+      if (tv) w.tv += tv_loss(P, extra, batch, net, w);
     }
     // The distortion regulariser: its weight times the mean over the step's rays, every pass.
     if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (double(R / P) * batch));

@@ -101,6 +101,11 @@ using FastLog = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, Fast
 /// as long. Not Fast's default (bench/README.md, session 30).
 using FastLogOffset =
     FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Fp32, field::ExpRadiance, LogOffsetSampler>;
+/// Fast rendering each pixel at three poses of its window: the ends and one inner boundary drawn per pixel,
+/// each of the three pairs a term (loss::WindowInterval's Poses = 3; session 33). Three rays per pixel: at
+/// `train --pixels 683` a step renders as many rays as Fast's 1024 pixels at two poses.
+using FastThreePoses = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1,
+                                 loss::WindowInterval<24, loss::HalfSlackCounts, events::UniformPixels, 3>>;
 /// Fast with the total-variation term at weight 0.3 (session 21's measurements; the same checkpoints as Fast).
 using FastTv = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastTvObjective>;
 /// Fast as it was in sessions 9–19, with the dense occupancy grid (its checkpoints load as this).

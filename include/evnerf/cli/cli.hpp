@@ -258,7 +258,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--out", out, "output folder")->required();
   trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
   trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at both poses)")
+  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at its window's poses: both ends, and an inner boundary for fast-3poses)")
       ->capture_default_str()
       ->check(CLI::Range(1, 1 << 22));
   trainc->add_option("--seed", cfg.seed, "random seed")->capture_default_str();

@@ -2,9 +2,11 @@
 // end poses a step renders, the pixels it renders there (an events/pixels.hpp policy), and scores each
 // pixel's rendered log change against the events counted in the window through the per-slice thresholds.
 //   SliceInterval<Bound>             the paper's: one slice, its two ends (spec §2).
-//   WindowInterval<W, Bound, Pixels> poses 1..W frame intervals apart (slices where each interval is one),
+//   WindowInterval<W, Bound, Pixels, Poses>
+//                                    poses 1..W frame intervals apart (slices where each interval is one),
 //                                    drawn uniformly per step: the counts of every slice in the window,
-//                                    each with its own learned thresholds.
+//                                    each with its own learned thresholds; with Poses = 3 also one inner
+//                                    boundary per pixel, each pair of the three poses a term.
 // A new objective is one type with the members the `Objective` concept names. draw_step() draws a step of
 // any objective: its window, its noise, its pixels and their counts. Depends on ad/ and events/.
 #pragma once
@@ -73,6 +75,25 @@ PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const 
   return {r[0], r[1], r[2]};
 }
 
+/// One pixel's loss at three poses of its window and its gradient w.r.t. the luminance rendered at each.
+struct ThreePoseLoss {
+  double value = 0, dl0 = 0, dlm = 0, dl1 = 0;
+};
+
+/// Scores one pixel rendered at three boundaries of its window of L slices: the start (ℓ0), the inner
+/// boundary m with 0 < m < L (ℓm) and the end (ℓ1). The sum of window_pixel_loss over the three pairs:
+/// (ℓ0, ℓ1) over slices [0, L), (ℓ0, ℓm) over [0, m) and (ℓm, ℓ1) over [m, L), each with its own slices'
+/// counts and thresholds. Adds dloss/dB±_k to gbp[k], gbm[k].
+template <BoundPolicy Bound>
+ThreePoseLoss three_pose_pixel_loss(double l0, double lm, double l1, int m, int L, const int* npos, const int* nneg, const double* bp,
+                                    const double* bm, double* gbp, double* gbm, double log_eps = EventBounds{}.eps) {
+  require(m > 0 && m < L, "three_pose_pixel_loss: the inner boundary must lie strictly inside the window");
+  const auto w = window_pixel_loss<Bound>(l0, l1, L, npos, nneg, bp, bm, gbp, gbm, log_eps);
+  const auto a = window_pixel_loss<Bound>(l0, lm, m, npos, nneg, bp, bm, gbp, gbm, log_eps);
+  const auto b = window_pixel_loss<Bound>(lm, l1, L - m, npos + m, nneg + m, bp + m, bm + m, gbp + m, gbm + m, log_eps);
+  return {w.value + a.value + b.value, w.dl0 + a.dl0, a.dl1 + b.dl0, w.dl1 + b.dl1};
+}
+
 /// The paper's objective: a step draws one slice and renders its two ends at uniformly drawn pixels.
 template <BoundPolicy Bound = SplitCounts<1>>
 struct SliceInterval {
@@ -87,19 +108,35 @@ struct SliceInterval {
 /// length made of trainable slices. Ours (after EventNeRF and Robust e-NeRF, which also
 /// compare poses a random interval apart); the paper compares only the two ends of one slice, which leaves
 /// low spatial frequencies free. `Pixels` chooses the rendered pixels.
-template <int W, BoundPolicy Bound = HalfSlackCounts, class Pixels = events::UniformPixels>
+/// `Poses` is how many boundaries of the window a pixel is rendered at: 2, the window's two ends; or 3, the
+/// ends and one slice boundary strictly inside the window, drawn per pixel (uniform; a one-slice window has
+/// none, and its pixels are rendered at the ends only). With three poses each of the three pairs is a term
+/// (the whole window and its two parts, each with its own slices' counts and thresholds): three terms from
+/// three rays where two poses give one from two. Ours.
+template <int W, BoundPolicy Bound = HalfSlackCounts, class Pixels = events::UniformPixels, int Poses = 2>
 struct WindowInterval {
   static_assert(W >= 1, "WindowInterval<W>: a window spans at least one slice.");
+  static_assert(Poses == 2 || Poses == 3, "WindowInterval: a pixel is rendered at 2 or 3 poses of its window.");
   using bound = Bound;
   using pixels = Pixels;
   static constexpr int max_window = W;
+  static constexpr int poses = Poses;
   static std::string description() {
     std::string d = ", window 1..";
     d.append(std::to_string(W)).append(", pixels ").append(Pixels::name);
     if constexpr (requires { Pixels::empty_per_mille; }) d.append(" ").append(std::to_string(Pixels::empty_per_mille));
+    if constexpr (Poses != 2) d.append(", ").append(std::to_string(Poses)).append(" poses");
     return d;
   }
 };
+
+/// How many poses of its window objective O renders a pixel at: O::poses where O names it, else 2 (the
+/// window's two ends, as SliceInterval and every objective written before the member existed).
+template <class O>
+constexpr int poses_of() {
+  if constexpr (requires { O::poses; }) return O::poses;
+  else return 2;
+}
 
 /// An objective: a bound policy, a pixel policy, the longest window in slices, and the text checkpoints
 /// record. EvNerf's fifth parameter takes one (a bare bound policy means SliceInterval<that bound>).
@@ -137,6 +174,9 @@ struct StepDraw {
   std::size_t first = 0, len = 1;
   std::vector<std::uint32_t> pixels;
   std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
+  /// Objectives of three poses: pixel i's inner boundary, first + mid[i], with 0 < mid[i] < len (0 where
+  /// the window is one slice long and has none). Empty for objectives of two poses.
+  std::vector<std::uint32_t> mid;
   std::vector<events::NoiseEvent> noise;
   std::vector<std::size_t> starts;
   std::vector<std::uint8_t> taken;
@@ -212,6 +252,13 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
       if (c < INT16_MAX) ++c;
     }
     for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = -1;
+  }
+  // Drawn last, so that an objective of two poses draws exactly as before the inner boundary existed.
+  d.mid.clear();
+  if constexpr (poses_of<O>() == 3) {
+    d.mid.resize(static_cast<std::size_t>(P), 0);
+    if (L >= 2)
+      for (int i = 0; i < P; ++i) d.mid[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(1 + rng.below(L - 1));
   }
 }
 

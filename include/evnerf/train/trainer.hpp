@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 /// the paper's).
 struct Config {
   long iterations = 6000;
-  int pixels_per_step = 1024;  ///< each rendered at both poses
+  int pixels_per_step = 1024;  ///< each rendered at its window's poses (the objective's: 2 or 3)
   double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
   std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
