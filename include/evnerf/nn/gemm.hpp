@@ -7,14 +7,23 @@
 // Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
 // call and reaches about 58 % of the FP32 FMA peak on one core of this project's machine; the kernel below
 // reaches 95–100 % on the same shapes (bench/README.md).
+//
+// On AVX2 + FMA without AVX-512 (AMD Zen 2/3, Intel before Skylake-SP) an 8-lane kernel runs instead. Both
+// kernels compute every element of C the same way: its old value (or zero), then one fused multiply-add per
+// k in order, then the epilogue. So a float network gives the same bits on either CPU (tested against a
+// scalar std::fma chain), where Eigen's blocked order would give other roundings.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstddef>
 #include <type_traits>
 
 #include "activation.hpp"
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
+#endif
+#if !defined(__AVX512F__) && defined(__AVX2__) && defined(__FMA__)
+#define EVNERF_GEMM_AVX2 1  ///< the 8-lane kernel below serves float products
 #endif
 
 namespace evnerf::nn::gemm {
@@ -55,19 +64,20 @@ struct NoEpilogue {
   static constexpr bool active = false;
 };
 
-/// The epilogues (defined for AVX-512 builds below; elsewhere they stay declared for discarded branches).
+/// The epilogues (defined for the kernels' builds below; elsewhere they stay declared for discarded branches).
 template <class Act>
 struct BiasActivation;
 template <class Act>
 struct ActivationGrad;
 
-#if defined(__AVX512F__)
-/// Vector forms of the activations the epilogues can apply in registers (the others run as a scalar pass
-/// after the product, in nn/mlp.hpp).
+/// Vector forms of the activations the epilogues can apply in registers (the others, and all of them
+/// where no kernel is built, run as a scalar pass after the product, in nn/mlp.hpp).
 template <class Act>
 struct VectorActivation {
   static constexpr bool available = false;
 };
+
+#if defined(__AVX512F__)
 template <>
 struct VectorActivation<ReLU> {
   static constexpr bool available = true;
@@ -186,6 +196,225 @@ inline void column_blocks(int n, Block&& block) {
 }  // namespace detail
 #endif
 
+#if defined(EVNERF_GEMM_AVX2)
+// The 8-lane kernel: the AVX-512 kernel's arithmetic on 8-float vectors, with lane masks (__m256i, all ones
+// in the lanes kept) in place of mask registers. 16 registers: 16-row panels of 2 × 6 accumulators; one-row
+// products (a network's single output) run along the row instead (one_row); long accumulating products in
+// chunks of k.
+template <>
+struct VectorActivation<ReLU> {
+  static constexpr bool available = true;
+  static __m256 f(__m256 x) { return _mm256_max_ps(x, _mm256_setzero_ps()); }  // as vmaxps on 16 lanes: NaN → 0
+  static __m256 grad(__m256 g, __m256 y) { return _mm256_and_ps(g, _mm256_cmp_ps(y, _mm256_setzero_ps(), _CMP_GT_OQ)); }
+};
+template <>
+struct VectorActivation<Identity> {
+  static constexpr bool available = true;
+  static __m256 f(__m256 x) { return x; }
+  static __m256 grad(__m256 g, __m256) { return g; }
+};
+
+/// Forward epilogue: C = act(A·B + bias), bias indexed by row.
+template <class Act>
+struct BiasActivation {
+  static constexpr bool active = true;
+  const float* bias;
+  __m256 operator()(__m256 v, int row, int, __m256i m) const {
+    return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_maskload_ps(bias + row, m)));
+  }
+  /// The same on 8 columns col.. of one row (one_row()).
+  __m256 along_row(__m256 v, int row, int, __m256i) const {
+    return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_broadcast_ss(bias + row)));
+  }
+};
+/// Backward epilogue: C = (A·B) ⊙ act'(y), with act' computed from the activation's output y (ld ldy).
+template <class Act>
+struct ActivationGrad {
+  static constexpr bool active = true;
+  const float* y;
+  std::ptrdiff_t ldy;
+  __m256 operator()(__m256 v, int row, int col, __m256i m) const {
+    return VectorActivation<Act>::grad(v, _mm256_maskload_ps(y + row + col * ldy, m));
+  }
+  /// The same on 8 columns col.. of one row (one_row()); lanes past C's last column read y as zero.
+  __m256 along_row(__m256 v, int row, int col, __m256i m) const {
+    const __m256i at = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(ldy)));
+    return VectorActivation<Act>::grad(v, _mm256_mask_i32gather_ps(_mm256_setzero_ps(), y + row + col * ldy, at, _mm256_castsi256_ps(m), 4));
+  }
+};
+
+namespace detail {
+
+/// The chunk of k an accumulating product takes at a time (a 16-row panel's chunk of A is 4 KB; 64 measured
+/// best of 64–512 on Zen 3 for the weight gradients of 64-wide layers over 1024 samples).
+inline constexpr int k_chunk8 = 64;
+
+/// Lanes 0..r-1 of a mask (r in 0..8).
+inline __m256i lanes_below(int r) {
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(r), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+}
+
+/// One (8·V) × NR block of C, as the AVX-512 block(): accumulators from C (or zero), one FMA per k in order,
+/// the epilogue, a (masked) store. Masked rows are neither read nor written.
+template <int V, int NR, bool Accumulate, bool Full, class Epi>
+inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
+                   std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __m256i (&mask)[2], const Epi& epi, int i0,
+                   int j0) {
+  __m256 acc[V][NR];
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      if constexpr (Accumulate)
+        acc[v][j] = Full ? _mm256_loadu_ps(c + j * ldc + 8 * v) : _mm256_maskload_ps(c + j * ldc + 8 * v, mask[v]);
+      else
+        acc[v][j] = _mm256_setzero_ps();
+    }
+  for (int k = 0; k < K; ++k) {
+    const float* ak = a + k * lda;
+    __m256 av[V];
+    for (int v = 0; v < V; ++v) av[v] = Full ? _mm256_loadu_ps(ak + 8 * v) : _mm256_maskload_ps(ak + 8 * v, mask[v]);
+    const float* bp = b + k * bk;
+#pragma GCC unroll 6
+    for (int j = 0; j < NR; ++j) {
+      const __m256 bj = _mm256_broadcast_ss(bp + j * bn);
+      for (int v = 0; v < V; ++v) acc[v][j] = _mm256_fmadd_ps(av[v], bj, acc[v][j]);
+    }
+  }
+  for (int j = 0; j < NR; ++j)
+    for (int v = 0; v < V; ++v) {
+      __m256 r = acc[v][j];
+      if constexpr (Epi::active) r = epi(r, i0 + 8 * v, j0 + j, mask[v]);
+      if constexpr (Full) _mm256_storeu_ps(c + j * ldc + 8 * v, r);
+      else _mm256_maskstore_ps(c + j * ldc + 8 * v, mask[v], r);
+    }
+}
+
+/// Transposes an 8×8 block held as 8 row vectors, in registers.
+inline void transpose8(__m256 (&r)[8]) {
+  __m256 t[8], u[8];
+  for (int q = 0; q < 4; ++q) {
+    t[2 * q] = _mm256_unpacklo_ps(r[2 * q], r[2 * q + 1]);
+    t[2 * q + 1] = _mm256_unpackhi_ps(r[2 * q], r[2 * q + 1]);
+  }
+  for (int g = 0; g < 2; ++g) {
+    u[4 * g + 0] = _mm256_shuffle_ps(t[4 * g], t[4 * g + 2], 0x44);
+    u[4 * g + 1] = _mm256_shuffle_ps(t[4 * g], t[4 * g + 2], 0xEE);
+    u[4 * g + 2] = _mm256_shuffle_ps(t[4 * g + 1], t[4 * g + 3], 0x44);
+    u[4 * g + 3] = _mm256_shuffle_ps(t[4 * g + 1], t[4 * g + 3], 0xEE);
+  }
+  for (int q = 0; q < 4; ++q) {
+    r[q] = _mm256_permute2f128_ps(u[q], u[4 + q], 0x20);
+    r[q + 4] = _mm256_permute2f128_ps(u[q], u[4 + q], 0x31);
+  }
+}
+
+/// A one-row product (m = 1: a network's single output, or its weight gradient) with the lanes along the
+/// row: 8 columns of C per vector, four vectors at a time (four chains hide the FMA's and the gather's
+/// latency), B's elements of a k loaded together (bn = 1) or gathered, A's element broadcast. Each element
+/// is the same chain of FMAs as in block8 (a·b and b·a round alike).
+template <int J, bool Accumulate, class Epi>
+inline void one_row_block(int j0, __m256i tail, int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b,
+                          std::ptrdiff_t bk, std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const Epi& epi) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i cstep = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(ldc)));
+  const __m256i bstep = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(bn)));
+  const __m256i all = lanes_below(8);
+  __m256i m[J];
+  __m256 acc[J];
+  for (int v = 0; v < J; ++v) {
+    m[v] = v == J - 1 ? tail : all;
+    acc[v] = _mm256_setzero_ps();
+    if constexpr (Accumulate) acc[v] = _mm256_mask_i32gather_ps(acc[v], c + (j0 + 8 * v) * ldc, cstep, _mm256_castsi256_ps(m[v]), 4);
+  }
+  const float* bj = b + j0 * bn;
+  const bool full = _mm256_movemask_ps(_mm256_castsi256_ps(tail)) == 0xFF;
+  const bool loads = bn == 1 && full;
+  int k = 0;
+  if (bk == 1 && !loads && full)  // each column's k contiguous: 8 columns × 8 k loaded, then transposed
+    for (; k + 8 <= K; k += 8) {
+      for (int v = 0; v < J; ++v) {
+        __m256 r[8];
+        for (int q = 0; q < 8; ++q) r[q] = _mm256_loadu_ps(bj + (8 * v + q) * bn + k);
+        transpose8(r);  // r[kk] = B(k + kk, the 8 columns)
+        for (int kk = 0; kk < 8; ++kk) acc[v] = _mm256_fmadd_ps(_mm256_broadcast_ss(a + (k + kk) * lda), r[kk], acc[v]);
+      }
+    }
+  for (; k < K; ++k) {
+    const __m256 ak = _mm256_broadcast_ss(a + k * lda);
+    const float* bk0 = bj + k * bk;
+    for (int v = 0; v < J; ++v) {
+      const __m256 bv = loads ? _mm256_loadu_ps(bk0 + 8 * v)
+                              : _mm256_mask_i32gather_ps(_mm256_setzero_ps(), bk0 + 8 * v * bn, bstep, _mm256_castsi256_ps(m[v]), 4);
+      acc[v] = _mm256_fmadd_ps(ak, bv, acc[v]);
+    }
+  }
+  alignas(32) float out[8];
+  for (int v = 0; v < J; ++v) {
+    if constexpr (Epi::active) acc[v] = epi.along_row(acc[v], 0, j0 + 8 * v, m[v]);
+    _mm256_store_ps(out, acc[v]);
+    const int w = __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(m[v]))));
+    for (int q = 0; q < w; ++q) c[(j0 + 8 * v + q) * ldc] = out[q];
+  }
+}
+template <bool Accumulate, class Epi>
+inline void one_row(int n, int K, const float* a, std::ptrdiff_t lda, const float* b, std::ptrdiff_t bk, std::ptrdiff_t bn, float* c,
+                    std::ptrdiff_t ldc, const Epi& epi) {
+  const __m256i all = lanes_below(8);
+  int j = 0;
+  for (; j + 32 <= n; j += 32) one_row_block<4, Accumulate>(j, all, K, a, lda, b, bk, bn, c, ldc, epi);
+  for (; j + 8 <= n; j += 8) one_row_block<1, Accumulate>(j, all, K, a, lda, b, bk, bn, c, ldc, epi);
+  if (j < n) one_row_block<1, Accumulate>(j, lanes_below(n - j), K, a, lda, b, bk, bn, c, ldc, epi);
+}
+
+/// Rows: 16-row panels (V = 2), then the remainder as one full or masked panel; calls panel(V, Full, i0,
+/// mask) with V and Full as constants.
+template <class Panel>
+inline void row_panels8(int m, Panel&& panel) {
+  using V1 = std::integral_constant<int, 1>;
+  using V2 = std::integral_constant<int, 2>;
+  const __m256i all = lanes_below(8), none = lanes_below(0);
+  const __m256i full[2] = {all, all};
+  int i = 0;
+  for (; i + 16 <= m; i += 16) panel(V2{}, std::true_type{}, i, full);
+  const int r = m - i;
+  if (r == 8) {
+    panel(V1{}, std::true_type{}, i, full);
+  } else if (r > 8) {
+    const __m256i mask[2] = {all, lanes_below(r - 8)};
+    panel(V2{}, std::false_type{}, i, mask);
+  } else if (r > 0) {
+    const __m256i mask[2] = {lanes_below(r), none};
+    panel(V1{}, std::false_type{}, i, mask);
+  }
+}
+/// Columns: blocks of 6, with the last 4–11 columns as two blocks of 4–6 (so no block has fewer than 4
+/// columns, 8 independent FMA chains, where n ≥ 4: narrower blocks wait on the FMA latency); calls
+/// block(NR, j) with NR as a constant. The blocking never changes an element's chain of FMAs.
+template <class Block>
+inline void column_blocks8(int n, Block&& block) {
+  auto run = [&](int j, int nr) {
+    switch (nr) {
+      case 6: block(std::integral_constant<int, 6>{}, j); break;
+      case 5: block(std::integral_constant<int, 5>{}, j); break;
+      case 4: block(std::integral_constant<int, 4>{}, j); break;
+      case 3: block(std::integral_constant<int, 3>{}, j); break;
+      case 2: block(std::integral_constant<int, 2>{}, j); break;
+      default: block(std::integral_constant<int, 1>{}, j); break;
+    }
+  };
+  int j = 0;
+  for (; n - j >= 12; j += 6) run(j, 6);
+  const int r = n - j;  // 0..11
+  if (r > 6) {
+    run(j, r - r / 2);
+    run(j + r - r / 2, r / 2);
+  } else if (r > 0) {
+    run(j, r);
+  }
+}
+
+}  // namespace detail
+#endif
+
 #if defined(__AVX512F__)
 namespace detail {
 /// Transposes a 16×16 block held as 16 row vectors, in registers (4 rounds of 16 shuffles).
@@ -243,10 +472,10 @@ void transpose(const T* src, int rows, int cols, std::ptrdiff_t ld, T* dst, std:
     for (int i = 0; i < rows; ++i) dst[j + i * ldd] = src[i + j * ld];
 }
 
-/// Whether product() can apply epilogue `Epi` for element type T (else the caller runs it as a pass).
+/// Whether product() runs a kernel (and so can apply epilogues) for element type T, else Eigen.
 template <class T>
 constexpr bool has_kernel() {
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || defined(EVNERF_GEMM_AVX2)
   return std::is_same_v<T, float>;
 #else
   return false;
@@ -254,7 +483,7 @@ constexpr bool has_kernel() {
 }
 
 /// C = A·B (Accumulate = false) or C += A·B, then the epilogue on each result vector before it is stored.
-/// Float on AVX-512 takes the kernel; everything else Eigen (which takes no epilogue).
+/// Float on AVX-512 or AVX2 + FMA takes a kernel; everything else Eigen (which takes no epilogue).
 template <bool Accumulate, class T, class Epi = NoEpilogue>
 [[gnu::noinline]] void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
   if (o.m <= 0 || o.n <= 0) return;
@@ -268,8 +497,33 @@ template <bool Accumulate, class T, class Epi = NoEpilogue>
     });
     return;
   }
+#elif defined(EVNERF_GEMM_AVX2)
+  if constexpr (std::is_same_v<T, float>) {
+    // A long accumulating product (a weight gradient, k = the tile's samples) runs in chunks of k, so a row
+    // panel's chunk of A stays in L1 while every column block reads it: the accumulators go through C
+    // between chunks, which leaves each element's chain of FMAs as it is.
+    constexpr int chunk = Accumulate && !Epi::active ? detail::k_chunk8 : 1 << 30;
+    if (o.m == 1) {
+      detail::one_row<Accumulate>(o.n, o.k, o.a, o.lda, o.b, o.bk, o.bn, o.c, o.ldc, epi);
+      return;
+    }
+    int k0 = 0;
+    do {  // at least once: with k = 0, C = 0 (through the epilogue) unless accumulating
+      const int kc = std::min(chunk, o.k - k0);
+      const float* a = o.a + k0 * o.lda;
+      const float* b = o.b + k0 * o.bk;
+      detail::row_panels8(o.m, [&](auto v, auto full, int i0, const __m256i(&mask)[2]) {
+        detail::column_blocks8(o.n, [&](auto nr, int j) {
+          detail::block8<decltype(v)::value, decltype(nr)::value, Accumulate, decltype(full)::value>(
+              kc, a + i0, o.lda, b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
+        });
+      });
+      k0 += chunk;
+    } while (k0 < o.k);
+    return;
+  }
 #endif
-  static_assert(!Epi::active || has_kernel<T>(), "gemm::product: epilogues need the AVX-512 float kernel");
+  static_assert(!Epi::active || has_kernel<T>(), "gemm::product: epilogues need a float kernel (AVX-512 or AVX2 + FMA)");
   eigen_product<Accumulate>(o);
 }
 

@@ -141,9 +141,7 @@ struct Mlp {
   /// product's epilogue, in registers; otherwise they are a pass over the tile right after the product.
   template <class T, class Act>
   static constexpr bool fused_epilogue() {
-#if defined(__AVX512F__)
     if constexpr (gemm::has_kernel<T>()) return gemm::VectorActivation<Act>::available;
-#endif
     return false;
   }
 
