@@ -255,14 +255,16 @@ struct HashGrid {
       }
     }
   }
-#if defined(__AVX512F__)
-  /// The 8 corners of level `lv` around 8 points (lanes masked by k) of p: table indices and weights, as
-  /// corners() computes them (per-axis weights, (wx·wy)·wz), so the values are bit-identical to it.
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
+  /// The 8 corners of level `lv` around 8 points (lanes kept by k: a mask register on AVX-512, a lane mask
+  /// on AVX2) of p: table indices and weights, as corners() computes them (per-axis weights, (wx·wy)·wz), so
+  /// the values are bit-identical to it.
   struct Cells8 {
     __m256i idx[8];
     __m256 w[8];
   };
-  static Cells8 cells8(const LevelInfo& lv, const float* p, int j0, __mmask8 k) {
+  template <class Mask>
+  static Cells8 cells8(const LevelInfo& lv, const float* p, int j0, Mask k) {
     const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.f);
     const float sc = static_cast<float>(lv.scale);
     const __m256 s = _mm256_set1_ps(sc), last = _mm256_set1_ps(sc - 1);
@@ -273,9 +275,9 @@ struct HashGrid {
     __m256i term[3][2];
     __m256 wd[3][2];
     for (int d = 0; d < 3; ++d) {
-      const __m256 x = _mm256_mmask_i32gather_ps(zero, k, _mm256_add_epi32(at, _mm256_set1_epi32(d)), p, 4);
+      const __m256 x = gather8(p, _mm256_add_epi32(at, _mm256_set1_epi32(d)), k);
       const __m256 c = _mm256_mul_ps(_mm256_min_ps(_mm256_max_ps(x, zero), one), s);
-      const __m256 fl = _mm256_min_ps(_mm256_roundscale_ps(c, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), last);
+      const __m256 fl = _mm256_min_ps(_mm256_floor_ps(c), last);
       const __m256i base = _mm256_cvttps_epi32(fl);
       const __m256 frac = _mm256_sub_ps(c, fl);
       term[d][0] = _mm256_mullo_epi32(base, mul[d]);
@@ -293,9 +295,12 @@ struct HashGrid {
     }
     return cell;
   }
+#endif
+#if defined(__AVX512F__)
   static __mmask8 lanes8(int n, int j0) {
     return n - j0 >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - j0)) - 1);
   }
+  static __m256 gather8(const float* p, __m256i at, __mmask8 k) { return _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), k, at, p, 4); }
 
   /// forward_batch for float with two features per entry, 8 points at a time: an entry is one 64-bit
   /// pair, so each corner is one 8-lane gather and each level's result one 8-lane scatter; one fused
@@ -324,45 +329,11 @@ struct HashGrid {
   }
 
 #elif defined(__AVX2__) && defined(__FMA__)
-  /// The 8 corners of level `lv` around 8 points (lanes kept by mask k) of p: table indices and weights, as
-  /// corners() computes them, so the values are bit-identical to it (the AVX-512 cells8 on 8-lane vectors).
-  struct Cells8 {
-    __m256i idx[8];
-    __m256 w[8];
-  };
-  static Cells8 cells8(const LevelInfo& lv, const float* p, int j0, __m256i k) {
-    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.f);
-    const float sc = static_cast<float>(lv.scale);
-    const __m256 s = _mm256_set1_ps(sc), last = _mm256_set1_ps(sc - 1);
-    const auto res = static_cast<std::uint32_t>(lv.res);
-    const __m256i mul[3] = {_mm256_set1_epi32(1), _mm256_set1_epi32(static_cast<int>(lv.dense ? res : kHashPrimeY)),
-                            _mm256_set1_epi32(static_cast<int>(lv.dense ? res * res : kHashPrimeZ))};
-    const __m256i at = _mm256_add_epi32(_mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21), _mm256_set1_epi32(3 * j0));
-    __m256i term[3][2];
-    __m256 wd[3][2];
-    for (int d = 0; d < 3; ++d) {
-      const __m256 x = _mm256_mask_i32gather_ps(zero, p, _mm256_add_epi32(at, _mm256_set1_epi32(d)), _mm256_castsi256_ps(k), 4);
-      const __m256 c = _mm256_mul_ps(_mm256_min_ps(_mm256_max_ps(x, zero), one), s);
-      const __m256 fl = _mm256_min_ps(_mm256_floor_ps(c), last);
-      const __m256i base = _mm256_cvttps_epi32(fl);
-      const __m256 frac = _mm256_sub_ps(c, fl);
-      term[d][0] = _mm256_mullo_epi32(base, mul[d]);
-      term[d][1] = _mm256_mullo_epi32(_mm256_add_epi32(base, _mm256_set1_epi32(1)), mul[d]);
-      wd[d][0] = _mm256_sub_ps(one, frac);
-      wd[d][1] = frac;
-    }
-    const __m256i hash_mask = _mm256_set1_epi32(static_cast<int>(table_size - 1));
-    Cells8 cell;
-    for (int c = 0; c < 8; ++c) {
-      const int bx = c & 1, by = (c >> 1) & 1, bz = (c >> 2) & 1;
-      cell.idx[c] = lv.dense ? _mm256_add_epi32(_mm256_add_epi32(term[0][bx], term[1][by]), term[2][bz])
-                             : _mm256_and_si256(_mm256_xor_si256(_mm256_xor_si256(term[0][bx], term[1][by]), term[2][bz]), hash_mask);
-      cell.w[c] = _mm256_mul_ps(_mm256_mul_ps(wd[0][bx], wd[1][by]), wd[2][bz]);
-    }
-    return cell;
-  }
-  static __m256i lanes8(int n, int j0) {
+  static __m256i lanes8(int n, int j0) {  // lanes 0 .. n − j0 − 1 (all where n − j0 ≥ 8)
     return _mm256_cmpgt_epi32(_mm256_set1_epi32(n - j0), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  }
+  static __m256 gather8(const float* p, __m256i at, __m256i k) {
+    return _mm256_mask_i32gather_ps(_mm256_setzero_ps(), p, at, _mm256_castsi256_ps(k), 4);
   }
 
   /// forward_batch for float with two features per entry, 8 points at a time: an entry is one 64-bit pair,
