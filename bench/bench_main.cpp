@@ -1,5 +1,6 @@
 // Benchmarks, each beside its reference twin measured in the same run:
 //   MLP forward+backward (paper network W=256 and W=64): fused tiles vs the plain reference MLP;
+//   one tile's matrix products: the kernel (AVX-512 or AVX2) vs Eigen's product on the same operands;
 //   a pure-FMA loop (the machine's FP32 peak); events.txt parsing vs a naive ifstream reader; the .npy
 //   event cache; the Fast and Paper training steps; one Fast 240×180 render.
 // bench/run.sh runs this and the PyTorch peer and prints the ratios.
@@ -106,28 +107,83 @@ void BM_mlp_reference(benchmark::State& st) {
   st.counters["gflops"] = benchmark::Counter(n * trunk_flops / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 }
 
-/// FP32 FMA peak: independent AVX-512 FMA chains on every thread.
+/// The widest FP32 FMA vector of the build, for BM_fma_peak.
+#if defined(__AVX512F__)
+struct FmaVec {
+  using V = __m512;
+  static constexpr int lanes = 16;
+  static V set1(float x) { return _mm512_set1_ps(x); }
+  static V fma(V a, V b, V c) { return _mm512_fmadd_ps(a, b, c); }
+  static void store(float* p, V v) { _mm512_storeu_ps(p, v); }  // not _mm512_reduce_add_ps: GCC 12 warns inside its header
+};
+#elif defined(__AVX2__) && defined(__FMA__)
+struct FmaVec {
+  using V = __m256;
+  static constexpr int lanes = 8;
+  static V set1(float x) { return _mm256_set1_ps(x); }
+  static V fma(V a, V b, V c) { return _mm256_fmadd_ps(a, b, c); }
+  static void store(float* p, V v) { _mm256_storeu_ps(p, v); }
+};
+#endif
+
+/// FP32 FMA peak: 12 independent FMA chains of the widest vector (AVX-512, else AVX2) on every thread.
 void BM_fma_peak(benchmark::State& st) {
   const long iters = 1 << 22;
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
+  using F = FmaVec;
   for (auto _ : st) {
     parallel_blocks(static_cast<std::size_t>(thread_count()), 1, [&](std::size_t, std::size_t, int) {
-#if defined(__AVX512F__)
-      __m512 a[12];
-      for (int i = 0; i < 12; ++i) a[i] = _mm512_set1_ps(1.0f + i * 1e-3f);
-      const __m512 m = _mm512_set1_ps(0.999999f), c = _mm512_set1_ps(1e-7f);
+      typename F::V a[12];
+      for (int i = 0; i < 12; ++i) a[i] = F::set1(1.0f + i * 1e-3f);
+      const typename F::V m = F::set1(0.999999f), c = F::set1(1e-7f);
       for (long k = 0; k < iters; ++k)
-        for (int i = 0; i < 12; ++i) a[i] = _mm512_fmadd_ps(a[i], m, c);
-      alignas(64) float lanes[16];
-      float s = 0;
+        for (int i = 0; i < 12; ++i) a[i] = F::fma(a[i], m, c);
+      float lanes[F::lanes], s = 0;
       for (int i = 0; i < 12; ++i) {
-        _mm512_store_ps(lanes, a[i]);  // not _mm512_reduce_add_ps: GCC 12 warns inside its own header
+        F::store(lanes, a[i]);
         for (float l : lanes) s += l;
       }
       benchmark::DoNotOptimize(s);
-#endif
     });
   }
-  st.counters["gflops"] = benchmark::Counter(double(thread_count()) * iters * 12 * 16 * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["gflops"] = benchmark::Counter(double(thread_count()) * iters * 12 * F::lanes * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+#else
+  st.SkipWithError("no FMA vectors in this build");
+#endif
+}
+
+/// One tile's matrix product, the kernel (gemm::product: AVX-512 or AVX2 + FMA) or Eigen's
+/// (gemm::eigen_product, the plain path) on the same operands, one thread. Args: m, n, k, and 1 for a
+/// weight gradient (C += DZ·Xᵀ, Xᵀ read in place) or 0 for a layer's forward (C = W·X).
+template <bool Kernel>
+void BM_gemm(benchmark::State& st) {
+  const int m = static_cast<int>(st.range(0)), n = static_cast<int>(st.range(1)), k = static_cast<int>(st.range(2));
+  const bool wgrad = st.range(3) != 0;
+  Rng rng(1);
+  std::vector<float> a(static_cast<std::size_t>(m) * k), b(static_cast<std::size_t>(k) * n), c(static_cast<std::size_t>(m) * n, 0.f);
+  for (auto* v : {&a, &b})
+    for (auto& e : *v) e = rng.uniformf() * 2 - 1;
+  // Forward: A = W (m × k), B = X (k × n, column-major). Weight gradient: A = DZ (m × k samples), B = Xᵀ
+  // read from X (n × k, column-major: element (s, j) at x[j + s·n]).
+  const nn::gemm::Operands<float> op = wgrad ? nn::gemm::Operands<float>{m, n, k, a.data(), m, b.data(), n, 1, c.data(), m}
+                                             : nn::gemm::Operands<float>{m, n, k, a.data(), m, b.data(), 1, k, c.data(), m};
+  for (auto _ : st) {
+    if constexpr (Kernel) {
+      if (wgrad) nn::gemm::product<true>(op);
+      else nn::gemm::product<false>(op);
+    } else {
+      if (wgrad) nn::gemm::eigen_product<true>(op);
+      else nn::gemm::eigen_product<false>(op);
+    }
+    benchmark::DoNotOptimize(c.data());
+    benchmark::ClobberMemory();
+  }
+  st.counters["gmacs"] = benchmark::Counter(double(m) * n * k / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+}
+/// Fast's shapes over one tile of 1024 samples: the density network's first layer (64 × 32) and the colour
+/// network's one-row output (1 × 64), forward and weight gradient.
+void gemm_shapes(benchmark::internal::Benchmark* b) {
+  b->Args({64, 1024, 32, 0})->Args({64, 32, 1024, 1})->Args({1, 1024, 64, 0})->Args({1, 64, 1024, 1});
 }
 
 #if defined(__AVX512BF16__)
@@ -278,6 +334,8 @@ BENCHMARK(BM_mlp_fused<64>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->
 BENCHMARK(BM_mlp_fused<256, nn::Bf16>)->Args({16384, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_fused<64, nn::Bf16>)->Args({65536, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_mlp_reference<64>)->Args({65536})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_gemm<true>)->Apply(gemm_shapes)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_gemm<false>)->Apply(gemm_shapes)->Unit(benchmark::kMicrosecond)->UseRealTime();
 BENCHMARK(BM_parse_events_fast)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_parse_events_naive)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_event_cache_load)->Unit(benchmark::kMillisecond)->UseRealTime();
