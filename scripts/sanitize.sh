@@ -24,8 +24,9 @@ if [ "$SAN" = thread ]; then
   export TSAN_OPTIONS=${TSAN_OPTIONS:-ignore_noninstrumented_modules=1:halt_on_error=1:second_deadlock_stack=1:history_size=4}
   export ARCHER_OPTIONS=${ARCHER_OPTIONS:-verbose=1}
 fi
-# The Release flags (-O3) plus debug info: the suite checks some fast paths bit for bit against their
-# references, which holds for the code as shipped; at -O1 GCC contracts multiply-adds differently in the two.
+# Release with sanitizers builds at -O2 with line tables (CMakeLists.txt, EVNERF_SANITIZE): the suite checks
+# some fast paths bit for bit against their references, which holds at -O2 and -O3; at -O1 GCC contracts
+# multiply-adds differently in the two.
 cmake -S . -B "$BUILD" -G Ninja "${COMPILER[@]}" -DCMAKE_BUILD_TYPE=Release -DEVNERF_SANITIZE="$SAN" \
   -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_BUILD_TESTS=ON -DEVNERF_TEST_SUBSET="${SUBSET:-}" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target evnerf_tests
