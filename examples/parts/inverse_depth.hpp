@@ -1,4 +1,4 @@
-// A sampler of your own (examples/custom_sampler.cpp): N samples per ray stratified in inverse depth
+// A sampler of your own (examples/custom_parts.cpp): N samples per ray stratified in inverse depth
 // (disparity) between near and far, so that near surfaces get fine spacing and the far end coarse.
 // One type with the members the render::Sampler concept names; no state, one network.
 #pragma once

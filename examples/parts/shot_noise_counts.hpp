@@ -1,4 +1,4 @@
-// An objective of your own (examples/custom_objective.cpp): windows of up to 32 slices at event-weighted
+// An objective of your own (examples/custom_parts.cpp): windows of up to 32 slices at event-weighted
 // pixels, with an interval whose slack grows with the count. A count of N events carries the thresholds'
 // pixel-to-pixel mismatch N times, so its error grows like √N; the interval is μ ± (½ + ¼√N) thresholds
 // on pixels with events and ±1 threshold without. The bound policy is one type with the members

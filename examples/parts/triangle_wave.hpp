@@ -1,4 +1,4 @@
-// An encoding of your own (examples/custom_encoding.cpp): x and N triangle waves per axis,
+// An encoding of your own (examples/custom_parts.cpp): x and N triangle waves per axis,
 // tri(2^k x) with tri(u) = |2(u − round(u))| (period 1, values in [0, 1]): a piecewise-linear cousin of
 // NeRF's sines, cheap and exactly differentiable almost everywhere. One type with the members the
 // nn::Encoding concept names; no parameters.

@@ -1,0 +1,28 @@
+// Three new parts, each one type in a header under examples/parts/, each in its own variant, all three in
+// one program with the whole command line:
+//   fast-inverse-depth  a sampler: the Fast preset with 64 samples stratified in disparity instead of the
+//                       occupancy grid (parts/inverse_depth.hpp);
+//   triangles           an encoding: triangle waves, FieldOf deriving the networks' widths from it
+//                       (parts/triangle_wave.hpp);
+//   fast-shot-noise     an objective: an interval whose slack grows with √N, windows of up to 32 slices at
+//                       event-weighted pixels (parts/shot_noise_counts.hpp).
+// `custom_parts train <recording> --out DIR --variant triangles`, then render and eval (the first variant is
+// the default). One program rather than three: the command line's own code compiles once.
+#include <evnerf/cli/cli.hpp>
+
+#include "parts/inverse_depth.hpp"
+#include "parts/shot_noise_counts.hpp"
+#include "parts/triangle_wave.hpp"
+
+using namespace evnerf;
+using FastInverseDepth = EvNerf<presets::FastField<>, mylab::InverseDepth<64>, loss::ProjectedThresholds, loss::DefaultNoise,
+                                presets::FastObjective>;
+using TriangleField = field::FieldOf<mylab::TriangleWave<8>, nn::SphericalHarmonics<3>, nn::MlpShape{.width = 128, .hidden_layers = 4}, 16,
+                                     nn::MlpShape{.width = 64, .hidden_layers = 1}>;
+using Triangles = EvNerf<TriangleField, render::Stratified<64>, loss::ProjectedThresholds, loss::DefaultNoise, presets::FastObjective>;
+using FastShotNoise = presets::FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, mylab::ShotNoiseWindows>;
+
+int main(int argc, char** argv) {
+  return cli::main<cli::Variant<FastInverseDepth, "fast-inverse-depth">, cli::Variant<Triangles, "triangles">,
+                   cli::Variant<FastShotNoise, "fast-shot-noise">>(argc, argv, "evnerf with a new sampler, encoding and objective");
+}
