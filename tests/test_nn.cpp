@@ -333,6 +333,32 @@ TEST_CASE("bf16: rounding, both packings and the product against their plain def
   CHECK(checked == 6 * 5 * 3);
 }
 
+namespace {
+/// One ragged product's operands for the gemm tests, drawn uniformly in [-1, 1): A is m × k with lda = m + 3
+/// (the padding rows are never read), B holds k × n floats column-major or, transposed, n × k (room for
+/// n + 2 columns), and bias (m) and y (an activation's output, m × n) feed the epilogues. C has ldc = m + 1:
+/// its padding row shows any write out of bounds.
+struct GemmOperands {
+  int m, n, k;
+  bool transposed_b = false;
+  std::vector<float> a, b, bias, y;
+  GemmOperands(Rng& rng, int m_, int n_, int k_)
+      : m(m_), n(n_), k(k_), a(static_cast<std::size_t>(m + 3) * k), b(static_cast<std::size_t>(k) * (n + 2)), bias(m),
+        y(static_cast<std::size_t>(m) * n) {
+    for (auto* v : {&a, &b, &bias, &y})
+      for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+  }
+  std::ptrdiff_t bk() const { return transposed_b ? n : 1; }  // B's strides along k and along n
+  std::ptrdiff_t bn() const { return transposed_b ? 1 : k; }
+  float a_at(int i, int q) const { return a[i + static_cast<std::size_t>(q) * (m + 3)]; }
+  float b_at(int q, int j) const { return b[q * bk() + j * bn()]; }
+  float y_at(int i, int j) const { return y[i + static_cast<std::size_t>(j) * m]; }
+  std::vector<float> c_filled(float v) const { return std::vector<float>(static_cast<std::size_t>(m + 1) * n, v); }
+  std::size_t c_at(int i, int j) const { return i + static_cast<std::size_t>(j) * (m + 1); }
+  gemm::Operands<float> with_c(float* c) const { return {m, n, k, a.data(), m + 3, b.data(), bk(), bn(), c, m + 1}; }
+};
+}  // namespace
+
 TEST_CASE("gemm: the tile product equals the plain Eigen product on ragged shapes, both B layouts, with epilogues") {
   Rng rng(11);
   int checked = 0;
@@ -342,43 +368,35 @@ TEST_CASE("gemm: the tile product equals the plain Eigen product on ragged shape
         CAPTURE(m);
         CAPTURE(n);
         CAPTURE(k);
-        std::vector<float> a(static_cast<std::size_t>(m + 3) * k), b(static_cast<std::size_t>(k) * (n + 2)), bias(m), y(static_cast<std::size_t>(m) * n);
-        for (auto* v : {&a, &b, &bias, &y})
-          for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+        GemmOperands g(rng, m, n, k);
         for (bool transposed_b : {false, true}) {
-          // A with lda = m + 3 (padding rows never read); B either k × n column-major or n × k (Bᵀ).
-          const std::ptrdiff_t bk = transposed_b ? n : 1, bn = transposed_b ? 1 : k;
-          std::vector<float> c(static_cast<std::size_t>(m + 1) * n), want;
+          g.transposed_b = transposed_b;
+          std::vector<float> c = g.c_filled(0.f), want;
           for (auto& e : c) e = static_cast<float>(rng.uniform(-1, 1));
           want = c;
-          const gemm::Operands<float> op{m, n, k, a.data(), m + 3, b.data(), bk, bn, c.data(), m + 1};
-          gemm::Operands<float> ref = op;
-          ref.c = want.data();
-          gemm::eigen_product<true>(ref);
-          gemm::product<true>(op);
+          gemm::eigen_product<true>(g.with_c(want.data()));
+          gemm::product<true>(g.with_c(c.data()));
           double err = 0;
           for (std::size_t i = 0; i < c.size(); ++i) err = std::max(err, double(std::abs(c[i] - want[i])));
           CHECK(err < 1e-4);
 #if defined(__AVX512F__) || defined(EVNERF_GEMM_AVX2)
           // Epilogues: bias + ReLU forward, ReLU' from the output backward; padding rows stay untouched.
-          std::vector<float> f(c.size(), 7.f), g(c.size(), 7.f);
-          gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, f.data(), m + 1},
-                               gemm::BiasActivation<ReLU>{bias.data()});
-          gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, g.data(), m + 1},
-                               gemm::ActivationGrad<ReLU>{y.data(), m});
-          double ef = 0, eg = 0;
+          std::vector<float> f = g.c_filled(7.f), d = g.c_filled(7.f);
+          gemm::product<false>(g.with_c(f.data()), gemm::BiasActivation<ReLU>{g.bias.data()});
+          gemm::product<false>(g.with_c(d.data()), gemm::ActivationGrad<ReLU>{g.y.data(), m});
+          double ef = 0, ed = 0;
           for (int j = 0; j < n; ++j) {
             for (int i = 0; i < m; ++i) {
               double dot = 0;
-              for (int q = 0; q < k; ++q) dot += double(a[i + static_cast<std::size_t>(q) * (m + 3)]) * b[q * bk + j * bn];
-              ef = std::max(ef, std::abs(f[i + static_cast<std::size_t>(j) * (m + 1)] - std::max(dot + bias[i], 0.0)));
-              eg = std::max(eg, std::abs(g[i + static_cast<std::size_t>(j) * (m + 1)] - (y[i + static_cast<std::size_t>(j) * m] > 0 ? dot : 0.0)));
+              for (int q = 0; q < k; ++q) dot += double(g.a_at(i, q)) * g.b_at(q, j);
+              ef = std::max(ef, std::abs(f[g.c_at(i, j)] - std::max(dot + g.bias[i], 0.0)));
+              ed = std::max(ed, std::abs(d[g.c_at(i, j)] - (g.y_at(i, j) > 0 ? dot : 0.0)));
             }
-            CHECK(f[m + static_cast<std::size_t>(j) * (m + 1)] == 7.f);
-            CHECK(g[m + static_cast<std::size_t>(j) * (m + 1)] == 7.f);
+            CHECK(f[g.c_at(m, j)] == 7.f);
+            CHECK(d[g.c_at(m, j)] == 7.f);
           }
           CHECK(ef < 1e-4);
-          CHECK(eg < 1e-4);
+          CHECK(ed < 1e-4);
 #endif
           ++checked;
         }
@@ -399,35 +417,30 @@ TEST_CASE("gemm: the kernel computes each element as a scalar fused multiply-add
         CAPTURE(m);
         CAPTURE(n);
         CAPTURE(k);
-        std::vector<float> a(static_cast<std::size_t>(m + 3) * k), b(static_cast<std::size_t>(k) * (n + 2)), bias(m), y(static_cast<std::size_t>(m) * n);
-        for (auto* v : {&a, &b, &bias, &y})
-          for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
-        const bool transposed_b = (m + n + k) % 2 == 1;  // both layouts, the one-row paths' loads and gathers
-        const std::ptrdiff_t bk = transposed_b ? n : 1, bn = transposed_b ? 1 : k;
+        GemmOperands g(rng, m, n, k);
+        g.transposed_b = (m + n + k) % 2 == 1;  // both layouts, the one-row paths' loads and gathers
         auto chain = [&](int i, int j, float start) {
           float acc = start;
-          for (int q = 0; q < k; ++q) acc = std::fma(a[i + static_cast<std::size_t>(q) * (m + 3)], b[q * bk + j * bn], acc);
+          for (int q = 0; q < k; ++q) acc = std::fma(g.a_at(i, q), g.b_at(q, j), acc);
           return acc;
         };
-        std::vector<float> c0(static_cast<std::size_t>(m + 1) * n);
+        std::vector<float> c0 = g.c_filled(0.f);
         for (auto& e : c0) e = static_cast<float>(rng.uniform(-1, 1));
-        std::vector<float> acc = c0, plain(c0.size(), 7.f), fwd(c0.size(), 7.f), bwd(c0.size(), 7.f);
-        gemm::product<true>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, acc.data(), m + 1});
-        gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, plain.data(), m + 1});
-        gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, fwd.data(), m + 1},
-                             gemm::BiasActivation<ReLU>{bias.data()});
-        gemm::product<false>(gemm::Operands<float>{m, n, k, a.data(), m + 3, b.data(), bk, bn, bwd.data(), m + 1},
-                             gemm::ActivationGrad<ReLU>{y.data(), m});
+        std::vector<float> acc = c0, plain = g.c_filled(7.f), fwd = g.c_filled(7.f), bwd = g.c_filled(7.f);
+        gemm::product<true>(g.with_c(acc.data()));
+        gemm::product<false>(g.with_c(plain.data()));
+        gemm::product<false>(g.with_c(fwd.data()), gemm::BiasActivation<ReLU>{g.bias.data()});
+        gemm::product<false>(g.with_c(bwd.data()), gemm::ActivationGrad<ReLU>{g.y.data(), m});
         for (int j = 0; j < n; ++j) {
           for (int i = 0; i < m; ++i) {
-            const std::size_t at = i + static_cast<std::size_t>(j) * (m + 1);
+            const std::size_t at = g.c_at(i, j);
             const float z = chain(i, j, 0.f);
             wrong += acc[at] != chain(i, j, c0[at]);
             wrong += plain[at] != z;
-            wrong += fwd[at] != std::max(z + bias[i], 0.f);
-            wrong += bwd[at] != (y[i + static_cast<std::size_t>(j) * m] > 0 ? z : 0.f);
+            wrong += fwd[at] != std::max(z + g.bias[i], 0.f);
+            wrong += bwd[at] != (g.y_at(i, j) > 0 ? z : 0.f);
           }
-          const std::size_t pad = m + static_cast<std::size_t>(j) * (m + 1);  // the padding row: never written
+          const std::size_t pad = g.c_at(m, j);  // the padding row: never written
           wrong += acc[pad] != c0[pad] || plain[pad] != 7.f || fwd[pad] != 7.f || bwd[pad] != 7.f;
         }
         ++checked;
