@@ -128,6 +128,36 @@ TEST_CASE_TEMPLATE("compositing: finite-difference check through each radiance a
   CHECK(evtest::max_fd_error(lum, raw, dr) < 1e-6);
 }
 
+TEST_CASE_TEMPLATE("compositing: the shortcut for unevaluated samples writes the same bits as evaluating them", T, float, double) {
+  // Samples at the renderer's skipped density (raw luminance 0) among evaluated ones, in runs and alone,
+  // the last one open; two channels; each density activation whose value and slope vanish there.
+  const int S = 12, C = 2;
+  const T skipped = T(-1e4);
+  Rng rng(11);
+  std::vector<T> sigma(S), raw(S * C), t(S);
+  for (int k = 0; k < S; ++k) {
+    const bool skip = k == 0 || k == 3 || k == 4 || k == 5 || k == 9 || k == S - 1;
+    sigma[k] = skip ? skipped : T(rng.uniform(-0.5, 3.0));
+    for (int c = 0; c < C; ++c) raw[k * C + c] = skip ? T(0) : T(rng.uniform(-2, 2));
+    t[k] = T(0.4 + 0.25 * k + 0.1 * rng.uniform());
+  }
+  auto same = [](const render::RayComposite<T>& a, const render::RayComposite<T>& b) {
+    return a.alpha == b.alpha && a.dalpha_dsigma == b.dalpha_dsigma && a.trans == b.trans && a.weight == b.weight && a.lum == b.lum &&
+           a.dlum_draw == b.dlum_draw && a.color == b.color && a.depth == b.depth && a.opacity == b.opacity;
+  };
+  auto check = [&](auto act) {
+    using Act = decltype(act);
+    render::RayComposite<T> plain, fast;
+    render::composite_forward<T, Act, nn::TruncExp>(S, C, sigma.data(), 1, raw.data(), t.data(), T(1.3), nullptr, plain);
+    render::composite_forward<T, Act, nn::TruncExp>(S, C, sigma.data(), 1, raw.data(), t.data(), T(1.3), nullptr, fast, &skipped);
+    CHECK(same(plain, fast));
+    CHECK(plain.opacity > T(0));
+  };
+  check(nn::ReLU{});
+  check(nn::TruncExp{});
+  check(nn::Softplus{});
+}
+
 TEST_CASE("radiance policies: the sigmoid cannot render more than 6.9 nats of log change, exp radiance can") {
   // The log change between a fully dark and a fully bright sample: bounded by log(1 + ε) − log(ε) for the
   // sigmoid, unbounded (up to the e^15 cut) for exp radiance; an HDR scene asks for 8–9 nats.

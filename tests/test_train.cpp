@@ -779,6 +779,34 @@ TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the t
   CHECK(worst_depth <= 1.5e-4 * f.cfg.far * 1.5);
 }
 
+TEST_CASE("render: a pixel's bits depend on neither the rows per batch nor the thread count") {
+  using TinyOcc = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8>>;  // skipping and early termination
+  Fixture f;
+  TinyOcc m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+  for (int s = 0; s < 40; ++s) m.train_step(f.td, 128, 3);
+  REQUIRE(m.sampler().skipping());
+  const auto dirs = render::pixel_directions(f.td.camera);
+  const auto& pose = f.td.boundary_poses[1];
+  auto same = [](const Rendering& a, const Rendering& b) {
+    return a.luminance.data == b.luminance.data && a.depth.data == b.depth.data && a.opacity.data == b.opacity.data;
+  };
+  const auto one_row = [&] {
+    ScopedThreadCount t(1);
+    return m.render(f.td.camera, dirs, pose, true, 1);
+  }();
+  const int H = f.td.camera.height();
+  for (int rows : {2, 3, TinyOcc::renderer_type::kRenderRows, H, H + 5}) {
+    CAPTURE(rows);
+    ScopedThreadCount t(2);
+    CHECK(same(m.render(f.td.camera, dirs, pose, true, rows), one_row));
+  }
+  // Without early termination too (every sample of every ray), and the image is not constant.
+  ScopedThreadCount t(2);
+  CHECK(same(m.render(f.td.camera, dirs, pose, false, 1), m.render(f.td.camera, dirs, pose, false, 5)));
+  const auto& l = one_row.luminance.data;
+  CHECK(*std::max_element(l.begin(), l.end()) > *std::min_element(l.begin(), l.end()));
+}
+
 TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does") {
   Fixture f;
   train::Config cfg = f.run_config(30, 64);

@@ -341,8 +341,8 @@ class EvNerf {
   /// Renders the full image at `pose` (the fine network where there is one) with render_params(); see
   /// Renderer::render.
   Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
-                   bool early_termination = true) const {
-    return renderer_.render(render_params().data(), cam, pixel_dirs, pose, early_termination);
+                   bool early_termination = true, int rows_per_batch = renderer_type::kRenderRows) const {
+    return renderer_.render(render_params().data(), cam, pixel_dirs, pose, early_termination, rows_per_batch);
   }
 
   // ---- checkpoints -----------------------------------------------------------------------------------

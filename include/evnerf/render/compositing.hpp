@@ -48,9 +48,13 @@ struct RayComposite {
 /// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
 /// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
 /// null). The last interval is open (δ = kOpenInterval), as in NeRF.
+///
+/// `skipped` (optional, with no noise only): the raw density that the renderer gives samples it did not
+/// evaluate (raw luminance 0). Where act(skipped) and its derivative are both 0, every such sample has α = 0
+/// and dα/dσ = 0 whatever its δ, so they are written without evaluating exp; the results are the same bits.
 template <class T, class DensityAct = nn::ReLU, class RadianceAct = nn::Sigmoid>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
-                       const T* noise, RayComposite<T>& r) {
+                       const T* noise, RayComposite<T>& r, const T* skipped = nullptr) {
   r.alpha.resize(S);
   r.dalpha_dsigma.resize(S);
   r.trans.resize(S);
@@ -60,20 +64,44 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
   r.color.assign(C, T(0));
   r.depth = r.opacity = 0;
   T trans = 1;
+  // The shortcut for samples at `skipped`: their α (0 for every δ > 0) and their luminance at raw 0, once.
+  bool shortcut = false;
+  T alpha_skip = 0, dalpha_skip = 0, lum_zero = 0, dlum_zero = 0;
+  if (skipped && !noise) {
+    const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{1.0, 0.0}, std::array<double, 1>{double(*skipped)});
+    const auto f = ad::value_and_grad([](const auto& x) { return DensityAct::apply(x); }, std::array<double, 1>{double(*skipped)});
+    shortcut = f.value == 0 && f.grad[0] == 0;
+    alpha_skip = static_cast<T>(a.value);
+    dalpha_skip = static_cast<T>(a.grad[0]);
+    const auto l = ad::value_and_grad(LuminanceOfRaw<RadianceAct>{}, std::array<double, 1>{0.0});
+    lum_zero = static_cast<T>(l.value);
+    dlum_zero = static_cast<T>(l.grad[0]);
+  }
   for (int k = 0; k < S; ++k) {
-    const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : kOpenInterval;
-    const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0},
-                                      std::array<double, 1>{double(sigma[static_cast<std::size_t>(k) * sigma_stride])});
-    r.alpha[k] = static_cast<T>(a.value);
-    r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
+    const T sk = sigma[static_cast<std::size_t>(k) * sigma_stride];
+    const bool skip = shortcut && sk == *skipped;
+    if (skip) {
+      r.alpha[k] = alpha_skip;
+      r.dalpha_dsigma[k] = dalpha_skip;
+    } else {
+      const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : kOpenInterval;
+      const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0}, std::array<double, 1>{double(sk)});
+      r.alpha[k] = static_cast<T>(a.value);
+      r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
+    }
     r.trans[k] = trans;
     const T w = trans * r.alpha[k];
     r.weight[k] = w;
     for (int c = 0; c < C; ++c) {
       const std::size_t i = static_cast<std::size_t>(k) * C + c;
-      const auto l = ad::value_and_grad(LuminanceOfRaw<RadianceAct>{}, std::array<double, 1>{double(raw[i])});
-      r.lum[i] = static_cast<T>(l.value);
-      r.dlum_draw[i] = static_cast<T>(l.grad[0]);
+      if (skip && raw[i] == T(0)) {
+        r.lum[i] = lum_zero;
+        r.dlum_draw[i] = dlum_zero;
+      } else {
+        const auto l = ad::value_and_grad(LuminanceOfRaw<RadianceAct>{}, std::array<double, 1>{double(raw[i])});
+        r.lum[i] = static_cast<T>(l.value);
+        r.dlum_draw[i] = static_cast<T>(l.grad[0]);
+      }
       r.color[c] += w * r.lum[i];
     }
     r.depth += w * t[k];

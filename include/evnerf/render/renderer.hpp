@@ -6,6 +6,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -122,30 +123,43 @@ class Renderer {
     for (auto& p : w.pass) FieldT::flush_encoding_grad(p.ws);
   }
 
-  /// Renders the full image at `pose` (the fine pass where there is one), parallel over rows; `pixel_dirs`
-  /// are render::pixel_directions(cam). With `early_termination` (the default) a ray stops being evaluated
-  /// once its transmittance falls below kEvalTransmittance: what lies behind changes a pixel by less than that.
+  /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays): larger batches give
+  /// the products longer tiles. A ray's result does not depend on its batch (tested).
+  static constexpr int kRenderRows = 4;
+
+  /// Renders the full image at `pose` (the fine pass where there is one); `pixel_dirs` are
+  /// render::pixel_directions(cam). Batches of `rows_per_batch` rows go to the threads as each becomes free
+  /// (rows differ in cost: sky against floor), so the image's bits depend on neither the batch size nor the
+  /// thread count. With `early_termination` (the default) a ray stops being evaluated once its
+  /// transmittance falls below kEvalTransmittance: what lies behind changes a pixel by less than that.
   Rendering render(const T* params, const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs,
-                   const geometry::Pose& pose, bool early_termination = true) const {
+                   const geometry::Pose& pose, bool early_termination = true, int rows_per_batch = kRenderRows) const {
     Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
                   Image(cam.width(), cam.height(), 1)};
     const int H = cam.height(), W = cam.width();
-    parallel_blocks(static_cast<std::size_t>(H), 4, [&](std::size_t b, std::size_t e, int) {
+    const int G = std::max(1, rows_per_batch);
+    const std::size_t batches = static_cast<std::size_t>((H + G - 1) / G);
+    std::atomic<std::size_t> next{0};
+    parallel_blocks(batches, 1, [&](std::size_t, std::size_t, int) {
       Workspace w;
       w.early_termination = early_termination;
-      std::vector<Vec3> origin(W), dir(W);
-      for (std::size_t y = b; y < e; ++y) {
-        for (int x = 0; x < W; ++x) {
-          const auto ray = geometry::Camera::ray_along(pose, pixel_dirs[y * W + x].cast<double>());
-          origin[x] = ray.origin;
-          dir[x] = ray.dir;
+      std::vector<Vec3> origin, dir;
+      for (std::size_t g; (g = next.fetch_add(1, std::memory_order_relaxed)) < batches;) {
+        const int y0 = static_cast<int>(g) * G, y1 = std::min(H, y0 + G), R = (y1 - y0) * W;
+        origin.resize(static_cast<std::size_t>(R));
+        dir.resize(static_cast<std::size_t>(R));
+        for (int r = 0; r < R; ++r) {
+          const auto ray = geometry::Camera::ray_along(pose, pixel_dirs[static_cast<std::size_t>(y0) * W + r].cast<double>());
+          origin[r] = ray.origin;
+          dir[r] = ray.dir;
         }
-        forward_eval(params, origin.data(), dir.data(), W, w);
+        forward_eval(params, origin.data(), dir.data(), R, w);
         const auto& comp = w.pass[networks - 1].comp;
-        for (int x = 0; x < W; ++x) {
-          for (int c = 0; c < channels; ++c) out.luminance.at(x, int(y), c) = static_cast<float>(comp[x].color[c]);
-          out.depth.at(x, int(y)) = static_cast<float>(comp[x].depth);
-          out.opacity.at(x, int(y)) = static_cast<float>(comp[x].opacity);
+        for (int r = 0; r < R; ++r) {
+          const int x = r % W, y = y0 + r / W;
+          for (int c = 0; c < channels; ++c) out.luminance.at(x, y, c) = static_cast<float>(comp[r].color[c]);
+          out.depth.at(x, y) = static_cast<float>(comp[r].depth);
+          out.opacity.at(x, y) = static_cast<float>(comp[r].opacity);
         }
       }
     });
@@ -277,6 +291,8 @@ class Renderer {
       }
       evaluate_active(params, p, w);
       // Transmittance after this chunk (as composite_forward computes it).
+      // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
+      const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
       bool alive = false;
       for (int r = 0; r < R; ++r) {
         if (p.ray_trans[r] <= kEvalTransmittance) continue;
@@ -284,7 +300,9 @@ class Renderer {
         for (int k = k0; k < k1; ++k) {
           const std::size_t i = static_cast<std::size_t>(r) * S + k;
           const double delta = k + 1 < S ? double(p.t[i + 1] - p.t[i]) * dn : kOpenInterval;
-          const double alpha = 1.0 - std::exp(-(FieldT::density_activation::f(p.sig_full[i]) * delta));
+          const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity
+                                   ? 0.0
+                                   : 1.0 - std::exp(-(FieldT::density_activation::f(p.sig_full[i]) * delta));
           p.ray_trans[r] *= static_cast<T>(1.0 - alpha + kTransmittanceEpsilon);
         }
         alive = alive || p.ray_trans[r] > kEvalTransmittance;
@@ -325,7 +343,8 @@ class Renderer {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
                                                                 p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
-                                                                training ? p.noise.data() + o : nullptr, p.comp[r]);
+                                                                training ? p.noise.data() + o : nullptr, p.comp[r],
+                                                                training ? nullptr : &kSkippedDensity);
     }
     p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
     p.dweight.clear();
