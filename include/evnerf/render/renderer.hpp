@@ -225,21 +225,24 @@ class Renderer {
     }
   }
 
+  /// The point at depth t along a ray, in the normalised box (as T), into q[0..3). The one formula of every
+  /// sample's position: make_samples and forward_terminating give the same bits.
+  void sample_point(const Vec3& origin, const Vec3& dir, T t, T* q) const {
+    const Vec3 x = (origin + static_cast<double>(t) * dir - box_.center) * (1.0 / box_.scale);
+    for (int d = 0; d < 3; ++d) q[d] = static_cast<T>(x[d]);
+  }
+
   /// Points and unit directions of the pass's R×S samples, in the normalised box.
   void make_samples(const Vec3* origin, const Vec3* dir, int R, Pass& p) const {
     const int S = p.S;
     p.pts.resize(3 * static_cast<std::size_t>(R) * S);
     p.dirs.resize(3 * static_cast<std::size_t>(R) * S);
-    const double inv = 1.0 / box_.scale;
     for (int r = 0; r < R; ++r) {
       const Vec3 u = dir[r].normalized();
       for (int k = 0; k < S; ++k) {
         const std::size_t i = static_cast<std::size_t>(r) * S + k;
-        const Vec3 q = (origin[r] + static_cast<double>(p.t[i]) * dir[r] - box_.center) * inv;
-        for (int d = 0; d < 3; ++d) {
-          p.pts[3 * i + d] = static_cast<T>(q[d]);
-          p.dirs[3 * i + d] = static_cast<T>(u[d]);
-        }
+        sample_point(origin[r], dir[r], p.t[i], &p.pts[3 * i]);
+        for (int d = 0; d < 3; ++d) p.dirs[3 * i + d] = static_cast<T>(u[d]);
       }
     }
   }
@@ -256,11 +259,16 @@ class Renderer {
       }
   }
 
-  /// Evaluates the packed samples p.active and scatters raw density and luminance into p.sig_full/raw_full.
+  /// Evaluates the samples p.active and scatters raw density and luminance into p.sig_full/raw_full.
   void evaluate_active(const T* params, Pass& p, Workspace& w) const {
+    if (p.active.empty()) return;
+    gather_active(p);
+    evaluate_packed(params, p, w);
+  }
+  /// evaluate_active with p.cpts / p.cdirs already packed.
+  void evaluate_packed(const T* params, Pass& p, Workspace& w) const {
     const int m = static_cast<int>(p.active.size());
     if (m == 0) return;
-    gather_active(p);
     const T *sg = nullptr, *rw = nullptr;
     FieldT::forward(params, p.cpts.data(), p.cdirs.data(), m, p.ws, &sg, &rw);
     w.evaluated += static_cast<std::size_t>(m);
@@ -273,23 +281,37 @@ class Renderer {
   }
 
   /// Evaluation forward with early termination, kEvalChunk samples of every live ray at a time.
-  void forward_terminating(const T* params, const Vec3* dir, int R, Pass& p, Workspace& w) const {
+  /// The points are made here, chunk by chunk and only for live rays (make_samples' formula), and packed
+  /// straight into p.cpts / p.cdirs: most of a ray's samples lie behind where it stops.
+  void forward_terminating(const T* params, const Vec3* origin, const Vec3* dir, int R, Pass& p, Workspace& w) const {
     const int S = p.S;
     const std::size_t n = static_cast<std::size_t>(R) * S;
     p.sig_full.assign(n, kSkippedDensity);
     p.raw_full.assign(n * channels, T(0));
     p.ray_trans.assign(static_cast<std::size_t>(R), T(1));
+    p.dirs.resize(3 * static_cast<std::size_t>(R));  // one unit direction per ray
+    for (int r = 0; r < R; ++r) {
+      const Vec3 u = dir[r].normalized();
+      for (int d = 0; d < 3; ++d) p.dirs[3 * static_cast<std::size_t>(r) + d] = static_cast<T>(u[d]);
+    }
     for (int k0 = 0; k0 < S; k0 += kEvalChunk) {
       const int k1 = std::min(S, k0 + kEvalChunk);
       p.active.clear();
+      p.cpts.clear();
+      p.cdirs.clear();
       for (int r = 0; r < R; ++r) {
         if (p.ray_trans[r] <= kEvalTransmittance) continue;
         for (int k = k0; k < k1; ++k) {
           const int i = r * S + k;
-          if (sampler_.evaluates(&p.pts[3 * static_cast<std::size_t>(i)])) p.active.push_back(i);
+          T q[3];
+          sample_point(origin[r], dir[r], p.t[static_cast<std::size_t>(i)], q);
+          if (!sampler_.evaluates(q)) continue;
+          p.active.push_back(i);
+          p.cpts.insert(p.cpts.end(), q, q + 3);
+          p.cdirs.insert(p.cdirs.end(), &p.dirs[3 * static_cast<std::size_t>(r)], &p.dirs[3 * static_cast<std::size_t>(r)] + 3);
         }
       }
-      evaluate_active(params, p, w);
+      evaluate_packed(params, p, w);
       // Transmittance after this chunk (as composite_forward computes it).
       // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
       const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
@@ -315,12 +337,13 @@ class Renderer {
   /// evaluate every sample the sampler keeps; evaluation rays may terminate early.
   void run_pass(const T* params, const Vec3* origin, const Vec3* dir, int R, bool training, Pass& p, Workspace& w) const {
     const int S = p.S;
-    make_samples(origin, dir, R, p);
+    const bool terminating = !training && w.early_termination;
+    if (!terminating) make_samples(origin, dir, R, p);
     const T *sigma = nullptr, *raw = nullptr;
     int stride = FieldT::density_net::out_dims;
     p.active.clear();
-    if (!training && w.early_termination) {
-      forward_terminating(params, dir, R, p, w);
+    if (terminating) {
+      forward_terminating(params, origin, dir, R, p, w);
       sigma = p.sig_full.data();
       raw = p.raw_full.data();
       stride = 1;
