@@ -289,6 +289,8 @@ class Renderer {
     p.sig_full.assign(n, kSkippedDensity);
     p.raw_full.assign(n * channels, T(0));
     p.ray_trans.assign(static_cast<std::size_t>(R), T(1));
+    // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
+    const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
     p.dirs.resize(3 * static_cast<std::size_t>(R));  // one unit direction per ray
     for (int r = 0; r < R; ++r) {
       const Vec3 u = dir[r].normalized();
@@ -313,8 +315,6 @@ class Renderer {
       }
       evaluate_packed(params, p, w);
       // Transmittance after this chunk (as composite_forward computes it).
-      // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
-      const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
       bool alive = false;
       for (int r = 0; r < R; ++r) {
         if (p.ray_trans[r] <= kEvalTransmittance) continue;
