@@ -123,8 +123,9 @@ class Renderer {
     for (auto& p : w.pass) FieldT::flush_encoding_grad(p.ws);
   }
 
-  /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays): larger batches give
-  /// the products longer tiles. A ray's result does not depend on its batch (tested).
+  /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays). On a Zen 3 with 240
+  /// columns, 1, 2 and 4 rows render equally fast and 8 or 16 rows slower (the batch's per-sample arrays
+  /// leave the cache; bench/README.md, session 36). A ray's result does not depend on its batch (tested).
   static constexpr int kRenderRows = 4;
 
   /// Renders the full image at `pose` (the fine pass where there is one); `pixel_dirs` are
