@@ -443,6 +443,18 @@ TEST_CASE("gemm: the kernel computes each element as a scalar fused multiply-add
           const std::size_t pad = g.c_at(m, j);  // the padding row: never written
           wrong += acc[pad] != c0[pad] || plain[pad] != 7.f || fwd[pad] != 7.f || bwd[pad] != 7.f;
         }
+        // first_chain_mismatch (EVNERF_CHECK_KERNELS builds check every product with it) agrees, and finds
+        // one element moved by one ulp.
+        const gemm::BiasActivation<ReLU> bias_relu{g.bias.data()};
+        CHECK_FALSE(gemm::first_chain_mismatch<true>(g.with_c(acc.data()), c0.data(), m + 1));
+        CHECK_FALSE(gemm::first_chain_mismatch<false>(g.with_c(plain.data()), nullptr, 0));
+        CHECK_FALSE(gemm::first_chain_mismatch<false>(g.with_c(fwd.data()), nullptr, 0, bias_relu));
+        CHECK_FALSE(gemm::first_chain_mismatch<false>(g.with_c(bwd.data()), nullptr, 0, gemm::ActivationGrad<ReLU>{g.y.data(), m}));
+        const int bi = (m * 5) / 7, bj = (n * 3) / 5;
+        std::vector<float> moved = fwd;
+        moved[g.c_at(bi, bj)] = std::nextafter(moved[g.c_at(bi, bj)], std::numeric_limits<float>::infinity());
+        const auto bad = gemm::first_chain_mismatch<false>(g.with_c(moved.data()), nullptr, 0, bias_relu);
+        CHECK((bad && bad->i == bi && bad->j == bj && bad->got == moved[g.c_at(bi, bj)] && bad->want == fwd[g.c_at(bi, bj)]));
         ++checked;
       }
   CHECK(checked == 12 * 11 * 6);

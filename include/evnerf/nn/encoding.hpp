@@ -8,9 +8,12 @@
 #endif
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <concepts>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "../ad/expr.hpp"
@@ -240,6 +243,20 @@ struct HashGrid {
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
     if constexpr (std::is_same_v<T, float> && F == 2) {
       forward_batch_pairs(params, p, n, y);
+#if defined(EVNERF_CHECK_KERNELS)
+      // The batch path's promise, checked point by point in a real run (gemm::product's check, for the grid).
+      T one[out_dims];
+      for (int j = 0; j < n; ++j) {
+        forward(params, p + 3 * static_cast<std::size_t>(j), one);
+        const T* yj = y + static_cast<std::size_t>(j) * out_dims;
+        for (int f = 0; f < out_dims; ++f)
+          if (std::bit_cast<std::uint32_t>(yj[f]) != std::bit_cast<std::uint32_t>(one[f])) {
+            std::fprintf(stderr, "evnerf: EVNERF_CHECK_KERNELS: HashGrid::forward_batch point %d of %d (%a %a %a), feature %d is %a where forward() gives %a\n",
+                         j, n, p[3 * j], p[3 * j + 1], p[3 * j + 2], f, yj[f], one[f]);
+            std::abort();
+          }
+      }
+#endif
       return;
     }
 #endif

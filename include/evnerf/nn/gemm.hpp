@@ -15,8 +15,15 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
+#include <bit>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
 #include <type_traits>
+#include <vector>
 
 #include "activation.hpp"
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
@@ -62,6 +69,23 @@ void eigen_product(const Operands<T>& o) {
 /// No epilogue: C gets the product as it is.
 struct NoEpilogue {
   static constexpr bool active = false;
+  static float scalar(float v, int, int) { return v; }
+};
+
+/// What the vector activations compute, one lane at a time: ReLU as vmaxps(x, 0) (NaN and −0 give +0) and
+/// its gradient as a mask (+0 where the output is not positive, whatever g is). The epilogues' scalar()
+/// forms use these, so a kernel's output can be checked to the bit (first_chain_mismatch).
+template <class Act>
+struct ScalarActivation;
+template <>
+struct ScalarActivation<ReLU> {
+  static float f(float x) { return x > 0.f ? x : 0.f; }
+  static float grad(float g, float y) { return y > 0.f ? g : 0.f; }
+};
+template <>
+struct ScalarActivation<Identity> {
+  static float f(float x) { return x; }
+  static float grad(float g, float) { return g; }
 };
 
 /// The epilogues (defined for the kernels' builds below; elsewhere they stay declared for discarded branches).
@@ -100,6 +124,7 @@ struct BiasActivation {
   __m512 operator()(__m512 v, int row, int, __mmask16 m) const {
     return VectorActivation<Act>::f(_mm512_add_ps(v, _mm512_maskz_loadu_ps(m, bias + row)));
   }
+  float scalar(float v, int row, int) const { return ScalarActivation<Act>::f(v + bias[row]); }
 };
 /// Backward epilogue: C = (A·B) ⊙ act'(y), with act' computed from the activation's output y (ld ldy).
 template <class Act>
@@ -110,6 +135,7 @@ struct ActivationGrad {
   __m512 operator()(__m512 v, int row, int col, __mmask16 m) const {
     return VectorActivation<Act>::grad(v, _mm512_maskz_loadu_ps(m, y + row + col * ldy));
   }
+  float scalar(float v, int row, int col) const { return ScalarActivation<Act>::grad(v, y[row + col * ldy]); }
 };
 
 namespace detail {
@@ -222,6 +248,7 @@ struct BiasActivation {
   __m256 operator()(__m256 v, int row, int, __m256i m) const {
     return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_maskload_ps(bias + row, m)));
   }
+  float scalar(float v, int row, int) const { return ScalarActivation<Act>::f(v + bias[row]); }
   /// The same on 8 columns col.. of one row (one_row()).
   __m256 along_row(__m256 v, int row, int, __m256i) const {
     return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_broadcast_ss(bias + row)));
@@ -236,6 +263,7 @@ struct ActivationGrad {
   __m256 operator()(__m256 v, int row, int col, __m256i m) const {
     return VectorActivation<Act>::grad(v, _mm256_maskload_ps(y + row + col * ldy, m));
   }
+  float scalar(float v, int row, int col) const { return ScalarActivation<Act>::grad(v, y[row + col * ldy]); }
   /// The same on 8 columns col.. of one row (one_row()); lanes past C's last column read y as zero.
   __m256 along_row(__m256 v, int row, int col, __m256i m) const {
     const __m256i at = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(ldy)));
@@ -482,10 +510,64 @@ constexpr bool has_kernel() {
 #endif
 }
 
+/// Where an element of C breaks the kernels' promise: row i, column j, its bits and the chain's.
+struct ChainMismatch {
+  int i, j;
+  float got, want;
+};
+
+/// The first element of C (column by column) whose bits differ from what a kernel promises: its old value
+/// (`before`, leading dimension ldb; Accumulate only) or zero, one std::fma per k in order, then the
+/// epilogue's scalar form. Two NaNs count as equal. For the tests and EVNERF_CHECK_KERNELS builds.
+template <bool Accumulate, class Epi = NoEpilogue>
+std::optional<ChainMismatch> first_chain_mismatch(const Operands<float>& o, const float* before, std::ptrdiff_t ldb,
+                                                  const Epi& epi = {}) {
+  for (int j = 0; j < o.n; ++j)
+    for (int i = 0; i < o.m; ++i) {
+      float want = Accumulate ? before[i + j * ldb] : 0.f;
+      for (int q = 0; q < o.k; ++q) want = std::fma(o.a[i + q * o.lda], o.b[q * o.bk + j * o.bn], want);
+      want = epi.scalar(want, i, j);
+      const float got = o.c[i + j * o.ldc];
+      if (std::bit_cast<std::uint32_t>(got) != std::bit_cast<std::uint32_t>(want) && !(std::isnan(got) && std::isnan(want)))
+        return ChainMismatch{i, j, got, want};
+    }
+  return std::nullopt;
+}
+
+template <bool Accumulate, class T, class Epi>
+inline void product_unchecked(const Operands<T>& o, [[maybe_unused]] const Epi& epi);
+
 /// C = A·B (Accumulate = false) or C += A·B, then the epilogue on each result vector before it is stored.
 /// Float on AVX-512 or AVX2 + FMA takes a kernel; everything else Eigen (which takes no epilogue).
+/// Built with EVNERF_CHECK_KERNELS (CMake option of that name), every kernel product is checked against
+/// first_chain_mismatch and a mismatch ends the process with the product's shape: the check that a float
+/// run gives the same bits on another CPU, in a real run rather than the tests' shapes.
 template <bool Accumulate, class T, class Epi = NoEpilogue>
-[[gnu::noinline]] void product(const Operands<T>& o, [[maybe_unused]] const Epi& epi = {}) {
+[[gnu::noinline]] void product(const Operands<T>& o, const Epi& epi = {}) {
+#if defined(EVNERF_CHECK_KERNELS) && (defined(__AVX512F__) || defined(EVNERF_GEMM_AVX2))
+  if constexpr (std::is_same_v<T, float>) {
+    if (o.m > 0 && o.n > 0) {
+      std::vector<float> before;
+      if constexpr (Accumulate)
+        for (int j = 0; j < o.n; ++j) before.insert(before.end(), o.c + j * o.ldc, o.c + j * o.ldc + o.m);
+      product_unchecked<Accumulate>(o, epi);
+      if (const auto bad = first_chain_mismatch<Accumulate>(o, before.data(), o.m, epi)) {
+        std::fprintf(stderr,
+                     "evnerf: EVNERF_CHECK_KERNELS: gemm::product (m %d, n %d, k %d, lda %td, bk %td, bn %td, ldc %td, %s, "
+                     "%s) element (%d, %d) is %a where the fma chain gives %a\n",
+                     o.m, o.n, o.k, o.lda, o.bk, o.bn, o.ldc, Accumulate ? "accumulating" : "overwriting",
+                     Epi::active ? "with an epilogue" : "no epilogue", bad->i, bad->j, bad->got, bad->want);
+        std::abort();
+      }
+      return;
+    }
+  }
+#endif
+  product_unchecked<Accumulate>(o, epi);
+}
+
+template <bool Accumulate, class T, class Epi>
+inline void product_unchecked(const Operands<T>& o, [[maybe_unused]] const Epi& epi) {
   if (o.m <= 0 || o.n <= 0) return;
 #if defined(__AVX512F__)
   if constexpr (std::is_same_v<T, float>) {
