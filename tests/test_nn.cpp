@@ -6,6 +6,7 @@
 #include <evnerf/nn/reference.hpp>
 
 #include <limits>
+#include <optional>
 
 #include "common.hpp"
 #include "mlp_vs_reference.hpp"
@@ -459,6 +460,65 @@ TEST_CASE("gemm: the kernel computes each element as a scalar fused multiply-add
       }
   CHECK(checked == 12 * 11 * 6);
   CHECK(wrong == 0);
+}
+
+TEST_CASE("gemm: a Fast training step's product shapes are fused multiply-add chains too, to the bit") {
+  // The shapes (m, n, k, strides, accumulation, epilogue) that a Fast step on `object` runs, logged in
+  // session 37: forward products over a tile's 2048 samples or fewer after occupancy skipping, weight
+  // gradients with k = the samples and B read transposed, input gradients into part of a wider buffer
+  // (m 15 of ld 31). The grid of the test above stops at n 45 and k 150 with padded strides; these run the
+  // long panels and the exact strides the kernels see in training.
+  struct Shape {
+    int m, n, k, ld;
+    bool transposed_b, accumulate;
+    int epi;  // 0 none, 1 bias + ReLU, 2 bias + identity, 3 ReLU's gradient
+  };
+  const Shape shapes[] = {
+      {64, 2048, 32, 64, false, false, 1},  {64, 2048, 64, 64, false, false, 1}, {64, 1187, 31, 64, false, false, 1},
+      {64, 702, 16, 64, false, false, 1},   {64, 777, 1, 64, false, false, 1},   {16, 2048, 64, 16, false, false, 1},
+      {1, 2048, 64, 1, false, false, 2},    {1, 1013, 64, 1, false, false, 1},   {64, 64, 2048, 64, true, true, 0},
+      {64, 31, 1234, 64, true, true, 0},    {16, 64, 2048, 16, true, true, 0},   {1, 64, 2048, 1, true, true, 0},
+      {1, 64, 423, 1, true, true, 0},       {15, 2048, 64, 31, false, true, 0},  {32, 1500, 64, 32, false, true, 0},
+      {64, 2048, 64, 64, false, false, 3},
+  };
+  Rng rng(37);
+  for (const Shape& sh : shapes) {
+    CAPTURE(sh.m);
+    CAPTURE(sh.n);
+    CAPTURE(sh.k);
+    CAPTURE(sh.epi);
+    auto draw = [&](std::size_t size) {
+      std::vector<float> v(size);
+      for (auto& e : v) e = static_cast<float>(rng.uniform(-1, 1));
+      return v;
+    };
+    const std::vector<float> a = draw(static_cast<std::size_t>(sh.ld) * std::max(sh.k, 1)), b = draw(static_cast<std::size_t>(sh.k) * sh.n + 1),
+                             bias = draw(static_cast<std::size_t>(sh.m)), y = draw(static_cast<std::size_t>(sh.ld) * sh.n);
+    std::vector<float> c = draw(static_cast<std::size_t>(sh.ld) * sh.n);
+    const std::vector<float> before = c;
+    const gemm::Operands<float> o{sh.m, sh.n, sh.k, a.data(), sh.ld, b.data(), sh.transposed_b ? sh.n : 1, sh.transposed_b ? 1 : sh.k,
+                                  c.data(), sh.ld};
+    std::optional<gemm::ChainMismatch> bad;
+    if (sh.accumulate) {
+      gemm::product<true>(o);
+      bad = gemm::first_chain_mismatch<true>(o, before.data(), sh.ld);
+    } else if (sh.epi == 1) {
+      gemm::product<false>(o, gemm::BiasActivation<ReLU>{bias.data()});
+      bad = gemm::first_chain_mismatch<false>(o, nullptr, 0, gemm::BiasActivation<ReLU>{bias.data()});
+    } else if (sh.epi == 2) {
+      gemm::product<false>(o, gemm::BiasActivation<Identity>{bias.data()});
+      bad = gemm::first_chain_mismatch<false>(o, nullptr, 0, gemm::BiasActivation<Identity>{bias.data()});
+    } else {
+      gemm::product<false>(o, gemm::ActivationGrad<ReLU>{y.data(), sh.ld});
+      bad = gemm::first_chain_mismatch<false>(o, nullptr, 0, gemm::ActivationGrad<ReLU>{y.data(), sh.ld});
+    }
+    if (bad) MESSAGE("element (" << bad->i << ", " << bad->j << ") is " << bad->got << ", the chain gives " << bad->want);
+    CHECK_FALSE(bad);
+    int touched = 0;  // rows past m (the wider buffer's) are never written
+    for (int j = 0; j < sh.n; ++j)
+      for (int i = sh.m; i < sh.ld; ++i) touched += c[i + static_cast<std::size_t>(j) * sh.ld] != before[i + static_cast<std::size_t>(j) * sh.ld];
+    CHECK(touched == 0);
+  }
 }
 #endif
 
