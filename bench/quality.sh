@@ -6,6 +6,8 @@
 #   the planes scene trained with every 5th boundary held out (novel views scored on their own);
 #   the real IJRR slider_depth chunk (frames 1–4, when ../shared/data is present).
 # About 35 minutes on 2 cores. Usage: bench/quality.sh [rows…]
+# Environment: ITERS (1500), PRESET (fast), THREADS (2: a run's bits depend on its thread count, so the
+# tables compare across machines only at one count), BUILD (build), OUT (out/quality).
 # (rows: planes object room noise0.5 noise0.9 holdout slider)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,6 +15,7 @@ BUILD=${BUILD:-build}
 OUT=${OUT:-out/quality}
 ITERS=${ITERS:-1500}
 PRESET=${PRESET:-fast}
+THREADS=${THREADS:-2}
 EV="$BUILD/examples/evnerf"
 [ -x "$EV" ] || { scripts/deps.sh; cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 ROWS=("$@")
@@ -22,7 +25,7 @@ row() {  # name recording-folder eval-args [train args…]
   local name=$1 folder=$2 evargs=$3
   shift 3
   mkdir -p "$OUT/$name"
-  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --out "$OUT/$name/run" --quiet "$@" > "$OUT/$name/train.log" 2>&1
+  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --threads "$THREADS" --out "$OUT/$name/run" --quiet "$@" > "$OUT/$name/train.log" 2>&1
   "$EV" eval "$OUT/$name/run/model.ckpt" "$folder" --out "$OUT/$name/eval" $evargs | tee "$OUT/$name/eval.txt"
 }
 for r in "${ROWS[@]}"; do
