@@ -72,21 +72,12 @@ struct NoEpilogue {
   static float scalar(float v, int, int) { return v; }
 };
 
-/// What the vector activations compute, one lane at a time: ReLU as vmaxps(x, 0) (NaN and −0 give +0) and
-/// its gradient as a mask (+0 where the output is not positive, whatever g is). The epilogues' scalar()
-/// forms use these, so a kernel's output can be checked to the bit (first_chain_mismatch).
+/// An epilogue's gradient one lane at a time, as the vector forms mask it: g where the activation's slope
+/// at output y is not zero, else +0 (whatever g is). The forward's scalar form is the activation's own f.
 template <class Act>
-struct ScalarActivation;
-template <>
-struct ScalarActivation<ReLU> {
-  static float f(float x) { return x > 0.f ? x : 0.f; }
-  static float grad(float g, float y) { return y > 0.f ? g : 0.f; }
-};
-template <>
-struct ScalarActivation<Identity> {
-  static float f(float x) { return x; }
-  static float grad(float g, float) { return g; }
-};
+float masked_grad(float g, float y) {
+  return Act::template df_from_y<float>(y) != 0.f ? g : 0.f;
+}
 
 /// The epilogues (defined for the kernels' builds below; elsewhere they stay declared for discarded branches).
 template <class Act>
@@ -124,7 +115,7 @@ struct BiasActivation {
   __m512 operator()(__m512 v, int row, int, __mmask16 m) const {
     return VectorActivation<Act>::f(_mm512_add_ps(v, _mm512_maskz_loadu_ps(m, bias + row)));
   }
-  float scalar(float v, int row, int) const { return ScalarActivation<Act>::f(v + bias[row]); }
+  float scalar(float v, int row, int) const { return Act::template f<float>(v + bias[row]); }
 };
 /// Backward epilogue: C = (A·B) ⊙ act'(y), with act' computed from the activation's output y (ld ldy).
 template <class Act>
@@ -135,7 +126,7 @@ struct ActivationGrad {
   __m512 operator()(__m512 v, int row, int col, __mmask16 m) const {
     return VectorActivation<Act>::grad(v, _mm512_maskz_loadu_ps(m, y + row + col * ldy));
   }
-  float scalar(float v, int row, int col) const { return ScalarActivation<Act>::grad(v, y[row + col * ldy]); }
+  float scalar(float v, int row, int col) const { return masked_grad<Act>(v, y[row + col * ldy]); }
 };
 
 namespace detail {
@@ -248,7 +239,7 @@ struct BiasActivation {
   __m256 operator()(__m256 v, int row, int, __m256i m) const {
     return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_maskload_ps(bias + row, m)));
   }
-  float scalar(float v, int row, int) const { return ScalarActivation<Act>::f(v + bias[row]); }
+  float scalar(float v, int row, int) const { return Act::template f<float>(v + bias[row]); }
   /// The same on 8 columns col.. of one row (one_row()).
   __m256 along_row(__m256 v, int row, int, __m256i) const {
     return VectorActivation<Act>::f(_mm256_add_ps(v, _mm256_broadcast_ss(bias + row)));
@@ -263,7 +254,7 @@ struct ActivationGrad {
   __m256 operator()(__m256 v, int row, int col, __m256i m) const {
     return VectorActivation<Act>::grad(v, _mm256_maskload_ps(y + row + col * ldy, m));
   }
-  float scalar(float v, int row, int col) const { return ScalarActivation<Act>::grad(v, y[row + col * ldy]); }
+  float scalar(float v, int row, int col) const { return masked_grad<Act>(v, y[row + col * ldy]); }
   /// The same on 8 columns col.. of one row (one_row()); lanes past C's last column read y as zero.
   __m256 along_row(__m256 v, int row, int col, __m256i m) const {
     const __m256i at = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(ldy)));
