@@ -1,3 +1,4 @@
+#include <evnerf/core/parallel.hpp>
 #include <evnerf/core/rng.hpp>
 #include <evnerf/geometry/camera.hpp>
 #include <evnerf/geometry/trajectory.hpp>
@@ -25,6 +26,41 @@ TEST_CASE("rng: counter-based streams are reproducible and roughly uniform") {
   for (int i = 0; i < n; ++i) sq += r.normal() * 0 + std::pow(r.normal(), 2);
   CHECK(sq / n == doctest::Approx(1.0).epsilon(0.03));
   CHECK(r.split(1).next_u64() != r.split(2).next_u64());
+}
+
+TEST_CASE("parallel_jobs_by_cost: every job once, each thread a contiguous run of about equal cost") {
+  auto run = [](int threads, const std::vector<double>& cost) {
+    ScopedThreadCount tc(threads);
+    std::vector<int> owner(cost.size(), -1), times(cost.size(), 0);
+    parallel_jobs_by_cost(
+        cost.size(), [&](std::size_t j) { return cost[j]; },
+        [&](std::size_t j) {
+          owner[j] = omp_get_thread_num();
+          ++times[j];  // each job by one thread only: no race
+        });
+    CHECK(std::all_of(times.begin(), times.end(), [](int n) { return n == 1; }));
+    CHECK(std::is_sorted(owner.begin(), owner.end()));  // contiguous runs, in thread order
+    return owner;
+  };
+  // A hash grid's flush: two threads' deferred samples (300 and 100) over 4 levels each.
+  const std::vector<double> flush = {300, 300, 300, 300, 100, 100, 100, 100};
+  const auto o = run(2, flush);
+  double load[2] = {0, 0};
+  for (std::size_t j = 0; j < flush.size(); ++j) load[o[j]] += flush[j];
+  CHECK(load[0] == 900);  // the first three levels of the first thread's, against 700
+  CHECK(load[1] == 700);
+  CHECK(run(1, flush) == std::vector<int>(8, 0));
+  // Equal costs, and all zero: even counts.
+  const auto even = run(2, std::vector<double>(32, 1.0));
+  CHECK(std::count(even.begin(), even.end(), 0) == 16);
+  const auto zero = run(3, std::vector<double>(9, 0.0));
+  CHECK(zero == std::vector<int>{0, 0, 0, 1, 1, 1, 2, 2, 2});
+  // Fewer jobs than threads, one job, none.
+  CHECK(run(4, {5.0, 1.0}).size() == 2);
+  CHECK(run(2, {7.0}) == std::vector<int>{0});
+  CHECK(run(2, {}).empty());
+  // One job carrying almost everything: the split falls at it.
+  CHECK(run(2, {1, 1, 100, 1, 1}) == std::vector<int>{0, 0, 1, 1, 1});
 }
 
 TEST_CASE("trajectory: interpolation is linear in translation and slerp in rotation; range policy") {

@@ -276,7 +276,7 @@ class EvNerf {
     const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
     const int n_tiles = (P + tile - 1) / tile;
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
-    params_.begin_accumulate(threads);
+    params_.size_accumulators(threads);  // each thread zeroes its own below
     std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), loss_tv(threads, 0.0);
     std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
     std::vector<std::array<double, 2>> pass_loss(threads);
@@ -285,6 +285,7 @@ class EvNerf {
     const std::uint64_t ray_key = rng.next_u64();
     if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
+      params_.zero_accumulator(th);
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.rw.evaluated = w.rw.backward_samples = 0;
       w.pass_loss = {};
@@ -294,13 +295,21 @@ class EvNerf {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
         loss_ev[th] += train_tile(data, sw, p0, pose0, pose1, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
       }
-      renderer_type::flush(w.rw);
       evaluated[th] = w.rw.evaluated;
       pass_loss[th] = w.pass_loss;
       loss_dist[th] = w.distortion;
       loss_tv[th] = w.tv;
       backward[th] = w.rw.backward_samples;
     });
+    // The table gradients each thread held back, applied in parts (a hash grid's levels) shared out by
+    // their samples: each thread's accumulator gets the same additions in the same order whichever thread
+    // applies them, and the threads, whose tiles differ in samples, finish together.
+    constexpr int parts = renderer_type::flush_parts;
+    parallel_jobs_by_cost(
+        static_cast<std::size_t>(threads) * parts,
+        [&](std::size_t j) { return static_cast<double>(renderer_type::deferred_count(work_[j / parts].rw)); },
+        [&](std::size_t j) { renderer_type::flush_part(work_[j / parts].rw, static_cast<int>(j % parts)); });
+    for (int th = 0; th < threads; ++th) renderer_type::clear_deferred(work_[static_cast<std::size_t>(th)].rw);
     params_.end_accumulate(threads);
     StepStats st;
     st.first_slice = first;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <omp.h>
+#include <vector>
 
 namespace evnerf {
 
@@ -46,6 +47,36 @@ void parallel_blocks(std::size_t n, std::size_t min_per_thread, Fn&& fn) {
     const std::size_t b = n * id / t, e = n * (id + 1) / t;
     fn(b, e, id);
   }
+}
+
+/// Calls fn(j) once for every job j in [0, n), on up to thread_count() threads, each thread a contiguous
+/// run of jobs of about equal total cost (cost(j) ≥ 0: a job goes to the thread whose share of the total
+/// holds its cost's midpoint). Which thread runs a job depends on n, the costs and the thread count only;
+/// meant for jobs that write to memory of their own, whose results then do not depend on it at all.
+template <class Cost, class Fn>
+void parallel_jobs_by_cost(std::size_t n, Cost&& cost, Fn&& fn) {
+  if (n == 0) return;
+  const int t = static_cast<int>(std::min<std::size_t>(n, static_cast<std::size_t>(std::max(1, thread_count()))));
+  if (t <= 1) {
+    for (std::size_t j = 0; j < n; ++j) fn(j);
+    return;
+  }
+  std::vector<double> mid(n);
+  double total = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const double c = std::max(0.0, static_cast<double>(cost(j)));
+    mid[j] = total + 0.5 * c;
+    total += c;
+  }
+  auto owner = [&](std::size_t j) {
+    const double share = total > 0 ? mid[j] / total : (static_cast<double>(j) + 0.5) / static_cast<double>(n);
+    return std::min(t - 1, static_cast<int>(share * t));
+  };
+  parallel_blocks(static_cast<std::size_t>(t), 1, [&](std::size_t b, std::size_t e, int) {
+    for (std::size_t id = b; id < e; ++id)
+      for (std::size_t j = 0; j < n; ++j)
+        if (owner(j) == static_cast<int>(id)) fn(j);
+  });
 }
 
 /// Elementwise parallel loop: fn(i) for i in [0, n).

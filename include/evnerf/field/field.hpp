@@ -46,6 +46,25 @@ void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T*
   }
 }
 
+/// How many parts an encoding's batch table gradients split into, each adding to tables of its own (a hash
+/// grid's levels; 1 for any other encoding).
+template <class Enc>
+constexpr int encode_backward_parts() {
+  if constexpr (requires { Enc::batch_parts; })
+    return Enc::batch_parts;
+  else
+    return 1;
+}
+/// Part `part` of encode_backward_batch: the parts together add exactly what it adds, and different parts
+/// write to different tables, so threads may apply different parts at once.
+template <class Enc, class T>
+void encode_backward_batch_part(const T* params, const T* pts, int n, const T* dy, T* dparams, int part) {
+  if constexpr (requires { Enc::template backward_batch_levels<T>(pts, n, dy, dparams, 0, 1); })
+    Enc::backward_batch_levels(pts, n, dy, dparams, part, part + 1);
+  else
+    encode_backward_batch<Enc>(params, pts, n, dy, dparams);
+}
+
 /// What the colour network's raw output means: the activation the compositor applies per sample, and the ε
 /// of the log the event loss takes of the composited luminance, log(ℓ + ε).
 /// The paper's: a sigmoid, luminance in (0, 1), ε = 1e-3. It can express log changes of at most
@@ -187,6 +206,32 @@ struct Field {
       const int n = static_cast<int>(ws.deferred_points.size() / 3);
       if (n > 0) encode_backward_batch<PosEnc>(ws.deferred_params, ws.deferred_points.data(), n, ws.deferred_denc.data(), ws.deferred_to);
     }
+    ws.deferred_points.clear();
+    ws.deferred_denc.clear();
+    ws.deferred_params = nullptr;
+    ws.deferred_to = nullptr;
+  }
+
+  /// The parts deferred table gradients split into (encode_backward_parts): flush_encoding_grad_part(ws, q)
+  /// for every q, then clear_deferred(ws), adds exactly what flush_encoding_grad(ws) adds.
+  static constexpr int encoding_grad_parts = encode_backward_parts<PosEnc>();
+  template <class T>
+  static std::size_t deferred_count(const Workspace<T>& ws) {
+    return ws.deferred_points.size() / 3;
+  }
+  /// Applies part `part` of the table gradients a deferring workspace holds, and leaves them held. Parts
+  /// write to different tables, so threads may apply different parts (of one workspace or several) at once.
+  template <class T>
+  static void flush_encoding_grad_part(const Workspace<T>& ws, int part) {
+    if constexpr (PosEnc::n_params > 0) {
+      const int n = static_cast<int>(ws.deferred_points.size() / 3);
+      if (n > 0)
+        encode_backward_batch_part<PosEnc>(ws.deferred_params, ws.deferred_points.data(), n, ws.deferred_denc.data(), ws.deferred_to, part);
+    }
+  }
+  /// Drops the table gradients a deferring workspace holds (after every part was applied).
+  template <class T>
+  static void clear_deferred(Workspace<T>& ws) {
     ws.deferred_points.clear();
     ws.deferred_denc.clear();
     ws.deferred_params = nullptr;

@@ -389,13 +389,13 @@ struct HashGrid {
   }
 #endif
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
-  /// backward_batch for float with two features per entry: indices and weights 8 points at a time
-  /// (cells8), the additions to the tables one by one in backward()'s order (points, then corners), so
-  /// entries that several points touch get exactly the same sums.
-  static void backward_batch_pairs(const float* p, int n, const float* dy, float* dparams) {
+  /// backward_batch for float with two features per entry, levels [l0, l1): indices and weights 8 points
+  /// at a time (cells8), the additions to the tables one by one in backward()'s order (points, then
+  /// corners), so entries that several points touch get exactly the same sums.
+  static void backward_batch_pairs(const float* p, int n, const float* dy, float* dparams, int l0 = 0, int l1 = Levels) {
     alignas(32) std::uint32_t idx[8][8];
     alignas(32) float w[8][8];
-    for (int l = 0; l < Levels; ++l) {
+    for (int l = l0; l < l1; ++l) {
       const LevelInfo& lv = levels()[l];
       float* g = dparams + static_cast<std::size_t>(l) * table_size * F;
       for (int j0 = 0; j0 < n; j0 += 8) {
@@ -422,13 +422,20 @@ struct HashGrid {
   /// exactly what backward() would, in the same order per table entry.
   template <class T>
   static void backward_batch(const T* p, int n, const T* dy, T* dparams) {
+    backward_batch_levels(p, n, dy, dparams, 0, Levels);
+  }
+  /// The levels' tables are disjoint, so backward_batch splits into levels: levels [l0, l1) of it add to
+  /// their tables exactly what backward_batch does there (threads may take different levels at once).
+  static constexpr int batch_parts = Levels;
+  template <class T>
+  static void backward_batch_levels(const T* p, int n, const T* dy, T* dparams, int l0, int l1) {
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
     if constexpr (std::is_same_v<T, float> && F == 2) {
-      backward_batch_pairs(p, n, dy, dparams);
+      backward_batch_pairs(p, n, dy, dparams, l0, l1);
       return;
     }
 #endif
-    for (int l = 0; l < Levels; ++l) {
+    for (int l = l0; l < l1; ++l) {
       T* g = dparams + static_cast<std::size_t>(l) * table_size * F;
       for (int j = 0; j < n; ++j) {
         const T* dyj = dy + static_cast<std::size_t>(j) * out_dims + l * F;

@@ -26,18 +26,36 @@ struct ParameterBuffer {
 
   /// Zeroed accumulators for `threads` threads.
   void begin_accumulate(int threads) {
-    per_thread.resize(static_cast<std::size_t>(threads));
-    for (auto& g : per_thread) g.assign(values.size(), T(0));
+    size_accumulators(threads);
+    for (int t = 0; t < threads; ++t) zero_accumulator(t);
   }
-  /// grads = Σ_thread accumulators, summed in thread order (deterministic for a given thread count).
-  /// `used` limits the sum to the accumulators that were handed out.
+  /// Accumulators for `threads` threads, not zeroed: each thread zeroes its own (zero_accumulator) where it
+  /// starts to work, so the zeroing runs in parallel and the memory is first touched by its thread.
+  void size_accumulators(int threads) {
+    per_thread.resize(static_cast<std::size_t>(threads));
+    for (auto& g : per_thread) g.resize(values.size());
+  }
+  void zero_accumulator(int t) {
+    auto& g = per_thread[static_cast<std::size_t>(t)];
+    std::fill(g.begin(), g.end(), T(0));
+  }
+  /// grads = Σ_thread accumulators, summed in thread order from zero, (0 + g₀) + g₁ + …, as adding each to
+  /// zeroed gradients in turn would (deterministic for a given thread count). `used` limits the sum to the
+  /// accumulators that were handed out.
   void end_accumulate(int used) {
-    zero_grads();
     const std::size_t n = values.size();
+    grads.resize(n);
     parallel_blocks(n, 1 << 16, [&](std::size_t b, std::size_t e, int) {
-      for (int t = 0; t < used; ++t) {
+      T* out = grads.data();
+      if (used <= 0) {
+        std::fill(out + b, out + e, T(0));
+        return;
+      }
+      const T* g0 = per_thread[0].data();
+      for (std::size_t i = b; i < e; ++i) out[i] = T(0) + g0[i];
+      for (int t = 1; t < used; ++t) {
         const T* g = per_thread[static_cast<std::size_t>(t)].data();
-        for (std::size_t i = b; i < e; ++i) grads[i] += g[i];
+        for (std::size_t i = b; i < e; ++i) out[i] += g[i];
       }
     });
   }
