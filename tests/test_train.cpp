@@ -835,6 +835,58 @@ TEST_CASE("render: a pixel's bits depend on neither the rows per batch nor the t
   CHECK(*std::max_element(l.begin(), l.end()) > *std::min_element(l.begin(), l.end()));
 }
 
+TEST_CASE("training forward: each sample's density noise is its ray's next normal, drawn only where the sample is evaluated") {
+  // A sampler that skips, so that some samples are not evaluated: theirs is 0 (their α and dα/dσ are the
+  // same for any noise, the compositing test checks); the others' is the normal that drawing one per sample
+  // in order from the ray's stream gives them, and the stream ends where that drawing leaves it.
+  using TinyOcc = EvNerf<TinyField, render::OccupancySkipping<8, 8, 1, 0>>;
+  using R = TinyOcc::renderer_type;
+  Fixture f;
+  TinyOcc m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  Rng tables(11);  // tables far from their tiny initial values: a density that some cells pass and some do not
+  for (std::size_t i = 0; i < TinyField::pos_encoding::n_params; ++i) m.params().values[i] = static_cast<float>(tables.uniform() - 0.5);
+  m.update_sampler(f.td, 0, 3);
+  REQUIRE(m.sampler().skipping());
+  CAPTURE(m.sampler().occupied_fraction());
+  REQUIRE(m.sampler().occupied_fraction() < 0.9);
+  static_assert(R::networks == 1);
+  const int n_rays = 64;
+  std::vector<Vec3> origin, dir;
+  std::vector<Rng> rng, start;
+  for (int r = 0; r < n_rays; ++r) {
+    const auto ray = geometry::Camera::ray_along(f.td.boundary_poses[r % f.td.boundary_poses.size()],
+                                                 f.td.pixel_dirs[static_cast<std::size_t>(37 * r) % f.td.pixel_dirs.size()].cast<double>());
+    origin.push_back(ray.origin);
+    dir.push_back(ray.dir);
+    rng.push_back(Rng(19).split(static_cast<std::uint64_t>(r)));
+  }
+  start = rng;
+  R::Workspace w;
+  m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng.data(), n_rays, w);
+  const auto& p = w.pass[0];
+  REQUIRE(p.noise.size() == static_cast<std::size_t>(n_rays) * R::n_coarse);
+  std::vector<char> active(p.noise.size(), 0);
+  for (int i : p.active) active[static_cast<std::size_t>(i)] = 1;
+  const auto evaluated = static_cast<std::size_t>(std::count(active.begin(), active.end(), 1));
+  CHECK(evaluated > 0);
+  CHECK(evaluated < active.size());  // some samples skipped
+  std::vector<float> depths(R::n_coarse);
+  std::size_t wrong = 0;
+  for (int r = 0; r < n_rays; ++r) {
+    Rng g = start[static_cast<std::size_t>(r)];
+    m.sampler().coarse_depths(R::n_coarse, float(m.box().near), float(m.box().far), &g, depths.data());
+    for (int k = 0; k < R::n_coarse; ++k) {
+      const std::size_t i = static_cast<std::size_t>(r) * R::n_coarse + k;
+      const float want = static_cast<float>(g.normal());
+      wrong += p.noise[i] != (active[i] ? want : 0.f);
+      wrong += p.t[i] != depths[static_cast<std::size_t>(k)];
+    }
+    CHECK(rng[static_cast<std::size_t>(r)].state() == g.state());
+    CHECK(rng[static_cast<std::size_t>(r)].key() == g.key());
+  }
+  CHECK(wrong == 0);
+}
+
 TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does") {
   Fixture f;
   train::Config cfg = f.run_config(30, 64);

@@ -49,9 +49,10 @@ struct RayComposite {
 /// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
 /// null). The last interval is open (δ = kOpenInterval), as in NeRF.
 ///
-/// `skipped` (optional, with no noise only): the raw density that the renderer gives samples it did not
-/// evaluate (raw luminance 0). Where act(skipped) and its derivative are both 0, every such sample has α = 0
-/// and dα/dσ = 0 whatever its δ, so they are written without evaluating exp; the results are the same bits.
+/// `skipped` (optional): the raw density that the renderer gives samples it did not evaluate (raw luminance
+/// 0). Where act(skipped) and its derivative are both 0, every such sample with no noise (or noise 0) has
+/// α = 0 and dα/dσ = 0 whatever its δ, so they are written without evaluating exp; the results are the
+/// same bits.
 template <class T, class DensityAct = nn::ReLU, class RadianceAct = nn::Sigmoid>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
                        const T* noise, RayComposite<T>& r, const T* skipped = nullptr) {
@@ -67,7 +68,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
   // The shortcut for samples at `skipped`: their α (0 for every δ > 0) and their luminance at raw 0, once.
   bool shortcut = false;
   T alpha_skip = 0, dalpha_skip = 0, lum_zero = 0, dlum_zero = 0;
-  if (skipped && !noise) {
+  if (skipped) {
     const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{1.0, 0.0}, std::array<double, 1>{double(*skipped)});
     const auto f = ad::value_and_grad([](const auto& x) { return DensityAct::apply(x); }, std::array<double, 1>{double(*skipped)});
     shortcut = f.value == 0 && f.grad[0] == 0;
@@ -79,7 +80,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
   }
   for (int k = 0; k < S; ++k) {
     const T sk = sigma[static_cast<std::size_t>(k) * sigma_stride];
-    const bool skip = shortcut && sk == *skipped;
+    const bool skip = shortcut && sk == *skipped && (!noise || noise[k] == T(0));
     if (skip) {
       r.alpha[k] = alpha_skip;
       r.dalpha_dsigma[k] = dalpha_skip;

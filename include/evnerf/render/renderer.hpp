@@ -58,6 +58,7 @@ class Renderer {
     std::vector<T> dcolor;                    ///< R×C, dL/dcolor of comp: the caller fills it before backward()
     std::vector<T> dweight;                   ///< R×S, dL/dw of comp's weights (a regulariser), or empty
     std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
+    std::vector<std::uint64_t> noise_key, noise_at;  ///< per ray: where its density noise is drawn (draw_noise)
     std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
   };
   /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
@@ -121,6 +122,22 @@ class Renderer {
   }
   static void flush(Workspace& w) {
     for (auto& p : w.pass) FieldT::flush_encoding_grad(p.ws);
+  }
+  /// flush() in parts that write to different tables (a hash grid's levels): flush_part(w, q) for every q
+  /// in [0, flush_parts), on any threads in any order, then clear_deferred(w), adds what flush(w) adds, bit
+  /// for bit (each table gets its passes' additions in pass order, each pass's in the order kept).
+  static constexpr int flush_parts = FieldT::encoding_grad_parts;
+  static void flush_part(const Workspace& w, int part) {
+    for (const auto& p : w.pass) FieldT::flush_encoding_grad_part(p.ws, part);
+  }
+  static void clear_deferred(Workspace& w) {
+    for (auto& p : w.pass) FieldT::clear_deferred(p.ws);
+  }
+  /// Samples whose table gradients w holds back (over every pass).
+  static std::size_t deferred_count(const Workspace& w) {
+    std::size_t n = 0;
+    for (const auto& p : w.pass) n += FieldT::deferred_count(p.ws);
+    return n;
   }
 
   /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays). On a Zen 3 with 240
@@ -201,12 +218,11 @@ class Renderer {
     Pass& c = w.pass[0];
     c.S = n_coarse;
     c.t.resize(static_cast<std::size_t>(R) * n_coarse);
-    c.noise.resize(rng ? static_cast<std::size_t>(R) * n_coarse : 0);
+    reserve_noise(rng, R, c);
     for (int r = 0; r < R; ++r) {
       T* tr = &c.t[static_cast<std::size_t>(r) * n_coarse];
       sampler_.coarse_depths(n_coarse, T(box_.near), T(box_.far), rng ? &rng[r] : nullptr, tr);
-      if (rng)
-        for (int k = 0; k < n_coarse; ++k) c.noise[static_cast<std::size_t>(r) * n_coarse + k] = static_cast<T>(rng[r].normal());
+      if (rng) skip_noise(rng[r], r, c);
     }
     run_pass(params, origin, dir, R, rng != nullptr, c, w);
     if constexpr (networks == 2) {
@@ -218,12 +234,56 @@ class Renderer {
         sampler_.refine(n_coarse, &c.t[static_cast<std::size_t>(r) * n_coarse], c.comp[r].weight.data(), rng ? &rng[r] : nullptr, w.one);
         std::copy(w.one.begin(), w.one.end(), f.t.begin() + static_cast<std::ptrdiff_t>(r) * S);
       }
-      f.noise.resize(rng ? static_cast<std::size_t>(R) * S : 0);
+      reserve_noise(rng, R, f);
       if (rng)
-        for (int r = 0; r < R; ++r)
-          for (int k = 0; k < S; ++k) f.noise[static_cast<std::size_t>(r) * S + k] = static_cast<T>(rng[r].normal());
+        for (int r = 0; r < R; ++r) skip_noise(rng[r], r, f);
       run_pass(params + field_params, origin, dir, R, rng != nullptr, f, w);
     }
+  }
+
+  /// Density noise. Sample k of a ray takes the k-th standard normal of the ray's stream from where its
+  /// pass's noise begins (each normal() takes two draws); skip_noise records that place and moves the
+  /// stream past the pass's S normals, and draw_noise computes the normals of the samples that are
+  /// evaluated only. A sample that is not evaluated has raw density kSkippedDensity; where the density
+  /// activation and its slope vanish at kSkippedDensity + n for every normal n (|n| ≤ 37.2, the largest
+  /// Rng::normal gives; ReLU, TruncExp and Softplus do), it gets n = 0 instead: the same α, dα/dσ and bits
+  /// as drawing every normal, without the log and cos of the samples a trained occupancy grid skips.
+  static bool noise_vanishes_when_skipped() {
+    static const bool yes = [] {
+      for (double n : {-37.5, 0.0, 37.5}) {
+        const auto a = ad::value_and_grad([](const auto& x) { return FieldT::density_activation::apply(x); },
+                                          std::array<double, 1>{double(kSkippedDensity) + n});
+        if (a.value != 0 || a.grad[0] != 0) return false;
+      }
+      return true;
+    }();
+    return yes;
+  }
+  static void reserve_noise(const Rng* rng, int R, Pass& p) {
+    p.noise.clear();
+    p.noise_key.resize(rng ? static_cast<std::size_t>(R) : 0);
+    p.noise_at.resize(rng ? static_cast<std::size_t>(R) : 0);
+  }
+  static void skip_noise(Rng& rng, int r, Pass& p) {
+    p.noise_key[static_cast<std::size_t>(r)] = rng.key();
+    p.noise_at[static_cast<std::size_t>(r)] = rng.state();
+    rng = Rng::from_state(rng.key(), rng.state() + 2 * static_cast<std::uint64_t>(p.S));
+  }
+  static T noise_of(const Pass& p, int i) {
+    const int r = i / p.S, k = i % p.S;
+    Rng g = Rng::from_state(p.noise_key[static_cast<std::size_t>(r)], p.noise_at[static_cast<std::size_t>(r)] + 2 * static_cast<std::uint64_t>(k));
+    return static_cast<T>(g.normal());
+  }
+  /// p.noise for the R×S samples: drawn where evaluated (every sample unless `active_only`), 0 elsewhere.
+  static void draw_noise(int R, bool active_only, Pass& p) {
+    const int n = R * p.S;
+    if (!active_only) {
+      p.noise.resize(static_cast<std::size_t>(n));
+      for (int i = 0; i < n; ++i) p.noise[static_cast<std::size_t>(i)] = noise_of(p, i);
+      return;
+    }
+    p.noise.assign(static_cast<std::size_t>(n), T(0));
+    for (int i : p.active) p.noise[static_cast<std::size_t>(i)] = noise_of(p, i);
   }
 
   /// The point at depth t along a ray, in the normalised box (as T), into q[0..3). The one formula of every
@@ -362,13 +422,15 @@ class Renderer {
       FieldT::forward(params, p.pts.data(), p.dirs.data(), R * S, p.ws, &sigma, &raw);
       w.evaluated += static_cast<std::size_t>(R) * S;
     }
+    const bool skipped = !training || sampler_.skipping();  // samples may sit at kSkippedDensity
+    if (training) draw_noise(R, sampler_.skipping() && noise_vanishes_when_skipped(), p);
     p.comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
                                                                 p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
                                                                 training ? p.noise.data() + o : nullptr, p.comp[r],
-                                                                training ? nullptr : &kSkippedDensity);
+                                                                skipped ? &kSkippedDensity : nullptr);
     }
     p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
     p.dweight.clear();
