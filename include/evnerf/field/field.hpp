@@ -206,10 +206,7 @@ struct Field {
       const int n = static_cast<int>(ws.deferred_points.size() / 3);
       if (n > 0) encode_backward_batch<PosEnc>(ws.deferred_params, ws.deferred_points.data(), n, ws.deferred_denc.data(), ws.deferred_to);
     }
-    ws.deferred_points.clear();
-    ws.deferred_denc.clear();
-    ws.deferred_params = nullptr;
-    ws.deferred_to = nullptr;
+    clear_deferred(ws);
   }
 
   /// The parts deferred table gradients split into (encode_backward_parts): flush_encoding_grad_part(ws, q)
