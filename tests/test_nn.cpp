@@ -5,6 +5,7 @@
 #include <evnerf/nn/params.hpp>
 #include <evnerf/nn/reference.hpp>
 
+#include <cstring>
 #include <limits>
 #include <optional>
 
@@ -627,4 +628,64 @@ TEST_CASE("Adam follows its update rule and the decay schedule") {
   opt.update(v, g);  // second step at lr · 0.5
   CHECK(v[0] == doctest::Approx(0.9 - 0.05).epsilon(1e-5));
   CHECK(opt.learning_rate() == doctest::Approx(0.1 * 0.25));
+}
+
+TEST_CASE("Adam<float>: the update eight entries at a time equals the rule applied entry by entry, bit for bit") {
+  // The dense part of Adam::update goes through detail::adam_range (AVX2 + FMA: eight floats a time, the
+  // rest one by one); here it is compared with the rule written out per entry, on moments and gradients
+  // spanning many scales (zero gradients, tiny second moments where ε matters, large steps), over a
+  // length that is not a multiple of eight, from an offset that is not one either, and with sparse entries.
+  const std::size_t n = 203, dense_end = 171;
+  Rng rng(2026);
+  std::vector<float> p(n), g(n), m(n), v(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float scale = std::pow(10.f, static_cast<float>(rng.uniform() * 10 - 8));  // 1e-8 … 1e2
+    p[i] = static_cast<float>(rng.normal());
+    g[i] = i % 11 == 0 ? 0.f : static_cast<float>(rng.normal()) * scale;
+    m[i] = static_cast<float>(rng.normal()) * scale * 0.1f;
+    v[i] = static_cast<float>(rng.uniform()) * scale * scale;
+  }
+  AdamConfig cfg;
+  cfg.lr = 1e-2;
+  Adam<float> adam(n, cfg);
+  adam.m() = m;
+  adam.v() = v;
+  adam.set_step(41);
+  const std::vector<std::size_t> sparse{172, 180, 202};
+  std::vector<float> fast = p;
+  adam.update(fast, g, dense_end, sparse);
+  // The plain rule at step 42, in the precisions Adam::update documents.
+  const double lr = cfg.lr * std::pow(cfg.decay, 41.0 / cfg.decay_steps);
+  const double bc1 = 1 - std::pow(cfg.beta1, 42.0), bc2 = 1 - std::pow(cfg.beta2, 42.0);
+  const float a = static_cast<float>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<float>(cfg.beta1), b2 = static_cast<float>(cfg.beta2),
+              eps = static_cast<float>(cfg.eps * std::sqrt(bc2));
+  std::vector<float> ref = p, rm = m, rv = v;
+  auto rule = [&](std::size_t i) {
+#if defined(__FMA__)
+    rm[i] = std::fma(b1, rm[i], (1.f - b1) * g[i]);
+    rv[i] = std::fma(b2, rv[i], (1.f - b2) * g[i] * g[i]);
+#else
+    rm[i] = b1 * rm[i] + (1.f - b1) * g[i];
+    rv[i] = b2 * rv[i] + (1.f - b2) * g[i] * g[i];
+#endif
+    ref[i] = ref[i] - a * rm[i] / (std::sqrt(rv[i]) + eps);
+  };
+  for (std::size_t i = 0; i < dense_end; ++i) rule(i);
+  for (std::size_t i : sparse) rule(i);
+  for (std::size_t i = 0; i < n; ++i) {
+    CAPTURE(i);
+    CHECK(std::memcmp(&fast[i], &ref[i], sizeof(float)) == 0);
+    CHECK(std::memcmp(&adam.m()[i], &rm[i], sizeof(float)) == 0);
+    CHECK(std::memcmp(&adam.v()[i], &rv[i], sizeof(float)) == 0);
+  }
+  // Untouched entries past dense_end keep value and moments.
+  CHECK(fast[175] == p[175]);
+  CHECK(adam.m()[175] == m[175]);
+  // A range from an odd offset, as a thread's block may start, equals the rule too.
+  std::vector<float> q = p, qm = m, qv = v;
+  nn::detail::adam_range(q.data(), g.data(), qm.data(), qv.data(), 3, 150, a, b1, b2, eps);
+  for (std::size_t i = 3; i < 150; ++i) nn::detail::adam_one(p.data(), g.data(), m.data(), v.data(), i, a, b1, b2, eps);
+  CHECK(std::memcmp(q.data(), p.data(), n * sizeof(float)) == 0);
+  CHECK(std::memcmp(qm.data(), m.data(), n * sizeof(float)) == 0);
+  CHECK(std::memcmp(qv.data(), v.data(), n * sizeof(float)) == 0);
 }
