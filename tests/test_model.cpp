@@ -37,6 +37,9 @@ using LogOccupancyModel =
     EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 // Three poses per pixel (the window's ends and an inner boundary drawn per pixel, each pair a term).
 using Window3 = loss::WindowInterval<4, loss::HalfSlackCounts, events::UniformPixels, 3>;
+// 24 samples per ray (three chunks of the renderer's kEvalChunk): rays that stop early can skip some.
+template <int C>
+using LongOccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<24, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 template <int C>
 using ThreePoseModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window3, double>;
 using ThreePoseHierarchical = EvNerf<FreqTiny<1>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window3, double>;
@@ -100,11 +103,12 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 template <class Model>
-void check_model(double distortion = 0, double tv = 0) {
+void check_model(double distortion = 0, double tv = 0, bool terminate = false) {
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
   m.set_tv(tv);
+  m.set_ray_termination(terminate);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
   Rng rng(11);
@@ -115,6 +119,12 @@ void check_model(double distortion = 0, double tv = 0) {
   for (std::size_t i = 0; i < m.n_slices(); ++i) {
     m.params().values[m.threshold_offset() + 2 * i] = 0.2 + 0.2 * rng.uniform();
     m.params().values[m.threshold_offset() + 2 * i + 1] = -(0.2 + 0.2 * rng.uniform());
+  }
+  if (terminate) {
+    // A density high enough that rays become opaque inside the box (the first output's bias raised), so
+    // that they stop before their last samples.
+    using D = typename Model::field_type::density_net;
+    m.params().values[Model::field_type::density_offset + D::bias_offset(D::n_layers - 1)] = 8;
   }
   if constexpr (Model::sampler_type::skips_samples) {
     m.update_sampler(f.td, 0, 3);  // an active grid: some samples are skipped, and get no gradient
@@ -141,6 +151,16 @@ void check_model(double distortion = 0, double tv = 0) {
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
       CHECK(st.samples < st.rays * Model::Nc);
+    }
+    if (terminate) {  // rays did stop: the same step without termination evaluates more samples
+      m.set_ray_termination(false);
+      const auto full = m.gradients(f.td, 16, seed, 4);
+      m.set_ray_termination(true);
+      CAPTURE(full.samples);
+      CAPTURE(st.samples);
+      CHECK(st.samples < full.samples);
+      CHECK(st.backward_samples <= full.backward_samples);
+      CHECK(st.loss == doctest::Approx(full.loss).epsilon(1e-3));
     }
     const GradCheck r = check_all(m, f.td, 16, seed);
     CAPTURE(r.checked);
@@ -334,4 +354,11 @@ TEST_CASE("three poses: the ends' rays are two poses' to the bit, the parts' ter
     CHECK(worst < 1e-9);
   }
   CHECK(inner > 0);
+}
+// Training rays that stop where their transmittance falls below the backward pass's cut (set_ray_termination,
+// samplers that skip): the loss is then a function of the samples evaluated before each ray's stop, and its
+// gradient still matches finite differences.
+TEST_CASE_TEMPLATE("whole training loss with training rays that stop early: finite differences in double", Model, LongOccupancyModel<1>,
+                   LongOccupancyModel<3>) {
+  check_model<Model>(0, 0, true);
 }

@@ -199,6 +199,172 @@ TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluati
   CHECK(ws.deferred_points.empty());
 }
 
+TEST_CASE_TEMPLATE("field: forward_at in pieces equals one forward of all the samples, outputs and gradients bit for bit", F, TinyField,
+                   TinyBf16Field) {
+  Rng rng(23);
+  std::vector<float> params(F::n_params);
+  F::init(params.data(), rng);
+  for (std::size_t i = 0; i < F::pos_encoding::n_params; ++i) params[i] = static_cast<float>(rng.uniform() - 0.5);
+  const int n = 53;
+  std::vector<float> pts(3 * n), dirs(3 * n), dsig(n), dlum(static_cast<std::size_t>(n) * F::channels);
+  for (int j = 0; j < n; ++j) {
+    const Vec3 d = Vec3(rng.normal(), rng.normal(), rng.normal()).normalized();
+    for (int k = 0; k < 3; ++k) {
+      pts[3 * j + k] = static_cast<float>(rng.uniform(-1, 1));
+      dirs[3 * j + k] = static_cast<float>(d[k]);
+    }
+  }
+  for (auto* v : {&dsig, &dlum})
+    for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+  constexpr int so = F::density_net::out_dims;
+  typename F::template Workspace<float> one, parts;
+  const float *sig = nullptr, *lum = nullptr;
+  F::forward(params.data(), pts.data(), dirs.data(), n, one, &sig, &lum);
+  const std::vector<float> sig1(sig, sig + static_cast<std::size_t>(n) * so), lum1(lum, lum + static_cast<std::size_t>(n) * F::channels);
+  std::vector<float> g1(F::n_params, 0.f), g2(F::n_params, 0.f);
+  F::backward(params.data(), one, dsig.data(), dlum.data(), g1.data());
+  // A larger batch first, so that the pieces' workspace holds stale samples beyond the new ones.
+  std::vector<float> big_pts(3 * 2 * n, 0.25f), big_dirs(3 * 2 * n, 0.f);
+  for (int j = 0; j < 2 * n; ++j) big_dirs[3 * j] = 1.f;
+  F::forward(params.data(), big_pts.data(), big_dirs.data(), 2 * n, parts, &sig, &lum);
+  F::forward(params.data(), pts.data(), dirs.data(), 0, parts, &sig, &lum);  // start afresh: 0 samples held
+  int at = 0;
+  for (const int m : {7, 0, 1, 24, 21}) {  // 53 in pieces, one of them empty
+    F::forward_at(params.data(), pts.data() + 3 * at, dirs.data() + 3 * at, at, m, parts, &sig, &lum);
+    at += m;
+  }
+  REQUIRE(at == n);
+  CHECK(parts.n == n);
+  CHECK(std::vector<float>(sig, sig + static_cast<std::size_t>(n) * so) == sig1);
+  CHECK(std::vector<float>(lum, lum + static_cast<std::size_t>(n) * F::channels) == lum1);
+  F::backward(params.data(), parts, dsig.data(), dlum.data(), g2.data());
+  CHECK(g1 == g2);
+  // Appending after more samples than the workspace holds is refused.
+  CHECK_THROWS_AS(F::forward_at(params.data(), pts.data(), dirs.data(), n + 1, 1, parts, &sig, &lum), Error);
+}
+
+TEST_CASE("training rays that stop early: the samples before each stop as without it, the composite within the cut, the step close") {
+  // Workspace::training_termination: each ray's evaluated samples are those the full pass evaluates up to
+  // a chunk boundary (kEvalChunk bins), with the same outputs and the same noise; a ray stops only where its
+  // transmittance has fallen to the backward pass's cut; its colour differs from the full pass's by less
+  // than that cut times the luminance behind; and a training step's loss and gradients stay close.
+  // 32 bins per ray: four chunks of kEvalChunk, so a ray can stop before its end.
+  using TinyOcc = EvNerf<TinyField, render::OccupancySkipping<32, 8, 1, 0>>;
+  using R = TinyOcc::renderer_type;
+  static_assert(R::n_coarse == 4 * R::kEvalChunk);
+  Fixture f;
+  TinyOcc m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  Rng tables(11);
+  for (std::size_t i = 0; i < TinyField::pos_encoding::n_params; ++i) m.params().values[i] = static_cast<float>(tables.uniform() - 0.5);
+  const int n_rays = 96, S = R::n_coarse;
+  std::vector<Vec3> origin, dir;
+  std::vector<Rng> rng;
+  for (int r = 0; r < n_rays; ++r) {
+    const auto ray = geometry::Camera::ray_along(f.td.boundary_poses[r % f.td.boundary_poses.size()],
+                                                 f.td.pixel_dirs[static_cast<std::size_t>(41 * r) % f.td.pixel_dirs.size()].cast<double>());
+    origin.push_back(ray.origin);
+    dir.push_back(ray.dir);
+    rng.push_back(Rng(29).split(static_cast<std::uint64_t>(r)));
+  }
+  // The density network's output bias raised until between a quarter and nine tenths of the rays fall below
+  // the cut before their last chunk (by the full pass), so that the comparison covers both kinds.
+  const std::size_t sigma_bias = TinyField::density_offset + TinyField::density_net::bias_offset(TinyField::density_net::n_layers - 1);
+  int opaque = 0;
+  for (float bias = 0; bias <= 16; bias += 0.25f) {
+    m.params().values[sigma_bias] = bias;
+    m.update_sampler(f.td, 0, 3);
+    std::vector<Rng> g = rng;
+    R::Workspace w;
+    m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), g.data(), n_rays, w);
+    opaque = 0;
+    for (int r = 0; r < n_rays; ++r) opaque += w.pass[0].comp[r].trans[S - R::kEvalChunk] <= R::kMinTransmittance;
+    if (opaque * 4 >= n_rays) break;
+  }
+  CAPTURE(opaque);
+  CAPTURE(m.params().values[sigma_bias]);
+  REQUIRE(opaque * 4 >= n_rays);
+  REQUIRE(opaque * 10 <= n_rays * 9);
+  REQUIRE(m.sampler().skipping());
+  std::vector<Rng> rng_full = rng, rng_stop = rng;
+  R::Workspace full, stop;
+  stop.training_termination = true;
+  m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng_full.data(), n_rays, full);
+  m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng_stop.data(), n_rays, stop);
+  const auto &pf = full.pass[0], &ps = stop.pass[0];
+  for (int r = 0; r < n_rays; ++r) {  // the random streams end in the same place
+    CHECK(rng_full[static_cast<std::size_t>(r)].state() == rng_stop[static_cast<std::size_t>(r)].state());
+  }
+  std::vector<char> in_full(static_cast<std::size_t>(n_rays) * S, 0), in_stop(in_full.size(), 0);
+  for (int i : pf.active) in_full[static_cast<std::size_t>(i)] = 1;
+  for (int i : ps.active) in_stop[static_cast<std::size_t>(i)] = 1;
+  CHECK(ps.ws.n == static_cast<int>(ps.active.size()));
+  int stopped = 0;
+  std::size_t wrong = 0;
+  for (int r = 0; r < n_rays; ++r) {
+    // The stop: the first bin after the last evaluated one, rounded up to a chunk boundary.
+    int last = -1;
+    for (int k = 0; k < S; ++k)
+      if (in_stop[static_cast<std::size_t>(r) * S + k]) last = k;
+    int end = S;
+    for (int k = 0; k < S; ++k) {
+      const std::size_t i = static_cast<std::size_t>(r) * S + k;
+      if (in_full[i] && !in_stop[i]) {
+        end = k;
+        break;
+      }
+    }
+    CAPTURE(r);
+    CHECK(end > last);
+    if (end < S) {
+      ++stopped;
+      CHECK(end % R::kEvalChunk == 0);
+      // Stopped only where the transmittance had fallen to the cut (by the full pass's composite).
+      CHECK(pf.comp[r].trans[end] <= R::kMinTransmittance * 1.01f);
+    }
+    for (int k = 0; k < S; ++k) {
+      const std::size_t i = static_cast<std::size_t>(r) * S + k;
+      const bool want = in_full[i] && k < end;
+      wrong += in_stop[i] != want;
+      if (in_stop[i]) {
+        wrong += ps.sig_full[i] != pf.sig_full[i] || ps.raw_full[i] != pf.raw_full[i] || ps.noise[i] != pf.noise[i];
+      } else {
+        wrong += ps.noise[i] != 0.f || ps.sig_full[i] != R::kSkippedDensity;
+      }
+    }
+    // The colour: the full pass's, less at most the cut's share of what lies behind the stop.
+    float behind = 0;
+    for (int k = end; k < S; ++k) behind = std::max(behind, pf.comp[r].lum[k]);
+    CHECK(std::abs(ps.comp[r].color[0] - pf.comp[r].color[0]) <= R::kMinTransmittance * 1.01f * behind + 1e-6f * std::abs(pf.comp[r].color[0]));
+  }
+  CHECK(wrong == 0);
+  CAPTURE(stopped);
+  CHECK(stopped * 4 >= n_rays);   // many rays stopped
+  CHECK(stopped <= opaque);       // only those that the full pass makes opaque
+  CHECK(ps.active.size() < pf.active.size());
+  // A training step: fewer samples forward, the same ones backward (those before the cut), a close loss
+  // and close gradients.
+  const auto a = m.gradients(f.td, 64, 5);
+  const std::vector<float> ga = m.params().grads;
+  m.set_ray_termination(true);
+  const auto b = m.gradients(f.td, 64, 5);
+  const std::vector<float> gb = m.params().grads;
+  CHECK(b.samples < a.samples);
+  CHECK(b.backward_samples <= a.backward_samples);
+  CHECK(b.backward_samples * 100 >= a.backward_samples * 99);
+  CHECK(b.loss == doctest::Approx(a.loss).epsilon(1e-3));
+  double diff = 0, norm = 0;
+  for (std::size_t i = 0; i < ga.size(); ++i) {
+    diff += (double(ga[i]) - gb[i]) * (double(ga[i]) - gb[i]);
+    norm += double(ga[i]) * ga[i];
+  }
+  CAPTURE(std::sqrt(diff / norm));
+  CHECK(std::sqrt(diff) <= 1e-2 * std::sqrt(norm));
+  m.set_ray_termination(false);
+  const auto c = m.gradients(f.td, 64, 5);
+  CHECK(c.loss == a.loss);  // off again: the step as without the setting, bit for bit
+  CHECK(m.params().grads == ga);
+}
+
 TEST_CASE("occupancy grid: marks the cells of a dense region, and round-trips") {
   render::OccupancyGrid g(16);
   CHECK(g.occupied_fraction() == 1.0);

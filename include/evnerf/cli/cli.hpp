@@ -273,6 +273,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  trainc->add_flag("--terminate-rays", cfg.terminate_rays,
+                   "stop each training ray where its transmittance falls below 1e-4, the cut behind which its samples get no "
+                   "gradient anyway (samplers with an occupancy grid): fewer samples evaluated per step, a slightly different "
+                   "composite, so other bits");
   trainc->add_option("--average", cfg.average,
                      "decay of the moving average of the parameters that the model renders with (exponential, with "
                      "TensorFlow's warm-up; 0 = off)")

@@ -161,24 +161,43 @@ struct Field {
   template <class T>
   static void forward(const T* params, const T* pts, const T* dirs, int n, Workspace<T>& ws, const T** sigma,
                       const T** lum) {
-    ws.n = n;
-    ws.points.resize(3 * static_cast<std::size_t>(n));
-    ws.enc.resize(static_cast<std::size_t>(pos_in) * n);
-    ws.col_in.resize(static_cast<std::size_t>(col_in) * n);
+    ws.n = 0;
+    ws.dens.n = ws.col.n = 0;
+    forward_at(params, pts, dirs, 0, n, ws, sigma, lum);
+  }
+
+  /// Evaluates n more samples after the `at` the workspace holds from earlier calls since forward(), which
+  /// stay: a batch evaluated in pieces (rays that stop at different depths, Renderer's training
+  /// termination). `pts` and `dirs` are the new samples' (3×n each). Afterwards the workspace holds at + n
+  /// samples, as one forward() of all of them leaves it, bit for bit, and the returned pointers cover all.
+  template <class T>
+  static void forward_at(const T* params, const T* pts, const T* dirs, int at, int n, Workspace<T>& ws, const T** sigma,
+                         const T** lum) {
+    require(at >= 0 && n >= 0 && ws.n >= at, "Field::forward_at: the workspace holds fewer than `at` samples");
+    const int total = at + n;
+    ws.n = total;
+    grow(ws.points, 3 * static_cast<std::size_t>(total));
+    grow(ws.enc, static_cast<std::size_t>(pos_in) * total);
+    grow(ws.col_in, static_cast<std::size_t>(col_in) * total);
     for (int j = 0; j < n; ++j) {
-      T* q = &ws.points[3 * static_cast<std::size_t>(j)];
+      T* q = &ws.points[3 * static_cast<std::size_t>(at + j)];
       for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
     }
-    encode_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.enc.data());
-    const T* h = DensityNet::forward(params + density_offset, ws.enc.data(), n, ws.dens);
+    if (n > 0) encode_batch<PosEnc>(params + pos_offset, ws.points.data() + 3 * static_cast<std::size_t>(at), n, ws.enc.data() + static_cast<std::size_t>(pos_in) * at);
+    const T* h = DensityNet::forward_at(params + density_offset, ws.enc.data(), at, n, ws.dens);
     for (int j = 0; j < n; ++j) {
-      T* c = &ws.col_in[static_cast<std::size_t>(j) * col_in];
-      std::copy(h + static_cast<std::size_t>(j) * DensityNet::out_dims + 1,
-                h + static_cast<std::size_t>(j + 1) * DensityNet::out_dims, c);
+      T* c = &ws.col_in[static_cast<std::size_t>(at + j) * col_in];
+      std::copy(h + static_cast<std::size_t>(at + j) * DensityNet::out_dims + 1,
+                h + static_cast<std::size_t>(at + j + 1) * DensityNet::out_dims, c);
       DirEnc::forward(static_cast<const T*>(nullptr), dirs + 3 * j, c + features);
     }
     *sigma = h;
-    *lum = ColorNet::forward(params + color_offset, ws.col_in.data(), n, ws.col);
+    *lum = ColorNet::forward_at(params + color_offset, ws.col_in.data(), at, n, ws.col);
+  }
+  /// Buffers only grow: a workspace reused for batches of varying size is not zeroed again.
+  template <class T>
+  static void grow(std::vector<T>& v, std::size_t size) {
+    if (v.size() < size) v.resize(size);
   }
 
   /// Keeps samples keep[0..m) (increasing) of the last forward: afterwards the workspace and the outputs

@@ -13,6 +13,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "../core/error.hpp"
 #include "../core/rng.hpp"
 #include "activation.hpp"
 #include "bf16.hpp"
@@ -115,25 +116,31 @@ struct Mlp {
     std::vector<std::uint32_t> pack_a, pack_b;   ///< bf16 pairs of both factors (Bf16 only)
     const T* x = nullptr;                        ///< the tile's input (In × n), owned by the caller
 
+    /// Room for `samples` samples. The first min(n, samples) samples' activations stay (forward_at appends
+    /// after them), and buffers never shrink, so a workspace reused for tiles of varying size is not zeroed again.
     void resize(int samples) {
       if (samples <= n && !output.empty()) {
         n = samples;
         return;
       }
       n = samples;
-      for (int l = 1; l < n_layers; ++l) input[l].resize(static_cast<std::size_t>(layer_in(l)) * samples);
-      output.resize(static_cast<std::size_t>(Out) * samples);
-      grad_a.resize(static_cast<std::size_t>(max_width()) * samples);
-      grad_b.resize(static_cast<std::size_t>(max_width()) * samples);
-      if constexpr (!bf16_products<T>()) wt.resize(static_cast<std::size_t>(max_width()) * max_width());
+      for (int l = 1; l < n_layers; ++l) at_least(input[l], static_cast<std::size_t>(layer_in(l)) * samples);
+      at_least(output, static_cast<std::size_t>(Out) * samples);
+      at_least(grad_a, static_cast<std::size_t>(max_width()) * samples);
+      at_least(grad_b, static_cast<std::size_t>(max_width()) * samples);
+      if constexpr (!bf16_products<T>()) at_least(wt, static_cast<std::size_t>(max_width()) * max_width());
       if constexpr (bf16_products<T>()) {
         // ⌈a/2⌉·b pairs for a, b ≤ max(samples, max_width) with at least one of them ≤ max_width (+ 1: the
         // row of ones that gives the bias gradient).
         const std::size_t w = max_width(), big = std::max<std::size_t>(w, samples);
         const std::size_t size = std::max((w + 1) / 2 * big, (big + 1) / 2 * (w + 1));
-        pack_a.resize(size);
-        pack_b.resize(size);
+        at_least(pack_a, size);
+        at_least(pack_b, size);
       }
+    }
+    template <class V>
+    static void at_least(V& v, std::size_t size) {
+      if (v.size() < size) v.resize(size);
     }
   };
 
@@ -150,11 +157,33 @@ struct Mlp {
   static const T* forward(const T* params, const T* x, int n, Workspace<T>& ws) {
     ws.resize(n);
     ws.x = x;
+    forward_rows(params, x, 0, n, ws);
+    return ws.output.data();
+  }
+
+  /// Forward of samples [at, at + n) of x (In × (at + n)) after the `at` samples the workspace holds, which
+  /// stay: a tile evaluated in pieces, one after another (a ray batch whose rays stop at different depths).
+  /// Afterwards the workspace holds at + n samples, as forward() of all of them at once leaves it, bit for
+  /// bit (each sample's products do not depend on the others). Returns ws.output (Out × (at + n)).
+  template <class T>
+  static const T* forward_at(const T* params, const T* x, int at, int n, Workspace<T>& ws) {
+    require(at >= 0 && n >= 0 && ws.n >= at, "Mlp::forward_at: the workspace holds fewer than `at` samples");
+    ws.resize(at + n);
+    ws.x = x;
+    forward_rows(params, x, at, n, ws);
+    return ws.output.data();
+  }
+
+  /// Layers over samples [at, at + n) of x; the workspace is already sized.
+  template <class T>
+  static void forward_rows(const T* params, const T* x_all, int at, int n, Workspace<T>& ws) {
+    if (n <= 0) return;
+    const T* x = x_all + static_cast<std::size_t>(at) * In;
     for (int l = 0; l < n_layers; ++l) {
       const int in = layer_in(l), out = layer_out(l);
-      const T* src = l == 0 ? x : ws.input[l].data();
-      T* dst = l == Depth ? ws.output.data() : ws.input[l + 1].data();
       const int dst_rows = l == Depth ? Out : layer_in(l + 1);
+      const T* src = l == 0 ? x : ws.input[l].data() + static_cast<std::size_t>(at) * in;
+      T* dst = (l == Depth ? ws.output.data() : ws.input[l + 1].data()) + static_cast<std::size_t>(at) * dst_rows;
       const T* b = params + bias_offset(l);
       // Y = act(W·X + b): W is out × in (lda = out), X is in × n, Y goes into the next layer's input rows.
       const gemm::Operands<T> op{out, n, in, params + weight_offset(l), out, src, 1, in, dst, dst_rows};
@@ -190,7 +219,6 @@ struct Mlp {
         }
       }
     }
-    return ws.output.data();
   }
 
   /// Keeps samples keep[0..m) (increasing) of the last forward: the workspace then holds what forward()

@@ -291,6 +291,7 @@ inline train::Config config_of(const py::kwargs& kw) {
     else if (k == "lr_decay_steps") c.lr_decay_steps = value.cast<double>();
     else if (k == "distortion") c.distortion = value.cast<double>();
     else if (k == "average") c.average = value.cast<double>();
+    else if (k == "terminate_rays") c.terminate_rays = value.cast<bool>();
     else if (k == "tv") c.tv = value.cast<double>();
     else if (k == "near") c.near = value.cast<double>();
     else if (k == "far") c.far = value.cast<double>();
@@ -307,8 +308,8 @@ inline train::Config config_of(const py::kwargs& kw) {
       c.box = b == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
     } else
       throw py::type_error("train: unknown keyword '" + k +
-                           "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, tv, near, far, checkpoint_every, subslices, "
-                           "holdout, clamp_poses, density_per_box, allow_collapse, progress, box)");
+                           "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, tv, near, far, "
+                           "checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box)");
   }
   train::check(c);
   return c;
@@ -601,8 +602,8 @@ void define(py::module_& m) {
           std::string s;
           for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
           return s;
-        }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, tv, near, far, "
-              "checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box. callback(step, loss, thresholds) "
+        }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, tv, near, "
+              "far, checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box. callback(step, loss, thresholds) "
               "runs after every step; returning False stops the run. With out, log.jsonl and model.ckpt are written there (resume "
               "continues from it); without, nothing is written.").c_str());
 

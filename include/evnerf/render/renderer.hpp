@@ -67,6 +67,10 @@ class Renderer {
     std::size_t evaluated = 0;            ///< field evaluations so far
     std::size_t backward_samples = 0;     ///< samples run backward so far
     bool early_termination = false;       ///< evaluation rays: stop a ray behind kEvalTransmittance
+    /// Training rays: stop a ray behind kMinTransmittance (forward_terminating), where the sampler skips.
+    /// Its samples there carry no gradient either way; what changes is the forward's composite, by less
+    /// than kMinTransmittance of a ray's luminance, and the time: the samples behind are not evaluated.
+    bool training_termination = false;
     std::vector<T> one;                   ///< a ray's fine depths
   };
 
@@ -333,23 +337,25 @@ class Renderer {
     const T *sg = nullptr, *rw = nullptr;
     FieldT::forward(params, p.cpts.data(), p.cdirs.data(), m, p.ws, &sg, &rw);
     w.evaluated += static_cast<std::size_t>(m);
-    constexpr int stride = FieldT::density_net::out_dims;
-    for (int j = 0; j < m; ++j) {
-      const std::size_t i = static_cast<std::size_t>(p.active[j]);
-      p.sig_full[i] = sg[static_cast<std::size_t>(j) * stride];
-      for (int c = 0; c < channels; ++c) p.raw_full[i * channels + c] = rw[static_cast<std::size_t>(j) * channels + c];
-    }
+    scatter(p, sg, rw, 0, m);
   }
 
-  /// Evaluation forward with early termination, kEvalChunk samples of every live ray at a time.
-  /// The points are made here, chunk by chunk and only for live rays (make_samples' formula), and packed
-  /// straight into p.cpts / p.cdirs: most of a ray's samples lie behind where it stops.
-  void forward_terminating(const T* params, const Vec3* origin, const Vec3* dir, int R, Pass& p, Workspace& w) const {
+  /// Forward with early termination, kEvalChunk samples of every live ray at a time. The points are made
+  /// here, chunk by chunk and only for live rays (make_samples' formula), and packed straight into p.cpts /
+  /// p.cdirs: most of a ray's samples lie behind where it stops.
+  /// Evaluation rays stop behind kEvalTransmittance; each chunk is evaluated on its own.
+  /// Training rays (Workspace::training_termination) stop behind kMinTransmittance, the transmittance below
+  /// which backward_pass drops samples anyway: the chunks are appended to the pass's field workspace
+  /// (Field::forward_at), p.active lists the evaluated samples in that order, and their density noise is
+  /// drawn as draw_noise would (0 for the rest). A ray's transmittance for stopping includes the noise.
+  void forward_terminating(const T* params, const Vec3* origin, const Vec3* dir, int R, bool training, Pass& p, Workspace& w) const {
     const int S = p.S;
     const std::size_t n = static_cast<std::size_t>(R) * S;
     p.sig_full.assign(n, kSkippedDensity);
     p.raw_full.assign(n * channels, T(0));
     p.ray_trans.assign(static_cast<std::size_t>(R), T(1));
+    if (training) p.noise.assign(n, T(0));
+    const T cut = training ? kMinTransmittance : kEvalTransmittance;
     // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
     const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
     p.dirs.resize(3 * static_cast<std::size_t>(R));  // one unit direction per ray
@@ -357,13 +363,15 @@ class Renderer {
       const Vec3 u = dir[r].normalized();
       for (int d = 0; d < 3; ++d) p.dirs[3 * static_cast<std::size_t>(r) + d] = static_cast<T>(u[d]);
     }
+    p.active.clear();
+    int held = 0;  // samples in the field workspace (training)
     for (int k0 = 0; k0 < S; k0 += kEvalChunk) {
       const int k1 = std::min(S, k0 + kEvalChunk);
-      p.active.clear();
+      if (!training) p.active.clear();
       p.cpts.clear();
       p.cdirs.clear();
       for (int r = 0; r < R; ++r) {
-        if (p.ray_trans[r] <= kEvalTransmittance) continue;
+        if (p.ray_trans[r] <= cut) continue;
         for (int k = k0; k < k1; ++k) {
           const int i = r * S + k;
           T q[3];
@@ -374,37 +382,64 @@ class Renderer {
           p.cdirs.insert(p.cdirs.end(), &p.dirs[3 * static_cast<std::size_t>(r)], &p.dirs[3 * static_cast<std::size_t>(r)] + 3);
         }
       }
-      evaluate_packed(params, p, w);
+      if (training) {
+        const int m = static_cast<int>(p.active.size()) - held;
+        const T *sg = nullptr, *rw = nullptr;
+        FieldT::forward_at(params, p.cpts.data(), p.cdirs.data(), held, m, p.ws, &sg, &rw);
+        w.evaluated += static_cast<std::size_t>(m);
+        scatter(p, sg, rw, held, held + m);
+        for (int j = held; j < held + m; ++j) p.noise[static_cast<std::size_t>(p.active[j])] = noise_of(p, p.active[j]);
+        held += m;
+      } else {
+        evaluate_packed(params, p, w);
+      }
       // Transmittance after this chunk (as composite_forward computes it).
       bool alive = false;
       for (int r = 0; r < R; ++r) {
-        if (p.ray_trans[r] <= kEvalTransmittance) continue;
+        if (p.ray_trans[r] <= cut) continue;
         const double dn = dir[r].norm() / box_.density_length;
         for (int k = k0; k < k1; ++k) {
           const std::size_t i = static_cast<std::size_t>(r) * S + k;
+          const T nz = training ? p.noise[i] : T(0);
           const double delta = k + 1 < S ? double(p.t[i + 1] - p.t[i]) * dn : kOpenInterval;
-          const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity
+          const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity && nz == T(0)
                                    ? 0.0
-                                   : 1.0 - std::exp(-(FieldT::density_activation::f(p.sig_full[i]) * delta));
+                                   : 1.0 - std::exp(-(FieldT::density_activation::f(training ? p.sig_full[i] + nz : p.sig_full[i]) * delta));
           p.ray_trans[r] *= static_cast<T>(1.0 - alpha + kTransmittanceEpsilon);
         }
-        alive = alive || p.ray_trans[r] > kEvalTransmittance;
+        alive = alive || p.ray_trans[r] > cut;
       }
       if (!alive) break;
     }
   }
+  /// Raw density and luminance of workspace samples [from, to) (the samples p.active lists there) into
+  /// p.sig_full / p.raw_full.
+  static void scatter(Pass& p, const T* sg, const T* rw, int from, int to) {
+    constexpr int stride = FieldT::density_net::out_dims;
+    for (int j = from; j < to; ++j) {
+      const std::size_t i = static_cast<std::size_t>(p.active[j]);
+      p.sig_full[i] = sg[static_cast<std::size_t>(j) * stride];
+      for (int c = 0; c < channels; ++c) p.raw_full[i * channels + c] = rw[static_cast<std::size_t>(j) * channels + c];
+    }
+  }
 
+  /// Whether training rays stop early (Workspace::training_termination): only where the sampler skips (its
+  /// backward pass drops samples behind kMinTransmittance, and unevaluated samples get no noise, which must
+  /// then leave α at 0 as noise_vanishes_when_skipped() checks).
+  bool training_terminates(const Workspace& w) const {
+    return w.training_termination && sampler_.skipping() && noise_vanishes_when_skipped();
+  }
   /// Forward of one network over the pass's R×S samples, compositing each ray into p.comp. Training rays
   /// evaluate every sample the sampler keeps; evaluation rays may terminate early.
   void run_pass(const T* params, const Vec3* origin, const Vec3* dir, int R, bool training, Pass& p, Workspace& w) const {
     const int S = p.S;
-    const bool terminating = !training && w.early_termination;
+    const bool terminating = training ? training_terminates(w) : w.early_termination;
     if (!terminating) make_samples(origin, dir, R, p);
     const T *sigma = nullptr, *raw = nullptr;
     int stride = FieldT::density_net::out_dims;
     p.active.clear();
     if (terminating) {
-      forward_terminating(params, origin, dir, R, p, w);
+      forward_terminating(params, origin, dir, R, training, p, w);
       sigma = p.sig_full.data();
       raw = p.raw_full.data();
       stride = 1;
@@ -423,7 +458,7 @@ class Renderer {
       w.evaluated += static_cast<std::size_t>(R) * S;
     }
     const bool skipped = !training || sampler_.skipping();  // samples may sit at kSkippedDensity
-    if (training) draw_noise(R, sampler_.skipping() && noise_vanishes_when_skipped(), p);
+    if (training && !terminating) draw_noise(R, sampler_.skipping() && noise_vanishes_when_skipped(), p);
     p.comp.resize(R);
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;

@@ -39,6 +39,8 @@ struct Config {
                                ///< model's own, its variant's default_tv unless set_tv changed it)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
                                ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
+  bool terminate_rays = false;  ///< training rays stop behind the backward pass's transmittance cut, where the
+                                ///< sampler skips (EvNerf::set_ray_termination): fewer samples per step
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
@@ -336,6 +338,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   }
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
+  model.set_ray_termination(cfg.terminate_rays);
   if (cfg.tv) model.set_tv(*cfg.tv);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
