@@ -430,7 +430,8 @@ class Renderer {
     return w.training_termination && sampler_.skipping() && noise_vanishes_when_skipped();
   }
   /// Forward of one network over the pass's R×S samples, compositing each ray into p.comp. Training rays
-  /// evaluate every sample the sampler keeps; evaluation rays may terminate early.
+  /// evaluate every sample the sampler keeps unless training_terminates(w); evaluation rays may terminate
+  /// early (w.early_termination).
   void run_pass(const T* params, const Vec3* origin, const Vec3* dir, int R, bool training, Pass& p, Workspace& w) const {
     const int S = p.S;
     const bool terminating = training ? training_terminates(w) : w.early_termination;
