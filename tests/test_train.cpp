@@ -858,13 +858,48 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(j["loss"].get<double>() == doctest::Approx(mean));
   CHECK(logged_mean == doctest::Approx(mean));
   CHECK(j["loss"].get<double>() == doctest::Approx(j["event_loss"].get<double>() + j["threshold_loss"].get<double>()));
-  // A resumed run appends.
+  // settings.json records what trained the run: every setting, from step 0.
+  auto settings = [&] { return nlohmann::json::parse(read_file(out / "settings.json")); };
+  auto first = settings();
+  CHECK(first["variant"] == "tiny");
+  REQUIRE(first["runs"].size() == 1);
+  CHECK(first["runs"][0]["from_step"] == 0);
+  CHECK(first["runs"][0]["iterations"] == 60);
+  CHECK(first["runs"][0]["pixels_per_step"] == 64);
+  CHECK(first["runs"][0]["terminate_rays"] == cfg.terminate_rays);
+  CHECK(first["runs"][0]["seed"] == cfg.seed);
+  CHECK(first["runs"][0]["tv"].is_null());
+  CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
+  // A resumed run appends, to the log and to the settings.
   cfg.iterations = 100;
+  cfg.terminate_rays = !cfg.terminate_rays;
   train::run(m, f.td, cfg, out, "tiny", "meta");
   std::ifstream in2(out / "log.jsonl");
   lines = 0;
   while (std::getline(in2, line)) ++lines;
   CHECK(lines == 2);
+  auto both = settings();
+  REQUIRE(both["runs"].size() == 2);
+  CHECK(both["runs"][0] == first["runs"][0]);
+  CHECK(both["runs"][1]["from_step"] == 55);
+  CHECK(both["runs"][1]["iterations"] == 100);
+  CHECK(both["runs"][1]["terminate_rays"] == cfg.terminate_rays);
+  // A call resumed from an earlier step drops the entries that started at or after it; a settings file that
+  // is not the record is refused, naming it, and left as it was.
+  write_file_atomic(out / "settings.json", "{\"runs\": 3}");
+  cfg.iterations = 110;
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, cfg, out, "tiny", "meta"), doctest::Contains("settings.json"), Error);
+  CHECK(read_file(out / "settings.json") == "{\"runs\": 3}");
+  nlohmann::json later = both;
+  later["runs"].push_back(both["runs"][1]);
+  later["runs"][2]["from_step"] = 500;
+  write_file_atomic(out / "settings.json", later.dump());
+  train::run(m, f.td, cfg, out, "tiny", "meta");
+  auto kept = settings();
+  REQUIRE(kept["runs"].size() == 3);
+  CHECK(kept["runs"][1] == both["runs"][1]);
+  CHECK(kept["runs"][2]["from_step"] == 100);
+  CHECK(kept["runs"][2]["iterations"] == 110);
   fs::remove_all(out);
 }
 

@@ -604,7 +604,7 @@ void define(py::module_& m) {
           return s;
         }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, tv, near, "
               "far, checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box. callback(step, loss, thresholds) "
-              "runs after every step; returning False stops the run. With out, log.jsonl and model.ckpt are written there (resume "
+              "runs after every step; returning False stops the run. With out, settings.json, log.jsonl and model.ckpt are written there (resume "
               "continues from it); without, nothing is written.").c_str());
 
   m.def(

@@ -306,11 +306,64 @@ struct StepReport {
   double seconds = 0;
 };
 
+/// Every setting of `c` as JSON, as `out/settings.json` records it (the process group as its size).
+inline nlohmann::json settings_json(const Config& c) {
+  nlohmann::json j;
+  j["iterations"] = c.iterations;
+  j["pixels_per_step"] = c.pixels_per_step;
+  j["lr"] = c.lr;
+  j["lr_decay"] = c.lr_decay;
+  j["lr_decay_steps"] = c.lr_decay_steps;
+  j["distortion"] = c.distortion;
+  j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
+  j["average"] = c.average;
+  j["terminate_rays"] = c.terminate_rays;
+  j["seed"] = c.seed;
+  j["threads"] = c.threads;
+  j["checkpoint_every"] = c.checkpoint_every;
+  j["near"] = c.near;
+  j["far"] = c.far;
+  j["holdout_every"] = c.holdout_every;
+  j["subslices"] = c.subslices;
+  j["clamp_poses"] = c.clamp_poses;
+  j["density_per_box"] = c.density_per_box;
+  j["box"] = c.box == Config::BoxFit::Cameras ? "cameras" : "frusta";
+  j["collapse_check_every"] = c.collapse_check_every;
+  j["collapse_check_from"] = c.collapse_check_from;
+  j["allow_collapse"] = c.allow_collapse;
+  j["shards"] = c.shard_count();
+  j["processes"] = c.group ? c.group->size() : 1;
+  j["exchange"] = c.exchange == Exchange::Dense ? "dense" : c.exchange == Exchange::Sparse ? "sparse" : "auto";
+  return j;
+}
+
+/// Writes `out/settings.json`, what trained the run in `out`: {"variant": name, "runs": [...]}, one entry per
+/// call of train::run (settings_json and "from_step", the step it started from). A fresh run starts the list
+/// afresh; a resumed one keeps the entries that started before its checkpoint's step (a call that died
+/// before its first checkpoint left no steps) and appends its own. Written atomically; a file that is not
+/// this object is refused, naming it, rather than overwritten.
+inline void record_settings(const fs::path& out, const Config& c, const std::string& name, long from_step) {
+  const fs::path file = out / "settings.json";
+  nlohmann::json runs = nlohmann::json::array();
+  if (from_step > 0 && fs::exists(file)) {
+    const auto old = nlohmann::json::parse(read_file(file), nullptr, false);
+    if (old.is_discarded() || !old.is_object() || !old.contains("runs") || !old["runs"].is_array())
+      throw Error(file.string(), 0, "not the settings record train writes (a JSON object with a \"runs\" array); move it away to resume");
+    for (const auto& r : old["runs"])
+      if (r.is_object() && r.contains("from_step") && r["from_step"].is_number_integer() && r["from_step"].get<long>() < from_step)
+        runs.push_back(r);
+  }
+  auto entry = settings_json(c);
+  entry["from_step"] = from_step;
+  runs.push_back(std::move(entry));
+  write_file_atomic(file, nlohmann::json{{"variant", name}, {"runs", std::move(runs)}}.dump(2) + "\n");
+}
+
 /// Steps between two lines of log.jsonl (each line holds the means over them).
 inline constexpr long kLogEvery = 50;
 
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
-/// `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
+/// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
 /// `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
 /// every checkpoint_every steps and at the end; an empty `out` writes nothing (the model stays in memory,
 /// as the Python module's `train` without `out` has it). On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
@@ -351,6 +404,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     }
     write_file_atomic(out / "log.jsonl", kept);
   }
+  if (files) record_settings(out, cfg, name, model.step());
   std::ofstream log;
   if (files) {
     log.open(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
