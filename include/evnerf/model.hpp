@@ -476,8 +476,9 @@ class EvNerf {
   /// (Renderer::Workspace::training_termination), for samplers that skip (the occupancy grid). The samples
   /// behind carry no gradient either way; the forward's composite loses less than that fraction of a ray's
   /// luminance, and a step evaluates fewer samples (about 40 % fewer on `planes` late in a Fast run).
-  /// Off by default (the step is then bit-identical to one without this setting). A training setting like
-  /// the learning rate: not checkpointed.
+  /// Off for a new model, whose step is then bit-identical to one without this setting; train::Config turns
+  /// it on (its default since session 40), as it turns on the parameter average. A training setting like the
+  /// learning rate: not checkpointed.
   void set_ray_termination(bool on) { ray_termination_ = on; }
   bool ray_termination() const { return ray_termination_; }
   /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right

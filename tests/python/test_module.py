@@ -3,6 +3,7 @@
 Run by ctest (python.module) with PYTHONPATH at the built module; by hand:
     PYTHONPATH=build/examples/python /usr/bin/python3 -m pytest tests/python
 """
+import json
 import signal
 import threading
 import time
@@ -152,6 +153,12 @@ def test_save_load_resume(planes, tmp_path):
     resumed = evnerf.train(planes, iterations=20, threads=1, out=tmp_path / "run", resume=True)
     straight = evnerf.train(planes, iterations=20, threads=1)
     assert resumed.step == 20 and np.array_equal(resumed.render(P)[0], straight.render(P)[0])
+    # settings.json records both calls: the library's defaults (rays that stop early), and where each began.
+    runs = json.loads((tmp_path / "run" / "settings.json").read_text())["runs"]
+    assert [r["from_step"] for r in runs] == [0, 10] and [r["iterations"] for r in runs] == [10, 20]
+    assert all(r["terminate_rays"] is True and r["threads"] == 1 for r in runs)
+    evnerf.train(planes, iterations=2, threads=1, terminate_rays=False, out=tmp_path / "off")
+    assert json.loads((tmp_path / "off" / "settings.json").read_text())["runs"][0]["terminate_rays"] is False
     # Without out nothing is written.
     before = set(tmp_path.iterdir())
     evnerf.train(planes, iterations=2, threads=1)

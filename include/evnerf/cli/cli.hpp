@@ -273,10 +273,12 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  trainc->add_flag("--terminate-rays", cfg.terminate_rays,
+  trainc->add_flag("--terminate-rays,!--no-terminate-rays", cfg.terminate_rays,
                    "stop each training ray where its transmittance falls below 1e-4, the cut behind which its samples get no "
                    "gradient anyway (samplers with an occupancy grid): fewer samples evaluated per step, a slightly different "
-                   "composite, so other bits");
+                   "composite, so other bits. On by default; --no-terminate-rays gives the bits of the default before "
+                   "session 40")
+      ->capture_default_str();
   trainc->add_option("--average", cfg.average,
                      "decay of the moving average of the parameters that the model renders with (exponential, with "
                      "TensorFlow's warm-up; 0 = off)")

@@ -39,8 +39,9 @@ struct Config {
                                ///< model's own, its variant's default_tv unless set_tv changed it)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
                                ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
-  bool terminate_rays = false;  ///< training rays stop behind the backward pass's transmittance cut, where the
-                                ///< sampler skips (EvNerf::set_ray_termination): fewer samples per step
+  bool terminate_rays = true;  ///< training rays stop behind the backward pass's transmittance cut, where the
+                               ///< sampler skips (EvNerf::set_ray_termination): fewer samples per step (the
+                               ///< default since session 40; false gives the earlier default's bits)
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
