@@ -888,8 +888,11 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   // is not the record is refused, naming it, and left as it was.
   write_file_atomic(out / "settings.json", "{\"runs\": 3}");
   cfg.iterations = 110;
+  write_file_atomic(out / "log.jsonl", read_file(out / "log.jsonl") + "{\"step\": 999}\n");  // a resume would drop it
+  const std::string log_before = read_file(out / "log.jsonl");
   CHECK_THROWS_WITH_AS(train::run(m, f.td, cfg, out, "tiny", "meta"), doctest::Contains("settings.json"), Error);
   CHECK(read_file(out / "settings.json") == "{\"runs\": 3}");
+  CHECK(read_file(out / "log.jsonl") == log_before);  // refused before the log was touched
   nlohmann::json later = both;
   later["runs"].push_back(both["runs"][1]);
   later["runs"][2]["from_step"] = 500;

@@ -364,8 +364,8 @@ inline void record_settings(const fs::path& out, const Config& c, const std::str
 inline constexpr long kLogEvery = 50;
 
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
-/// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl` (started afresh when the model is at step 0, appended to on a resume: one line every
-/// `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
+/// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl`
+/// (started afresh when the model is at step 0, appended to on a resume: one line every `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
 /// every checkpoint_every steps and at the end; an empty `out` writes nothing (the model stays in memory,
 /// as the Python module's `train` without `out` has it). On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
 /// is due, it stops with a message (RunResult::diverged) and leaves the last good checkpoint in place. A
@@ -395,6 +395,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   model.set_ray_termination(cfg.terminate_rays);
   if (cfg.tv) model.set_tv(*cfg.tv);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
+  // The settings first: a record it cannot read refuses the call before the log is touched.
+  if (files) record_settings(out, cfg, name, model.step());
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
     std::string kept, line;
     std::istringstream in(read_file(out / "log.jsonl"));
@@ -405,7 +407,6 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     }
     write_file_atomic(out / "log.jsonl", kept);
   }
-  if (files) record_settings(out, cfg, name, model.step());
   std::ofstream log;
   if (files) {
     log.open(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
