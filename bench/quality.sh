@@ -7,7 +7,8 @@
 #   the real IJRR slider_depth chunk (frames 1–4, when ../shared/data is present).
 # About 35 minutes on 2 cores. Usage: bench/quality.sh [rows…]
 # Environment: ITERS (1500), PRESET (fast), THREADS (2: a run's bits depend on its thread count, so the
-# tables compare across machines only at one count), BUILD (build), OUT (out/quality).
+# tables compare across machines only at one count), BUILD (build), OUT (out/quality), EVNERF (the binary:
+# $BUILD/examples/evnerf), TRAIN_FLAGS (more train options for every row, split at spaces).
 # (rows: planes object room noise0.5 noise0.9 holdout slider)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,7 +17,9 @@ OUT=${OUT:-out/quality}
 ITERS=${ITERS:-1500}
 PRESET=${PRESET:-fast}
 THREADS=${THREADS:-2}
-EV="$BUILD/examples/evnerf"
+EV="${EVNERF:-$BUILD/examples/evnerf}"
+[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "quality: EVNERF=$EV is not an executable" >&2; exit 2; }
+read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 [ -x "$EV" ] || { scripts/deps.sh; cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 ROWS=("$@")
 [ ${#ROWS[@]} -gt 0 ] || ROWS=(planes object room noise0.5 noise0.9 holdout slider)
@@ -25,7 +28,7 @@ row() {  # name recording-folder eval-args [train args…]
   local name=$1 folder=$2 evargs=$3
   shift 3
   mkdir -p "$OUT/$name"
-  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --threads "$THREADS" --out "$OUT/$name/run" --quiet "$@" > "$OUT/$name/train.log" 2>&1
+  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --threads "$THREADS" --out "$OUT/$name/run" --quiet "${TRAIN_EXTRA[@]}" "$@" > "$OUT/$name/train.log" 2>&1
   "$EV" eval "$OUT/$name/run/model.ckpt" "$folder" --out "$OUT/$name/eval" $evargs | tee "$OUT/$name/eval.txt"
 }
 for r in "${ROWS[@]}"; do

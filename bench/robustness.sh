@@ -7,18 +7,22 @@
 # Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
 # Environment: PRESET (the default preset), STEPS (train's default), SEED (training seed, 1), THREADS (2),
-#              OUT (out/robustness), BUILD (build).
+#              OUT (out/robustness), BUILD (build), EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS
+#              (more train options, split at spaces: to compare a binary or an option against the default).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
 OUT=${OUT:-out/robustness}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
-EV="$BUILD/examples/evnerf"
+EV="${EVNERF:-$BUILD/examples/evnerf}"
+[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "robustness: EVNERF=$EV is not an executable" >&2; exit 2; }
 [ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 SEEDS=("$@")
 [ ${#SEEDS[@]} -gt 0 ] || SEEDS=(1 2 3 4 5 6 7 8 9 10)
 TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
+read -r -a extra <<<"${TRAIN_FLAGS:-}"
+TRAIN_ARGS+=("${extra[@]}")
 [ -n "${PRESET:-}" ] && TRAIN_ARGS+=(--preset "$PRESET")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iters "$STEPS")
 mkdir -p "$OUT"

@@ -5,7 +5,8 @@
 # SSIM of ours and of the best baseline under eval's default alignment, global-log-affine) and a PNG plot.
 # Usage: bench/time_to_quality.sh [scenes…]   (default: planes room object)
 # Environment: PRESET (fast), STEPS (6000), EVERY (500), SEED (1), THREADS (2: a run's bits depend on its
-# thread count, so curves compare across machines only at one count), OUT (out/time_to_quality), BUILD (build).
+# thread count, so curves compare across machines only at one count), OUT (out/time_to_quality), BUILD (build),
+# EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS (more train options, split at spaces).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
@@ -15,7 +16,9 @@ STEPS=${STEPS:-6000}
 EVERY=${EVERY:-500}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
-EV="$BUILD/examples/evnerf"
+EV="${EVNERF:-$BUILD/examples/evnerf}"
+[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "time_to_quality: EVNERF=$EV is not an executable" >&2; exit 2; }
+read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 scripts/deps.sh python3-matplotlib
 [ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 SCENES=("$@")
@@ -29,7 +32,7 @@ for sc in "${SCENES[@]}"; do
   "$EV" simulate "$sc" --out "$dir/scene" > /dev/null 2>&1
   total=0
   for ((s = EVERY; s <= STEPS; s += EVERY)); do
-    "$EV" train "$dir/scene" --preset "$PRESET" --iters "$s" --seed "$SEED" --threads "$THREADS" --out "$dir/run" --resume --quiet > "$dir/train.txt" 2>&1
+    "$EV" train "$dir/scene" --preset "$PRESET" --iters "$s" --seed "$SEED" --threads "$THREADS" --out "$dir/run" --resume --quiet "${TRAIN_EXTRA[@]}" > "$dir/train.txt" 2>&1
     secs=$(sed -n 's/.* steps in \([0-9.]*\) s.*/\1/p' "$dir/train.txt")
     total=$(python3 -c "print($total + $secs)")
     "$EV" eval "$dir/run/model.ckpt" "$dir/scene" --out "$dir/eval_$s" > "$dir/eval_$s.txt" 2>&1
