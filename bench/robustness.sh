@@ -21,8 +21,8 @@ EV="${EVNERF:-$BUILD/examples/evnerf}"
 SEEDS=("$@")
 [ ${#SEEDS[@]} -gt 0 ] || SEEDS=(1 2 3 4 5 6 7 8 9 10)
 TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
-read -r -a extra <<<"${TRAIN_FLAGS:-}"
-TRAIN_ARGS+=("${extra[@]}")
+read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
+TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${PRESET:-}" ] && TRAIN_ARGS+=(--preset "$PRESET")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iters "$STEPS")
 mkdir -p "$OUT"
