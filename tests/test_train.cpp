@@ -359,6 +359,59 @@ TEST_CASE("training rays that stop early: the samples before each stop as withou
   }
   CAPTURE(std::sqrt(diff / norm));
   CHECK(std::sqrt(diff) <= 1e-2 * std::sqrt(norm));
+  // A larger cut (Workspace::training_cut, set_ray_termination's second argument): rays stop where the full
+  // pass's transmittance has fallen to it, evaluate a prefix of what the default cut evaluates, and their
+  // colour stays within that cut's share of what lies behind.
+  {
+    const float big = 1e-2f;
+    std::vector<Rng> rng_big = rng;
+    R::Workspace wide;
+    wide.training_termination = true;
+    wide.training_cut = big;
+    m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng_big.data(), n_rays, wide);
+    const auto& pb = wide.pass[0];
+    std::vector<char> in_big(in_full.size(), 0);
+    for (int i : pb.active) in_big[static_cast<std::size_t>(i)] = 1;
+    std::size_t bad = 0;
+    int earlier = 0;
+    for (int r = 0; r < n_rays; ++r) {
+      int end = S;
+      for (int k = 0; k < S; ++k) {
+        const std::size_t i = static_cast<std::size_t>(r) * S + k;
+        bad += in_big[i] && !in_stop[i];  // a subset of the default cut's samples
+        if (in_stop[i] && !in_big[i] && end == S) end = k;
+      }
+      CAPTURE(r);
+      if (end < S) {
+        ++earlier;
+        CHECK(end % R::kEvalChunk == 0);
+        CHECK(pf.comp[r].trans[end] <= big * 1.01f);
+      }
+      float behind = 0;
+      for (int k = end; k < S; ++k) behind = std::max(behind, pf.comp[r].lum[k]);
+      CHECK(std::abs(pb.comp[r].color[0] - pf.comp[r].color[0]) <= big * 1.01f * behind + 1e-6f * std::abs(pf.comp[r].color[0]));
+    }
+    CHECK(bad == 0);
+    CAPTURE(earlier);
+    CHECK(earlier > 0);  // some rays stop before they would at the default cut
+    CHECK(pb.active.size() < ps.active.size());
+    // A step: fewer samples forward and backward than at the default cut.
+    m.set_ray_termination(true, big);
+    CHECK(m.ray_cut() == doctest::Approx(big));
+    const auto d = m.gradients(f.td, 64, 5);
+    CHECK(d.samples < b.samples);
+    CHECK(d.backward_samples < b.backward_samples);
+    CHECK(d.loss == doctest::Approx(a.loss).epsilon(2e-2));
+    // The default cut named explicitly is the default, bit for bit.
+    m.set_ray_termination(true, 1e-4);
+    const auto e = m.gradients(f.td, 64, 5);
+    CHECK(e.loss == b.loss);
+    CHECK(e.samples == b.samples);
+    CHECK(m.params().grads == gb);
+    CHECK_THROWS_AS(m.set_ray_termination(true, 0.0), Error);
+    CHECK_THROWS_AS(m.set_ray_termination(true, 1.0), Error);
+    CHECK_THROWS_AS(m.set_ray_termination(true, std::nan("")), Error);
+  }
   m.set_ray_termination(false);
   const auto c = m.gradients(f.td, 64, 5);
   CHECK(c.loss == a.loss);  // off again: the step as without the setting, bit for bit
@@ -873,7 +926,9 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   // A resumed run appends, to the log and to the settings.
   cfg.iterations = 100;
   cfg.terminate_rays = !cfg.terminate_rays;
+  cfg.ray_cut = 2e-3;
   train::run(m, f.td, cfg, out, "tiny", "meta");
+  CHECK(m.ray_cut() == 2e-3);  // the model trained with the Config's cut
   std::ifstream in2(out / "log.jsonl");
   lines = 0;
   while (std::getline(in2, line)) ++lines;
@@ -884,6 +939,8 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(both["runs"][1]["from_step"] == 55);
   CHECK(both["runs"][1]["iterations"] == 100);
   CHECK(both["runs"][1]["terminate_rays"] == cfg.terminate_rays);
+  CHECK(first["runs"][0]["ray_cut"] == 1e-4);
+  CHECK(both["runs"][1]["ray_cut"] == 2e-3);
   // A call resumed from an earlier step drops the entries that started at or after it; a settings file that
   // is not the record is refused, naming it, and left as it was.
   write_file_atomic(out / "settings.json", "{\"runs\": 3}");
@@ -949,6 +1006,9 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "total-variation weight must be finite and non-negative");
   refused([](train::Config& c) { c.average = 1.0; }, "parameter average's decay must be in [0, 1)");
   refused([](train::Config& c) { c.average = std::nan(""); }, "parameter average's decay must be in [0, 1)");
+  refused([](train::Config& c) { c.ray_cut = 0; }, "ray-termination transmittance must lie in (0, 1)");
+  refused([](train::Config& c) { c.ray_cut = 1; }, "ray-termination transmittance must lie in (0, 1)");
+  refused([](train::Config& c) { c.ray_cut = std::nan(""); }, "ray-termination transmittance must lie in (0, 1)");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;

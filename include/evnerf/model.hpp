@@ -291,6 +291,7 @@ class EvNerf {
       w.pass_loss = {};
       w.distortion = w.tv = 0;
       w.rw.training_termination = ray_termination_;
+      w.rw.training_cut = static_cast<scalar>(ray_cut_);
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
@@ -479,8 +480,17 @@ class EvNerf {
   /// Off for a new model, whose step is then bit-identical to one without this setting; train::Config turns
   /// it on (its default since session 40), as it turns on the parameter average. A training setting like the
   /// learning rate: not checkpointed.
-  void set_ray_termination(bool on) { ray_termination_ = on; }
+  /// `cut` is the transmittance behind which a ray stops (renderer_type::kMinTransmittance unless given):
+  /// a larger cut evaluates fewer samples and drops more of each ray's far end from the composite and the
+  /// gradient (session 42 measures 1e-3 and 1e-2, bench/README.md). It must lie in (0, 1).
+  void set_ray_termination(bool on, double cut = static_cast<double>(renderer_type::kMinTransmittance)) {
+    require(std::isfinite(cut) && cut > 0 && cut < 1, "the ray-termination transmittance must lie in (0, 1), not " + std::to_string(cut));
+    ray_termination_ = on;
+    ray_cut_ = cut;
+  }
   bool ray_termination() const { return ray_termination_; }
+  /// The transmittance behind which training rays stop (set_ray_termination).
+  double ray_cut() const { return ray_cut_; }
   /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
   /// or below, or left or above at the border, drawn per pixel and step) rendered from the window's first
   /// pose; `weight` × the mean over the step's pixels (and channels) of their log difference's Cauchy penalty
@@ -687,7 +697,8 @@ class EvNerf {
   std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
   double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
-  bool ray_termination_ = false;  ///< training rays stop behind kMinTransmittance (set_ray_termination)
+  bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
+  double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
 };
 

@@ -279,6 +279,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                    "composite, so other bits. On by default; --no-terminate-rays gives the bits of the default before "
                    "session 40")
       ->capture_default_str();
+  trainc->add_option("--ray-cut", cfg.ray_cut,
+                     "with --terminate-rays: the transmittance behind which a training ray stops and its samples get no "
+                     "gradient (larger: fewer samples per step, more of each ray's far end left out)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));  // 0 and 1 themselves: train's own check names them
   trainc->add_option("--average", cfg.average,
                      "decay of the moving average of the parameters that the model renders with (exponential, with "
                      "TensorFlow's warm-up; 0 = off)")

@@ -71,6 +71,9 @@ class Renderer {
     /// Its samples there carry no gradient either way; what changes is the forward's composite, by less
     /// than kMinTransmittance of a ray's luminance, and the time: the samples behind are not evaluated.
     bool training_termination = false;
+    /// With training_termination: the transmittance behind which a training ray stops and its samples go
+    /// no further backward (kMinTransmittance unless the model sets another, Model::set_ray_termination).
+    T training_cut = kMinTransmittance;
     std::vector<T> one;                   ///< a ray's fine depths
   };
 
@@ -355,7 +358,7 @@ class Renderer {
     p.raw_full.assign(n * channels, T(0));
     p.ray_trans.assign(static_cast<std::size_t>(R), T(1));
     if (training) p.noise.assign(n, T(0));
-    const T cut = training ? kMinTransmittance : kEvalTransmittance;
+    const T cut = training ? w.training_cut : kEvalTransmittance;
     // Samples not evaluated have act(kSkippedDensity), which is 0 for the usual activations: α = 0 without exp.
     const bool skip_zero = FieldT::density_activation::f(kSkippedDensity) == 0;
     p.dirs.resize(3 * static_cast<std::size_t>(R));  // one unit direction per ray
@@ -486,9 +489,10 @@ class Renderer {
       // and gradients below that fraction of the ray's, so it is dropped: the forward's workspace is
       // compacted to the kept samples (Field::keep_only) and only they go backward.
       p.keep.clear();
+      const T cut = training_terminates(w) ? w.training_cut : kMinTransmittance;
       for (int j = 0; j < static_cast<int>(p.active.size()); ++j) {
         const int i = p.active[j];
-        if (p.comp[i / S].trans[i % S] > kMinTransmittance) p.keep.push_back(j);
+        if (p.comp[i / S].trans[i % S] > cut) p.keep.push_back(j);
       }
       const int m = static_cast<int>(p.keep.size());
       w.backward_samples += static_cast<std::size_t>(m);

@@ -42,6 +42,8 @@ struct Config {
   bool terminate_rays = true;  ///< training rays stop behind the backward pass's transmittance cut, where the
                                ///< sampler skips (EvNerf::set_ray_termination): fewer samples per step (the
                                ///< default since session 40; false gives the earlier default's bits)
+  double ray_cut = 1e-4;       ///< the transmittance behind which a training ray stops, with terminate_rays
+                               ///< (EvNerf::set_ray_termination; 1e-4 is the backward pass's own cut)
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
@@ -88,6 +90,7 @@ inline void check(const Config& c) {
   need(c.lr_decay > 0 && c.lr_decay_steps > 0, "the learning-rate decay and its steps must be positive");
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
   need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
+  need(c.ray_cut > 0 && c.ray_cut < 1, "the ray-termination transmittance must lie in (0, 1), got " + short_number(c.ray_cut));
   need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
                                                                  short_number(c.near) + " and " + short_number(c.far));
@@ -319,6 +322,7 @@ inline nlohmann::json settings_json(const Config& c) {
   j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
   j["average"] = c.average;
   j["terminate_rays"] = c.terminate_rays;
+  j["ray_cut"] = c.ray_cut;
   j["seed"] = c.seed;
   j["threads"] = c.threads;
   j["checkpoint_every"] = c.checkpoint_every;
@@ -392,7 +396,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   }
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
-  model.set_ray_termination(cfg.terminate_rays);
+  model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
   if (cfg.tv) model.set_tv(*cfg.tv);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   // The settings first: a record it cannot read refuses the call before the log is touched.
