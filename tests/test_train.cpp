@@ -939,7 +939,8 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(both["runs"][1]["from_step"] == 55);
   CHECK(both["runs"][1]["iterations"] == 100);
   CHECK(both["runs"][1]["terminate_rays"] == cfg.terminate_rays);
-  CHECK(first["runs"][0]["ray_cut"] == 1e-4);
+  CHECK(first["runs"][0]["ray_cut"] == train::Config{}.ray_cut);
+  CHECK(train::Config{}.ray_cut == 1e-2);  // the default since session 43
   CHECK(both["runs"][1]["ray_cut"] == 2e-3);
   // A call resumed from an earlier step drops the entries that started at or after it; a settings file that
   // is not the record is refused, naming it, and left as it was.

@@ -478,8 +478,8 @@ class EvNerf {
   /// behind carry no gradient either way; the forward's composite loses less than that fraction of a ray's
   /// luminance, and a step evaluates fewer samples (about 40 % fewer on `planes` late in a Fast run).
   /// Off for a new model, whose step is then bit-identical to one without this setting; train::Config turns
-  /// it on (its default since session 40), as it turns on the parameter average. A training setting like the
-  /// learning rate: not checkpointed.
+  /// it on (its default since session 40), with a cut of 1e-2 since session 43, as it turns on the parameter
+  /// average. A training setting like the learning rate: not checkpointed.
   /// `cut` is the transmittance behind which a ray stops (renderer_type::kMinTransmittance unless given):
   /// a larger cut evaluates fewer samples and drops more of each ray's far end from the composite and the
   /// gradient (session 42 measures 1e-3 and 1e-2, bench/README.md). It must lie in (0, 1).

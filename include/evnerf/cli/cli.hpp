@@ -274,14 +274,14 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   trainc->add_flag("--terminate-rays,!--no-terminate-rays", cfg.terminate_rays,
-                   "stop each training ray where its transmittance falls below 1e-4, the cut behind which its samples get no "
-                   "gradient anyway (samplers with an occupancy grid): fewer samples evaluated per step, a slightly different "
-                   "composite, so other bits. On by default; --no-terminate-rays gives the bits of the default before "
-                   "session 40")
+                   "stop each training ray where its transmittance falls below --ray-cut (samplers with an occupancy "
+                   "grid): fewer samples evaluated per step, the far end of each ray left out of the composite and the "
+                   "gradient. On by default; --no-terminate-rays gives the bits of the default before session 40")
       ->capture_default_str();
   trainc->add_option("--ray-cut", cfg.ray_cut,
                      "with --terminate-rays: the transmittance behind which a training ray stops and its samples get no "
-                     "gradient (larger: fewer samples per step, more of each ray's far end left out)")
+                     "gradient (larger: fewer samples per step, more of each ray's far end left out; 1e-4, the backward "
+                     "pass's own cut, gives the bits of sessions 40-42's default)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));  // 0 and 1 themselves: train's own check names them
   trainc->add_option("--average", cfg.average,

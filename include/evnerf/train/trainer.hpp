@@ -39,11 +39,13 @@ struct Config {
                                ///< model's own, its variant's default_tv unless set_tv changed it)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
                                ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
-  bool terminate_rays = true;  ///< training rays stop behind the backward pass's transmittance cut, where the
-                               ///< sampler skips (EvNerf::set_ray_termination): fewer samples per step (the
-                               ///< default since session 40; false gives the earlier default's bits)
-  double ray_cut = 1e-4;       ///< the transmittance behind which a training ray stops, with terminate_rays
-                               ///< (EvNerf::set_ray_termination; 1e-4 is the backward pass's own cut)
+  bool terminate_rays = true;  ///< training rays stop behind transmittance ray_cut, where the sampler skips
+                               ///< (EvNerf::set_ray_termination): fewer samples per step (the default since
+                               ///< session 40; false gives the earlier default's bits)
+  double ray_cut = 1e-2;       ///< the transmittance behind which a training ray stops, with terminate_rays
+                               ///< (EvNerf::set_ray_termination): the default since session 43, 21-32 % less
+                               ///< time at the same quality (bench/README.md); 1e-4, the backward pass's own
+                               ///< cut, gives sessions 40-42's bits
   std::uint64_t seed = 1;
   int threads = 0;             ///< 0 = all
   long checkpoint_every = 500;
