@@ -1152,7 +1152,7 @@ TEST_CASE("training forward: each sample's density noise is its ray's next norma
   CHECK(wrong == 0);
 }
 
-TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does") {
+TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does, in its own box") {
   Fixture f;
   train::Config cfg = f.run_config(30, 64);
   cfg.threads = 2;
@@ -1183,6 +1183,47 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   CHECK(whole.model().average().active());
   CHECK(whole.model().average().decay() == 0.998);
   CHECK(second.model().average().values() == whole.model().average().values());
+  // The default fit is the cameras'; on this recording the frusta's is much smaller.
+  CHECK(train::Config{}.box == train::Config::BoxFit::Cameras);
+  CHECK(cfg.box == train::Config::BoxFit::Cameras);
+  CHECK(whole.model().box().scale == train::scene_box(f.td, cfg).scale);
+  train::Config tight = cfg;
+  tight.box = train::Config::BoxFit::Frusta;
+  CHECK(train::scene_box(f.td, cfg).scale > 1.5 * train::scene_box(f.td, tight).scale);
+  // A checkpoint keeps its scene box: a call with another fit, near and far resumes it as it was, and its
+  // Config (what settings.json records) takes the checkpoint's fit, near and far over.
+  train::Config other = tight;
+  other.near = 0.4;
+  other.far = 3.0;
+  other.iterations = 32;
+  train::Trainer<Tiny> third(f.td, other, base / "split", "tiny", "meta");
+  CHECK(third.config().box == train::Config::BoxFit::Frusta);
+  CHECK(third.model().box().far == 3.0);  // before the resume: the Config's box
+  REQUIRE(third.resume());
+  CHECK(third.config().box == train::Config::BoxFit::Cameras);
+  CHECK(third.config().near == 0.6);
+  CHECK(third.config().far == 2.5);
+  CHECK(third.model().box().scale == whole.model().box().scale);
+  CHECK(third.model().box().far == 2.5);
+  third.run();
+  const auto record = nlohmann::json::parse(read_file(base / "split" / "settings.json"));
+  REQUIRE(record["runs"].size() == 3);
+  CHECK(record["runs"][2]["box"] == "cameras");
+  CHECK(record["runs"][2]["near"] == 0.6);
+  CHECK(record["runs"][2]["far"] == 2.5);
+  // And the other way: a run of the frusta's fit, resumed by a default call, stays the frusta's.
+  {
+    train::Trainer<Tiny> tight_run(f.td, [&] { auto c = tight; c.iterations = 4; return c; }(), base / "tight", "tiny", "meta");
+    tight_run.run();
+  }
+  train::Trainer<Tiny> later(f.td, [&] { auto c = cfg; c.iterations = 6; return c; }(), base / "tight", "tiny", "meta");
+  REQUIRE(later.resume());
+  CHECK(later.config().box == train::Config::BoxFit::Frusta);
+  CHECK(later.model().box().scale == train::scene_box(f.td, tight).scale);
+  later.run();
+  const auto tight_record = nlohmann::json::parse(read_file(base / "tight" / "settings.json"));
+  REQUIRE(tight_record["runs"].size() == 2);
+  CHECK(tight_record["runs"][1]["box"] == "frusta");
   fs::remove_all(base);
 }
 

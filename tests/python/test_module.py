@@ -160,6 +160,7 @@ def test_save_load_resume(planes, tmp_path):
     evnerf.train(planes, iterations=2, threads=1, terminate_rays=False, out=tmp_path / "off")
     assert json.loads((tmp_path / "off" / "settings.json").read_text())["runs"][0]["terminate_rays"] is False
     assert all(r["ray_cut"] == 1e-2 for r in runs)
+    assert all(r["box"] == "cameras" for r in runs)
     evnerf.train(planes, iterations=2, threads=1, ray_cut=1e-4, out=tmp_path / "cut")
     assert json.loads((tmp_path / "cut" / "settings.json").read_text())["runs"][0]["ray_cut"] == 1e-4
     with pytest.raises(evnerf.Error, match=r"ray-termination transmittance must lie in \(0, 1\)"):

@@ -307,7 +307,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_flag("--allow-collapse", cfg.allow_collapse,
                    "go on when a collapse check fires (renders almost constant, or the event loss not improving)");
   std::string box_fit = cfg.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras";
-  trainc->add_option("--box", box_fit, "scene box: cameras (centres plus far in every direction) or frusta (tight around the views)")
+  trainc->add_option("--box", box_fit, "scene box: cameras (the camera centres plus far in every direction) or frusta (tight around the views between near and far: cells 2-3 times finer; measured, not the default, bench/README.md session 44). A resumed run keeps its checkpoint's box, near and far")
       ->check(CLI::IsMember({"cameras", "frusta"}))
       ->capture_default_str();
   bool per_channel = false;
@@ -469,6 +469,10 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if (resume && trainer.resume(&note) && lead) {
           if (!note.empty()) fmt::print(stderr, "warning: {}\n", note);
           fmt::print(stderr, "resuming {} at step {}\n", name, trainer.model().step());
+          const auto& kept = trainer.config();  // the checkpoint's scene box, whatever the options say
+          if (kept.box != cfg.box || kept.near != cfg.near || kept.far != cfg.far)
+            fmt::print(stderr, "note: the checkpoint's scene box is kept ({}, near {}, far {}); --box, --near and --far apply to new runs\n",
+                       kept.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras", kept.near, kept.far);
         }
         if (lead)
           fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,

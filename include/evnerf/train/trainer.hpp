@@ -58,7 +58,9 @@ struct Config {
   bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
                                  ///< (render::SceneBox::density_length)
   /// How the scene box is fitted: around the camera centres with room for `far` in every direction
-  /// (render::SceneBox::from_cameras), or tightly around the cameras' frusta (render::frustum_box).
+  /// (render::SceneBox::from_cameras), or tightly around the cameras' frusta (render::frustum_box: the hash
+  /// grid's and the occupancy grid's cells 2-3 times smaller in the world; measured against the default in
+  /// bench/README.md, sessions 8, 12, 24 and 44, and not adopted). A resumed run keeps its checkpoint's box.
   enum class BoxFit { Cameras, Frusta } box = BoxFit::Cameras;
   bool progress = true;
   /// Collapse detection (see CollapseCheck): every `collapse_check_every` steps from step
@@ -600,6 +602,7 @@ class Trainer {
                       std::to_string(recorded_shards(meta)) + " (any number of processes that divides it)");
     if (note) *note = model_.load_note();
     model_.optimizer().set_config(adam_config(cfg_));
+    follow_box();
     return true;
   }
   /// Trains up to cfg.iterations steps in total (see train::run); `on_step` may stop early.
@@ -613,6 +616,23 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
+  /// A resumed model keeps its checkpoint's scene box (near, far and the fit it was trained with, which may
+  /// be an earlier default's), whatever this call's Config says; the Config takes them over, so that
+  /// settings.json records what the run uses.
+  void follow_box() {
+    const auto& b = model_.box();
+    cfg_.near = b.near;
+    cfg_.far = b.far;
+    cfg_.density_per_box = b.density_length != 1.0;
+    for (auto fit : {Config::BoxFit::Frusta, Config::BoxFit::Cameras}) {  // a box of neither (other poses): as given
+      Config c = cfg_;
+      c.box = fit;
+      const auto s = scene_box(td_, c);
+      const double tol = 1e-9 * std::max(1.0, b.scale);
+      if ((s.center - b.center).cwiseAbs().maxCoeff() <= tol && std::abs(s.scale - b.scale) <= tol) cfg_.box = fit;
+    }
+  }
+
   const TrainingData& td_;
   Config cfg_;
   fs::path out_;
