@@ -1227,6 +1227,14 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   fs::remove_all(base);
 }
 
+TEST_CASE("train::box_name and parse_box: one spelling each way; anything else is refused, naming the caller") {
+  for (auto b : {train::Config::BoxFit::Cameras, train::Config::BoxFit::Frusta}) CHECK(train::parse_box(train::box_name(b), "t") == b);
+  CHECK(std::string(train::box_name(train::Config::BoxFit::Frusta)) == "frusta");
+  CHECK(std::string(train::box_name(train::Config::BoxFit::Cameras)) == "cameras");
+  CHECK_THROWS_WITH(train::parse_box("Frusta", "train --box"), doctest::Contains("train --box: box must be 'cameras' or 'frusta', got 'Frusta'"));
+  CHECK_THROWS_WITH(train::parse_box("", "train"), doctest::Contains("got ''"));
+}
+
 TEST_CASE("ratio thresholds: only B+/|B-| is learned, the scale stays shared and fixed") {
   Fixture f;
   using M = EvNerf<TinyField, render::Stratified<16>, loss::RatioThresholds, loss::DefaultNoise, loss::WindowInterval<4>>;

@@ -161,6 +161,8 @@ def test_save_load_resume(planes, tmp_path):
     assert json.loads((tmp_path / "off" / "settings.json").read_text())["runs"][0]["terminate_rays"] is False
     assert all(r["ray_cut"] == 1e-2 for r in runs)
     assert all(r["box"] == "cameras" for r in runs)
+    with pytest.raises(evnerf.Error, match="train: box must be 'cameras' or 'frusta', got 'tight'"):
+        evnerf.train(planes, iterations=2, threads=1, box="tight")
     evnerf.train(planes, iterations=2, threads=1, ray_cut=1e-4, out=tmp_path / "cut")
     assert json.loads((tmp_path / "cut" / "settings.json").read_text())["runs"][0]["ray_cut"] == 1e-4
     with pytest.raises(evnerf.Error, match=r"ray-termination transmittance must lie in \(0, 1\)"):

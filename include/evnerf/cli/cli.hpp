@@ -306,7 +306,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_flag("--density-per-box", cfg.density_per_box, "density per unit of the normalised scene box, not per world unit");
   trainc->add_flag("--allow-collapse", cfg.allow_collapse,
                    "go on when a collapse check fires (renders almost constant, or the event loss not improving)");
-  std::string box_fit = cfg.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras";
+  std::string box_fit = train::box_name(cfg.box);
   trainc->add_option("--box", box_fit, "scene box: cameras (the camera centres plus far in every direction) or frusta (tight around the views between near and far: cells 2-3 times finer; measured, not the default, bench/README.md session 44). A resumed run keeps its checkpoint's box, near and far")
       ->check(CLI::IsMember({"cameras", "frusta"}))
       ->capture_default_str();
@@ -458,7 +458,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         // The processes on one machine share its cores: each takes its part unless --threads says.
         if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
       }
-      cfg.box = box_fit == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
+      cfg.box = train::parse_box(box_fit, "train --box");
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
       // One run: a model trained on `td` into `dir`; returns the exit code.
@@ -472,7 +472,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
           const auto& kept = trainer.config();  // the checkpoint's scene box, whatever the options say
           if (kept.box != cfg.box || kept.near != cfg.near || kept.far != cfg.far)
             fmt::print(stderr, "note: the checkpoint's scene box is kept ({}, near {}, far {}); --box, --near and --far apply to new runs\n",
-                       kept.box == train::Config::BoxFit::Frusta ? "frusta" : "cameras", kept.near, kept.far);
+                       train::box_name(kept.box), kept.near, kept.far);
         }
         if (lead)
           fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,

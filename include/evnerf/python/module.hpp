@@ -303,11 +303,8 @@ inline train::Config config_of(const py::kwargs& kw) {
     else if (k == "density_per_box") c.density_per_box = value.cast<bool>();
     else if (k == "allow_collapse") c.allow_collapse = value.cast<bool>();
     else if (k == "progress") c.progress = value.cast<bool>();
-    else if (k == "box") {
-      const auto b = value.cast<std::string>();
-      if (b != "cameras" && b != "frusta") throw Error("train: box must be 'cameras' or 'frusta', got '" + b + "'");
-      c.box = b == "frusta" ? train::Config::BoxFit::Frusta : train::Config::BoxFit::Cameras;
-    } else
+    else if (k == "box") c.box = train::parse_box(value.cast<std::string>(), "train");
+    else
       throw py::type_error("train: unknown keyword '" + k +
                            "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, near, far, "
                            "checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box)");

@@ -81,6 +81,15 @@ struct Config {
   Group* processes() const { return group && group->size() > 1 ? group : nullptr; }
 };
 
+/// A scene-box fit's name as the command line, the Python module and settings.json spell it.
+inline const char* box_name(Config::BoxFit b) { return b == Config::BoxFit::Frusta ? "frusta" : "cameras"; }
+/// The fit `name` spells; an Error naming `who` and the known names when it spells none.
+inline Config::BoxFit parse_box(std::string_view name, const std::string& who) {
+  for (auto b : {Config::BoxFit::Cameras, Config::BoxFit::Frusta})
+    if (name == box_name(b)) return b;
+  throw Error(who + ": box must be 'cameras' or 'frusta', got '" + std::string(name) + "'");
+}
+
 /// Refuses settings no run can use, naming the setting (the command line's flags check the same ranges;
 /// programs and the Python module set a Config directly). train::run calls it.
 inline void check(const Config& c) {
@@ -336,7 +345,7 @@ inline nlohmann::json settings_json(const Config& c) {
   j["subslices"] = c.subslices;
   j["clamp_poses"] = c.clamp_poses;
   j["density_per_box"] = c.density_per_box;
-  j["box"] = c.box == Config::BoxFit::Cameras ? "cameras" : "frusta";
+  j["box"] = box_name(c.box);
   j["collapse_check_every"] = c.collapse_check_every;
   j["collapse_check_from"] = c.collapse_check_from;
   j["allow_collapse"] = c.allow_collapse;
