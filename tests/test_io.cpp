@@ -10,6 +10,7 @@
 #include <csignal>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 
 #include "common.hpp"
 
@@ -990,6 +991,85 @@ TEST_CASE("Robust e-NeRF layout: events, poses and calibration from its numpy ar
                              "s") == "ok");
   CHECK_CONTAINS(error_of([] { io::parse_npy_string(std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<f8', 'fortran_order': False, 'shape': (), }      \n", 64), "s"); }),
                  "not a string ('<U') array");
+  fs::remove_all(dir);
+}
+
+namespace {
+/// One .npy (format 1.0) of little-endian values: `descr` such as "<i8", `shape` as numpy prints it.
+template <class T>
+std::string npy_of(const std::string& descr, const std::string& shape, const std::vector<T>& v) {
+  std::string dict = "{'descr': '" + descr + "', 'fortran_order': False, 'shape': " + shape + ", }";
+  dict.append(63 - (10 + dict.size()) % 64, ' ');
+  dict += '\n';
+  std::string out = "\x93NUMPY\x01";
+  out += '\0';
+  out += static_cast<char>(dict.size() & 0xFF);
+  out += static_cast<char>(dict.size() >> 8);
+  out += dict;
+  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  return out;
+}
+/// A .npz as numpy's savez writes it: a zip of stored members "<name>.npy", with CRC-32s.
+std::string npz_of(const std::vector<std::pair<std::string, std::string>>& members) {
+  auto le = [](std::string& s, std::uint64_t v, int bytes) {
+    for (int i = 0; i < bytes; ++i) s += static_cast<char>((v >> (8 * i)) & 0xFF);
+  };
+  std::string body, dir;
+  for (const auto& [key, bytes] : members) {
+    const std::string name = key + ".npy";
+    const auto crc = io::detail::zip_crc32(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size());
+    const std::uint64_t local = body.size();
+    body += "PK\x03\x04";
+    le(body, 20, 2), le(body, 0, 2), le(body, 0, 2), le(body, 0, 4), le(body, crc, 4);
+    le(body, bytes.size(), 4), le(body, bytes.size(), 4), le(body, name.size(), 2), le(body, 0, 2);
+    body += name + bytes;
+    dir += "PK\x01\x02";
+    le(dir, 20, 2), le(dir, 20, 2), le(dir, 0, 2), le(dir, 0, 2), le(dir, 0, 4), le(dir, crc, 4);
+    le(dir, bytes.size(), 4), le(dir, bytes.size(), 4), le(dir, name.size(), 2), le(dir, 0, 2), le(dir, 0, 2);
+    le(dir, 0, 2), le(dir, 0, 2), le(dir, 0, 4), le(dir, local, 4);
+    dir += name;
+  }
+  std::string out = body + dir + "PK\x05\x06";
+  le(out, 0, 4), le(out, members.size(), 2), le(out, members.size(), 2), le(out, dir.size(), 4), le(out, body.size(), 4), le(out, 0, 2);
+  return out;
+}
+}  // namespace
+
+TEST_CASE("Robust e-NeRF layout: times anywhere in int64 are refused or read exactly, never wrapped") {
+  const fs::path fx = EVNERF_FIXTURES;
+  const auto dir = temp_dir("ren_range");
+  fs::copy(fx / "robust_e_nerf", dir / "s", fs::copy_options::recursive);
+  auto events = [&](std::int64_t t0, std::int64_t t1) {
+    write(dir / "s" / "raw_events.npz",
+          npz_of({{"position", npy_of<std::uint16_t>("<u2", "(2, 2)", {1, 2, 3, 4})},
+                  {"timestamp", npy_of<std::int64_t>("<i8", "(2,)", {t0, t1})},
+                  {"polarity", npy_of<std::uint8_t>("|u1", "(2,)", {1, 0})}}));
+  };
+  auto poses = [&](std::int64_t a, std::int64_t b) {
+    write(dir / "s" / "camera_poses.npz",
+          npz_of({{"T_wc_position", npy_of<double>("<f8", "(2, 3)", {0, 0, 0, 0.1, 0, 0})},
+                  {"T_wc_orientation", npy_of<double>("<f8", "(2, 4)", {0, 0, 0, 1, 0, 0, 0, 1})},
+                  {"T_wc_timestamp", npy_of<std::int64_t>("<i8", "(2,)", {a, b})}}));
+  };
+  constexpr std::int64_t lo = std::numeric_limits<std::int64_t>::min(), hi = std::numeric_limits<std::int64_t>::max();
+  // The helpers write what the reader reads: far from the ends of int64, exactly.
+  events(1'600'000'000'250'000'000, 1'600'000'000'251'000'000);
+  poses(1'600'000'000'000'000'000, 1'600'000'001'000'000'000);
+  const auto d = io::load(dir / "s");
+  CHECK(d.time_origin == 1'600'000'000);
+  REQUIRE(d.events.size() == 2);
+  CHECK(d.events.t[1] == 0.251);
+  CHECK(d.trajectory.times() == std::vector<double>{0.0, 1.0});
+  // 1.8e19 ns (584 years) after the first event: int64 arithmetic would wrap it to 1 s before it.
+  const std::int64_t first = -9'223'372'036'000'000'000;
+  events(first, first + 1'000'000);
+  poses(9'223'372'036'709'551'616, first + 2'000'000'000);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "camera_poses.npz:0: pose 0: time 9223372036709551616 ns lies more than 104 days from the first event");
+  // The same for an event, and for a first event whose whole second lies below int64's range.
+  events(first, hi);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "raw_events.npz:0: event 1: time 9223372036854775807 ns lies more than 104 days");
+  events(lo, lo + 1'000'000);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "raw_events.npz:0: event 0: time -9223372036854775808 ns has no whole second within int64's range");
   fs::remove_all(dir);
 }
 

@@ -92,11 +92,15 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
     throw Error(ev_path.string(), 0, "expected position N×2, timestamp N and polarity N (N = " + std::to_string(n) + ")");
   if (n == 0) throw Error(ev_path.string(), 0, "no events");
   // The origin: the whole second at or before the first event (floor division, also for negative times).
+  // The file's times may be any int64: the origin and every difference are computed with overflow checks
+  // (a wrapped difference would put a time 584 years away at a plausible one).
   s.origin_sec = ts.data[0] / 1000000000 - (ts.data[0] % 1000000000 < 0 ? 1 : 0);
-  const std::int64_t origin_ns = s.origin_sec * 1000000000;
+  std::int64_t origin_ns = 0;
+  if (__builtin_mul_overflow(s.origin_sec, std::int64_t{1000000000}, &origin_ns))
+    throw Error(ev_path.string(), 0, "event 0: time " + std::to_string(ts.data[0]) + " ns has no whole second within int64's range");
   auto relative = [&](std::int64_t t, const fs::path& p, const std::string& what) {
-    const std::int64_t d = t - origin_ns;  // both within int64: ns since 1970 are below 2^63 for centuries
-    if (d > (std::int64_t{1} << 53) || d < -(std::int64_t{1} << 53))
+    std::int64_t d = 0;
+    if (__builtin_sub_overflow(t, origin_ns, &d) || d > (std::int64_t{1} << 53) || d < -(std::int64_t{1} << 53))
       throw Error(p.string(), 0, what + ": time " + std::to_string(t) + " ns lies more than 104 days from the first event");
     return static_cast<double>(d) / 1e9;
   };
