@@ -1073,6 +1073,31 @@ TEST_CASE("Robust e-NeRF layout: times anywhere in int64 are refused or read exa
   fs::remove_all(dir);
 }
 
+TEST_CASE("EventNeRF and Robust e-NeRF folders: a sensor too large is refused before anything per pixel, naming what gave its size") {
+  const fs::path fx = EVNERF_FIXTURES;
+  const auto dir = temp_dir("layout_size");
+  // Robust e-NeRF: img_width and img_height of 65535 (each in range, together 4.3 G pixels).
+  fs::copy(fx / "robust_e_nerf", dir / "r", fs::copy_options::recursive);
+  write(dir / "r" / "camera_calibration.npz",
+        npz_of({{"intrinsics", npy_of<double>("<f8", "(3, 3)", {20, 0, 3.5, 0, 21, 2.5, 0, 0, 1})},
+                {"img_height", npy_of<std::uint16_t>("<u2", "()", {65535})},
+                {"img_width", npy_of<std::uint16_t>("<u2", "()", {65535})}}));
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "r"); }),
+                 "camera_calibration.npz (its img_width and img_height):0: sensor size 65535x65535 has more than 67108864 pixels");
+  io::LoadOptions given;
+  given.width = given.height = 9000;
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "r", given); }), "r (the sensor size given):0: sensor size 9000x9000 has more than");
+  // EventNeRF: the first frame's header says 10000 x 10000 (stb_image reads only the header for the size).
+  fs::copy(fx / "eventnerf", dir / "e", fs::copy_options::recursive);
+  std::string png = "\x89PNG\r\n\x1a\n";
+  png += std::string("\0\0\0\x0dIHDR", 8);
+  png += std::string("\0\0\x27\x10\0\0\x27\x10\x08\0\0\0\0", 13);
+  png += std::string("\0\0\0\0", 4);  // the CRC, which the header read does not check
+  write(dir / "e" / "train" / "rgb" / "r_00000.png", png);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "e"); }), "r_00000.png (the first frame, which gives the sensor size):0: sensor size 10000x10000");
+  fs::remove_all(dir);
+}
+
 TEST_CASE("COLMAP text model as a recording's pose source: images get the times of the frames of their file names") {
   const auto dir = temp_dir("colsrc");
   write(dir / "events.txt", "0.01 1 1 1\n0.02 2 2 0\n");

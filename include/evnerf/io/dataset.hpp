@@ -477,6 +477,10 @@ inline void write_rosbag_recording(const std::filesystem::path& path, const Data
 /// with the calibration and poses LoadOptions names instead of the scene's own where given.
 inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
   auto s = read_eventnerf(folder, opt.width, opt.height);
+  check_sensor_size(s.camera.width(), s.camera.height(),
+                    opt.width > 0 && opt.height > 0 ? folder.string() + " (the sensor size given)"
+                    : s.frames.empty()              ? folder.string() + " (EventNeRF's DAVIS346 size)"
+                                                    : s.frames[0].string() + " (the first frame, which gives the sensor size)");
   Dataset d;
   d.folder = folder;
   d.camera = opt.calib.empty() ? s.camera : read_calib_source(opt.calib, s.camera.width(), s.camera.height());
@@ -491,6 +495,9 @@ inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOpt
 /// names instead of its own where given (a pose file's times in the sequence's clock, seconds).
 inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
   auto s = read_robust_e_nerf(folder, opt.width, opt.height);
+  check_sensor_size(s.camera.width(), s.camera.height(),
+                    opt.width > 0 && opt.height > 0 ? folder.string() + " (the sensor size given)"
+                                                    : (folder / "camera_calibration.npz").string() + " (its img_width and img_height)");
   Dataset d;
   d.folder = folder;
   d.time_origin = s.origin_sec;
