@@ -24,7 +24,7 @@ HARNESSES=("$@")
 # fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
 # itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
 # fix; io::load isolates the library's crashes in a child process (README, Reliability).
-[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz)
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz layouts)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
@@ -38,7 +38,7 @@ for h in "${HARNESSES[@]}"; do
   mkdir -p "$dir/corpus" "$SEEDS/$h"
   dict=()
   case $h in
-    scene | colmap | npy | png | rosbag) dict=(-dict="$ROOT/tests/fuzz/$h.dict") ;;
+    scene | colmap | npy | png | rosbag | layouts) dict=(-dict="$ROOT/tests/fuzz/$h.dict") ;;
   esac
   limit=(-max_total_time="$SECONDS_EACH")
   [ -n "${RUNS:-}" ] && limit+=(-runs="$RUNS")
@@ -61,6 +61,14 @@ for h in "${HARNESSES[@]}"; do
   if [ "$h" = npz ]; then
     for z in "$ROOT"/tests/fixtures/eventnerf*/train/events/*.npz; do cp "$z" "$SEEDS/$h/$(basename "$(dirname "$(dirname "$(dirname "$z")")")").npz"; done  # numpy's
     for z in "$ROOT"/tests/fixtures/robust_e_nerf/*.npz; do cp "$z" "$SEEDS/$h/ren_$(basename "$z")"; done
+  fi
+  if [ "$h" = layouts ]; then  # whole folders written by numpy, in fuzz_layouts' one-input form
+    r="$ROOT/tests/fixtures/robust_e_nerf"
+    { printf R; cat "$r/camera_calibration.npz"; printf '@@next@@'; cat "$r/raw_events.npz"; printf '@@next@@'; cat "$r/camera_poses.npz"; } >"$SEEDS/$h/robust_e_nerf"
+    for e in "$ROOT"/tests/fixtures/eventnerf*/train; do
+      { printf E; cat "$e"/events/*.npz; printf '@@next@@'; cat "$e/intrinsics/r_00000.txt"
+        for p in "$e"/pose/*.txt; do printf '@@next@@'; cat "$p"; done; } >"$SEEDS/$h/$(basename "$(dirname "$e")")"
+    done
   fi
   if [ "$h" = rosbag ]; then
     for b in "$ROOT"/tests/fixtures/*.bag; do cp "$b" "$SEEDS/$h/"; done  # bags written by python3-rosbag
