@@ -19,5 +19,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     model.deserialize(bytes, "", "model.ckpt");
     evfuzz::expect(model.params().size() == evfuzz::FuzzModel::n_fields * evfuzz::FuzzModel::field_params + 2 * model.n_slices(),
                    "parameter count does not match the slices");
+    const auto& avg = model.average();
+    evfuzz::expect(!avg.active() || (avg.values().size() == model.params().size() && avg.decay() >= 0 && avg.decay() < 1),
+                   "a parameter average of another size, or a decay outside [0, 1)");
   });
 }

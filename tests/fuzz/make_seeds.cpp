@@ -105,9 +105,12 @@ int main(int argc, char** argv) {
   for (std::uint64_t seed = 1; seed <= 6; ++seed) put("scene", "random" + std::to_string(seed), sim::random_scene_text(seed));
   {
     evfuzz::FuzzModel model(3, render::SceneBox{}, 7);
-    const std::string ck = model.serialize("fuzz", "camera 32 24 30 30 16 12\n");
-    put("checkpoint", "raw", std::string(1, '\0') + ck);
-    put("checkpoint", "checksummed", std::string(1, '\1') + ck.substr(0, ck.size() - 8));
+    for (const char* kind : {"", "_average"}) {  // without and with the parameter average (format version 6)
+      if (*kind) model.set_average(0.99);
+      const std::string ck = model.serialize("fuzz", "camera 32 24 30 30 16 12\n");
+      put("checkpoint", std::string("raw") + kind, std::string(1, '\0') + ck);
+      put("checkpoint", std::string("checksummed") + kind, std::string(1, '\1') + ck.substr(0, ck.size() - 8));
+    }
   }
   fs::remove_all(rec_dir);
   std::printf("wrote %d seeds under %s\n", written, root.c_str());
