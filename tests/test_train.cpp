@@ -596,6 +596,41 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   fs::remove_all(dir);
 }
 
+TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) behind a valid checksum is refused, naming it") {
+  Fixture f;
+  Tiny a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
+  a.set_average(0.99);
+  for (int s = 0; s < 2; ++s) a.train_step(f.td, 128, 3);
+  const std::string good = a.serialize("tiny", "meta");
+  const std::size_t n = a.params().size();
+  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + (8 + Tiny::loss_description().size()) +
+                             (8 + Tiny::architecture().size());
+  // Values as 4-byte floats: the parameters, Adam's m and v, then the average's count and decay, its values.
+  auto with = [&](std::size_t at, float value) {
+    std::string b = good.substr(0, good.size() - 8);
+    std::memcpy(b.data() + at, &value, 4);
+    const std::uint64_t sum = fnv1a64(b);
+    b.append(reinterpret_cast<const char*>(&sum), 8);
+    return b;
+  };
+  {
+    Tiny t;
+    REQUIRE_NOTHROW(t.deserialize(with(header + 4 * 5, static_cast<float>(a.params().values[5])), "tiny", "x.ckpt"));
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  Tiny t;
+  CHECK_THROWS_WITH(t.deserialize(with(header + 4 * 5, nan), "tiny", "x.ckpt"),
+                    doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: parameter 5 of " + std::to_string(n) + " is NaN").c_str()));
+  CHECK_THROWS_WITH(t.deserialize(with(header + 4 * (n + 2), -inf), "tiny", "x.ckpt"),
+                    doctest::Contains(("Adam's first moment of parameter 2 of " + std::to_string(n) + " is infinite").c_str()));
+  CHECK_THROWS_WITH(t.deserialize(with(header + 4 * (2 * n + 7), -1.0f), "tiny", "x.ckpt"),
+                    doctest::Contains(("Adam's second moment of parameter 7 of " + std::to_string(n) + " is negative").c_str()));
+  CHECK_THROWS_WITH(t.deserialize(with(header + 12 * n + 16 + 4 * (n - 1), nan), "tiny", "x.ckpt"),
+                    doctest::Contains(("the parameter average's value " + std::to_string(n - 1) + " of " + std::to_string(n) + " is NaN").c_str()));
+  // The refused loads left the model as it was (a default model: no parameters).
+  CHECK(t.params().size() == 0);
+}
+
 TEST_CASE("checkpoints: version 6 records the parameter average, 5 the architecture, 4 the loss; versions 5, 4, 3 and 2 load") {
   Fixture f;
   f.cfg.density_per_box = true;

@@ -423,6 +423,19 @@ class EvNerf {
         average = nn::ParameterAverage<Scalar>(decay, std::move(values));
       }
     }
+    // The checksum guards against damage, not against a writer that stored a NaN: training never writes one
+    // (it stops on a non-finite loss or parameter first), so such a file is refused rather than rendered.
+    auto finite = [&](const std::vector<Scalar>& v, const char* what, bool non_negative) {
+      for (std::size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(v[i]) || (non_negative && v[i] < 0))
+          r.fail(std::string(what) + " " + std::to_string(i) + " of " + std::to_string(v.size()) + " is " +
+                 (std::isfinite(v[i]) ? "negative" : std::isnan(v[i]) ? "NaN" : "infinite") +
+                 " (a checkpoint train writes holds only finite values)");
+    };
+    finite(params.values, "parameter", false);
+    finite(adam.m(), "Adam's first moment of parameter", false);
+    finite(adam.v(), "Adam's second moment of parameter", true);
+    if (average.active()) finite(average.values(), "the parameter average's value", false);
     SamplerT sampler;
     if (h.version >= 2) {  // version 2 added the sampler's state (the occupancy grid)
       if (!sampler.deserialize(r.str()))
