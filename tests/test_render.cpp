@@ -223,8 +223,25 @@ TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminanc
   if constexpr (Dir::out_dims == 1) {
     CHECK(dlum == 0.0);
     CHECK(F::architecture().find("direction spherical harmonics 1,") != std::string::npos);
+    CHECK(F::view_begin == F::view_end);  // no weight carries view dependence
   } else {
     CHECK(dlum > 1e-4);
+    // The view range (EvNerf::set_view_decay's weights): zeroed, the luminance no longer depends on the
+    // direction; a weight just before it (band 0's, a bias) leaves it so, a weight inside it does not.
+    CHECK(F::view_end - F::view_begin == std::size_t(Dir::out_dims - 1) * 8);
+    for (std::size_t i = F::view_begin; i < F::view_end; ++i) params[i] = 0;
+    auto max_change = [&] {
+      F::forward(params.data(), pts.data(), dirs_a.data(), n, wa, &sa, &la);
+      F::forward(params.data(), pts.data(), dirs_b.data(), n, wb, &sb, &lb);
+      double d = 0;
+      for (int j = 0; j < n; ++j) d = std::max(d, std::abs(double(la[j]) - double(lb[j])));
+      return d;
+    };
+    CHECK(max_change() == 0.0);
+    params[F::view_begin - 1] += 0.5f;
+    CHECK(max_change() == 0.0);
+    params[F::view_begin] += 0.5f;
+    CHECK(max_change() > 1e-4);
   }
 }
 

@@ -957,6 +957,8 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(first["runs"][0]["terminate_rays"] == cfg.terminate_rays);
   CHECK(first["runs"][0]["seed"] == cfg.seed);
   CHECK(first["runs"][0]["tv"].is_null());
+  CHECK(first["runs"][0]["view_decay"] == 0.0);
+  CHECK(m.view_decay() == 0.0);
   CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
   // A resumed run appends, to the log and to the settings.
   cfg.iterations = 100;

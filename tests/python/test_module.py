@@ -74,6 +74,11 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m3.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="total-variation weight must be finite and non-negative"):
         evnerf.train(d, iterations=2, threads=1, tv=-1.0)
+    # So is the view-dependence decay.
+    m5 = evnerf.train(d, iterations=20, threads=2, seed=3, view_decay=30.0)
+    assert not np.array_equal(m5.render(P)[0], img)
+    with pytest.raises(evnerf.Error, match="view-dependence decay must be finite and non-negative"):
+        evnerf.train(d, iterations=2, threads=1, view_decay=-1.0)
     # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
     # renders are those of the trained parameters; a decay of 1 is refused.
     m4 = evnerf.train(d, iterations=20, threads=2, seed=3, average=0.0)

@@ -284,6 +284,12 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "pass's own cut, gives the bits of sessions 40-42's default)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));  // 0 and 1 themselves: train's own check names them
+  trainc->add_option("--view-decay", cfg.view_decay,
+                     "decay the weights through which the radiance depends on the view direction by lr times this per "
+                     "step (a decoupled weight decay): view dependence the events do not hold up fades, as under a pure "
+                     "translation, where any function of the direction is an image-fixed pattern no event sees (0 = off)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   trainc->add_option("--average", cfg.average,
                      "decay of the moving average of the parameters that the model renders with (exponential, with "
                      "TensorFlow's warm-up; 0 = off)")

@@ -120,6 +120,18 @@ struct Field {
   static constexpr std::size_t pos_offset = 0, density_offset = PosEnc::n_params,
                                color_offset = PosEnc::n_params + DensityNet::n_params;
   static constexpr std::size_t n_params = color_offset + ColorNet::n_params;
+  /// The weights through which the radiance depends on the view direction: the colour network's first-layer
+  /// columns that take the direction encoding's outputs, less those that are constant (DirEnc's
+  /// `constant_outputs`, if it names any: SphericalHarmonics' band 0, whose weights act as biases). Offsets
+  /// within the field's parameters, [view_begin, view_end); all zero, the radiance depends on the position
+  /// alone (EvNerf::set_view_decay decays them).
+  static constexpr int dir_constant_outputs = [] {
+    if constexpr (requires { DirEnc::constant_outputs; }) return static_cast<int>(DirEnc::constant_outputs);
+    else return 0;
+  }();
+  static constexpr std::size_t view_begin = color_offset + static_cast<std::size_t>(features + dir_constant_outputs) *
+                                                               ColorNet::layer_out(0);
+  static constexpr std::size_t view_end = color_offset + static_cast<std::size_t>(col_in) * ColorNet::layer_out(0);
   /// The field's architecture: encodings, networks, density activation (what a checkpoint must match).
   static std::string architecture() {
     std::string a = "position ";

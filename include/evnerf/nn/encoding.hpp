@@ -90,6 +90,8 @@ template <int Degree>
 struct SphericalHarmonics {
   static_assert(Degree >= 1 && Degree <= 4, "SphericalHarmonics<Degree>: Degree must be between 1 and 4.");
   static constexpr int in_dims = 3, out_dims = Degree * Degree;
+  /// Leading outputs that do not depend on the input (band 0): a network weight on one acts as a bias.
+  static constexpr int constant_outputs = 1;
   static std::string name() { return "spherical harmonics " + std::to_string(Degree); }
   static constexpr std::size_t n_params = 0;
   template <class T> static void init(T*, Rng&) {}

@@ -37,6 +37,8 @@ struct Config {
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
   std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
                                ///< model's own, its variant's default_tv unless set_tv changed it)
+  double view_decay = 0;       ///< decoupled decay of the view-dependence weights (EvNerf::set_view_decay; 0 = off;
+                               ///< measured in bench/README.md, session 46, and not a default)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
                                ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
   bool terminate_rays = true;  ///< training rays stop behind transmittance ray_cut, where the sampler skips
@@ -104,6 +106,7 @@ inline void check(const Config& c) {
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
   need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
   need(c.ray_cut > 0 && c.ray_cut < 1, "the ray-termination transmittance must lie in (0, 1), got " + short_number(c.ray_cut));
+  need(c.view_decay >= 0 && std::isfinite(c.view_decay), "the view-dependence decay must be finite and non-negative, got " + short_number(c.view_decay));
   need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
                                                                  short_number(c.near) + " and " + short_number(c.far));
@@ -333,6 +336,7 @@ inline nlohmann::json settings_json(const Config& c) {
   j["lr_decay_steps"] = c.lr_decay_steps;
   j["distortion"] = c.distortion;
   j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
+  j["view_decay"] = c.view_decay;
   j["average"] = c.average;
   j["terminate_rays"] = c.terminate_rays;
   j["ray_cut"] = c.ray_cut;
@@ -411,6 +415,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   model.set_distortion(cfg.distortion);
   model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
   if (cfg.tv) model.set_tv(*cfg.tv);
+  model.set_view_decay(cfg.view_decay);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   // The settings first: a record it cannot read refuses the call before the log is touched.
   if (files) record_settings(out, cfg, name, model.step());
