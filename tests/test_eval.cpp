@@ -291,6 +291,60 @@ TEST_CASE("error_scales: the row and column parts are the error's row and column
   CHECK(eval::error_scales(rgb_pred, rgb).row_mse == doctest::Approx(0.02 / 3).epsilon(1e-5));
 }
 
+TEST_CASE("offset_oracle: recovers log offsets per row, per column and both, constant over the sequence; per channel") {
+  const int W = 40, H = 30, C = 3;
+  auto truth_frame = [&](double phase) {  // values in [0.2, 0.7]: no offset below pushes one past [0, 1]
+    Image im(W, H, C);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int c = 0; c < C; ++c)
+          im.data[(static_cast<std::size_t>(y) * W + x) * C + c] =
+              static_cast<float>(0.45 + 0.25 * std::sin(0.3 * x + 0.2 * y + phase + c) * std::cos(0.17 * y - 0.1 * x));
+    return im;
+  };
+  const std::vector<Image> truths{truth_frame(0), truth_frame(1.3), truth_frame(2.1)};
+  auto f = [](int y, int c) { return 0.1 * std::cos(0.4 * y + c) + (c == 1 ? 0.05 : -0.03); };
+  auto g = [](int x, int c) { return 0.08 * std::sin(0.3 * x - c); };
+  // Predictions whose log differs from the truth's by wr·f(row) + wc·g(column) (+ a per-frame part).
+  auto predict = [&](double wr, double wc, double per_frame) {
+    std::vector<Image> out;
+    for (std::size_t k = 0; k < truths.size(); ++k) {
+      Image p = truths[k];
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          for (int c = 0; c < C; ++c) {
+            auto& v = p.data[(static_cast<std::size_t>(y) * W + x) * C + c];
+            const double o = wr * f(y, c) + wc * g(x, c) + per_frame * (k == 1 ? 0.1 : -0.05) * std::cos(0.5 * y);
+            v = static_cast<float>(std::exp(std::log(v + eval::kLogEps) + o) - eval::kLogEps);
+          }
+      out.push_back(std::move(p));
+    }
+    return out;
+  };
+  double base = 0;
+  const auto rows = predict(1, 0, 0), cols = predict(0, 1, 0), both = predict(1, 1, 0);
+  for (std::size_t k = 0; k < truths.size(); ++k) base += eval::psnr(both[k], truths[k]) / truths.size();
+  REQUIRE(base < 30);
+  const auto r = eval::offset_oracle(rows, truths), c = eval::offset_oracle(cols, truths), b = eval::offset_oracle(both, truths);
+  CHECK(r.rows_psnr > 90);  // float rounding only
+  CHECK(r.columns_psnr < 40);
+  CHECK(r.both_psnr > 90);
+  CHECK(c.columns_psnr > 90);
+  CHECK(c.rows_psnr < 40);
+  CHECK(c.both_psnr > 90);
+  CHECK(b.both_psnr > 90);
+  CHECK(b.rows_psnr < 40);
+  CHECK(b.columns_psnr < 40);
+  // Row offsets that change from frame to frame are not what one offset per row over the sequence removes.
+  const auto moving = eval::offset_oracle(predict(1, 0, 1), truths);
+  CHECK(moving.rows_psnr < 50);
+  CHECK(moving.rows_psnr > base);
+  // The exact prediction stays exact; mismatched inputs are refused.
+  CHECK(eval::offset_oracle(truths, truths).both_psnr == INFINITY);
+  CHECK_THROWS_AS(eval::offset_oracle({truths[0]}, truths), Error);
+  CHECK_THROWS_AS(eval::offset_oracle({Image(3, 3, 3)}, {truths[0]}), Error);
+}
+
 TEST_CASE("error_scales_json: per method from the primary alignment's aligned images, refused without them") {
   const Image truth = det(32, 24, 0.2, 0.3);
   Image mapped = truth;  // an affine map in log(x + ε): undone by the fit up to rounding
@@ -305,6 +359,9 @@ TEST_CASE("error_scales_json: per method from the primary alignment's aligned im
   CHECK(j.at("methods").at("gain").at("coarse_psnr").get<double>() > 60);
   CHECK(j.at("methods").at("gain").at("row_psnr").get<double>() > 60);
   CHECK(j.at("methods").at("gain").contains("column_mse"));
+  CHECK(j.at("methods").at("gain").at("oracle_both_psnr").get<double>() > 60);
+  CHECK(j.at("methods").at("gain").contains("oracle_rows_psnr"));
+  CHECK(j.at("methods").at("gain").contains("oracle_columns_psnr"));
   const auto kept_not = eval::score_methods({exact}, {truth, truth}, eval::Alignment::GlobalLogAffine, false);
   CHECK_THROWS_AS(eval::error_scales_json(kept_not, {truth, truth}), Error);
 }

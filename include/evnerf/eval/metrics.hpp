@@ -409,6 +409,62 @@ inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, d
   return s;
 }
 
+/// What a sequence's score would be if the brightness a straight camera motion never shows the events were
+/// right. A camera translating along its x axis never moves a point to another image row, so adding any
+/// function of the row to the log brightness of the whole sequence changes no event; likewise any function
+/// of the column under a motion along y, and, where the radiance depends on the view, any function of the
+/// pixel under a translation. The oracle fits such offsets to the truth: one log offset per image row (per
+/// channel), constant over the sequence, least squares in log(x + ε) against the aligned predictions;
+/// likewise one per column; and both together (the additive two-way fit, exact in one pass on a full grid).
+/// Each is added to every aligned prediction, which is scored again (exp(·) − ε clamped to [0, 1]; PSNR per
+/// frame, averaged over the frames, as the scores). A large gain says the error sits where the motion is
+/// blind, which no objective on these events can remove; a small one, that it is elsewhere. The offsets
+/// see the truth: a diagnosis, never a score.
+struct OffsetOracle {
+  double rows_psnr = 0, columns_psnr = 0, both_psnr = 0;
+};
+inline OffsetOracle offset_oracle(const std::vector<Image>& aligned, const std::vector<Image>& truths, double eps = kLogEps) {
+  require(aligned.size() == truths.size() && !truths.empty(), "offset_oracle: need one aligned prediction per truth, and at least one");
+  for (std::size_t f = 0; f < truths.size(); ++f) {
+    require_same_shape(aligned[f], truths[f]);
+    require_same_shape(aligned[f], truths.front());
+  }
+  const int W = truths.front().width, H = truths.front().height, C = truths.front().channels;
+  const auto F = truths.size();
+  // Mean log residual per (row, channel), per (column, channel) and per channel over the sequence.
+  std::vector<double> row(static_cast<std::size_t>(H) * C, 0.0), col(static_cast<std::size_t>(W) * C, 0.0), all(C, 0.0);
+  for (std::size_t f = 0; f < F; ++f)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int c = 0; c < C; ++c) {
+          const std::size_t i = (static_cast<std::size_t>(y) * W + x) * C + c;
+          const double r = std::log(double(truths[f].data[i]) + eps) - std::log(double(aligned[f].data[i]) + eps);
+          row[static_cast<std::size_t>(y) * C + c] += r;
+          col[static_cast<std::size_t>(x) * C + c] += r;
+          all[c] += r;
+        }
+  for (auto& v : row) v /= double(F) * W;
+  for (auto& v : col) v /= double(F) * H;
+  for (auto& v : all) v /= double(F) * W * H;
+  auto score = [&](double wr, double wc) {  // the offsets row·wr + (col − all)·wc, then the mean PSNR
+    double sum = 0;
+    Image q(W, H, C);
+    for (std::size_t f = 0; f < F; ++f) {
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          for (int c = 0; c < C; ++c) {
+            const std::size_t i = (static_cast<std::size_t>(y) * W + x) * C + c;
+            const double o = wr * row[static_cast<std::size_t>(y) * C + c] +
+                             wc * (col[static_cast<std::size_t>(x) * C + c] - (wr > 0 ? all[c] : 0.0));
+            q.data[i] = static_cast<float>(std::clamp(std::exp(std::log(double(aligned[f].data[i]) + eps) + o) - eps, 0.0, 1.0));
+          }
+      sum += psnr(q, truths[f]);
+    }
+    return sum / double(F);
+  };
+  return {score(1, 0), score(0, 1), score(1, 1)};
+}
+
 /// The fine part of a sequence's error (ErrorScales' e − blur_σ(e)) split by the true depth of each pixel:
 /// where sampler and geometry changes act (a texture 1 m away needs shorter depth bins than one 6 m away).
 /// `edges` are the depth quantiles k/B of the pixels with a usable true depth (finite, > 0, < far) over the

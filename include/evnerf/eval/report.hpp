@@ -89,7 +89,8 @@ inline nlohmann::json metrics_json(const AlignedScores& primary, const std::vect
 
 /// The primary alignment's error split by scale (ErrorScales), per method, averaged over the frames (PSNR in
 /// dB, as the scores): {"sigma_px", "methods": {"<name>": {"coarse_mse", "coarse_psnr", "fine_mse",
-/// "fine_psnr", "row_mse", "row_psnr", "column_mse", "column_psnr"}}}. `a` must hold the aligned predictions (score_methods with keep_aligned) and `truths` the
+/// "fine_psnr", "row_mse", "row_psnr", "column_mse", "column_psnr", and offset_oracle's "oracle_rows_psnr",
+/// "oracle_columns_psnr", "oracle_both_psnr"}}}. `a` must hold the aligned predictions (score_methods with keep_aligned) and `truths` the
 /// truth as it was scored (tone-mapped for HDR truth, normalised under min-max).
 inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vector<Image>& truths, double sigma = kErrorScaleSigma) {
   nlohmann::json j = {{"sigma_px", sigma}, {"methods", nlohmann::json::object()}};
@@ -108,9 +109,12 @@ inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vecto
       km += e.column_mse / n;
       kp += e.column_psnr() / n;
     }
+    const auto o = offset_oracle(a.aligned[m], truths);
     j["methods"][a.names[m]] = {{"coarse_mse", json_number(cm)}, {"coarse_psnr", json_number(cp)}, {"fine_mse", json_number(fm)},
                                 {"fine_psnr", json_number(fp)},   {"row_mse", json_number(rm)},    {"row_psnr", json_number(rp)},
-                                {"column_mse", json_number(km)},  {"column_psnr", json_number(kp)}};
+                                {"column_mse", json_number(km)},  {"column_psnr", json_number(kp)},
+                                {"oracle_rows_psnr", json_number(o.rows_psnr)}, {"oracle_columns_psnr", json_number(o.columns_psnr)},
+                                {"oracle_both_psnr", json_number(o.both_psnr)}};
   }
   return j;
 }
