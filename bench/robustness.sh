@@ -2,7 +2,8 @@
 # Robustness: trains a preset on procedural random scenes (`evnerf simulate random --seed N`) and prints, per
 # scene, ours against both baselines under eval's default alignment (global-log-affine), the truth eval used
 # (the frames, or the linear HDR truth of a scene whose frames clip, scored in its log space), whether the
-# collapse detector fired, and our error split by scale (eval's error_scales: coarse and fine PSNR). A scene
+# collapse detector fired, our error split by scale (eval's error_scales: coarse and fine PSNR) and eval's
+# offset oracle (the score with the truth's log offsets per image row, and per row and column). A scene
 # passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Writes $OUT/robustness.csv and prints a
 # Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
@@ -27,7 +28,7 @@ TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iters "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
-echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr" > "$CSV"
+echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr" > "$CSV"
 for n in "${SEEDS[@]}"; do
   dir="$OUT/random-$n"
   [ -f "$dir/scene/events.txt" ] || "$EV" simulate random --seed "$n" --out "$dir/scene" > "$dir.simulate.txt" 2>&1
@@ -53,17 +54,17 @@ ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for 
 scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
 db = lambda key: "" if key not in scales else "inf" if scales[key] is None else f"{scales[key]:.2f}"  # null: no error; absent: older eval
 print(f"{n},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
-      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')}")
+      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')},{db('oracle_rows_psnr')},{db('oracle_both_psnr')}")
 PY
   tail -n 1 "$CSV"
 done
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-print("| seed | path | events | truth | ours PSNR / SSIM | ours coarse / fine PSNR | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| seed | path | events | truth | ours PSNR / SSIM | ours coarse / fine PSNR | oracle rows / both | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
 for r in rows:
-    print(f"| {r['scene_seed']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['coarse_psnr']} / {r['fine_psnr']} | {r['di_psnr']} / {r['di_ssim']} | "
+    print(f"| {r['scene_seed']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['coarse_psnr']} / {r['fine_psnr']} | {r.get('oracle_rows_psnr') or '-'} / {r.get('oracle_both_psnr') or '-'} | {r['di_psnr']} / {r['di_ssim']} | "
           f"{r['hpf_psnr']} / {r['hpf_ssim']} | {'yes' if r['collapse_fired'] == '1' else 'no'} | {'yes' if r['pass'] == '1' else 'no'} |")
 print(f"passed {sum(r['pass'] == '1' for r in rows)} of {len(rows)}; collapse fired on {sum(r['collapse_fired'] == '1' for r in rows)}")
 PY
