@@ -414,12 +414,15 @@ inline ErrorScales error_scales(const Image& aligned_pred, const Image& truth, d
 /// function of the row to the log brightness of the whole sequence changes no event; likewise any function
 /// of the column under a motion along y, and, where the radiance depends on the view, any function of the
 /// pixel under a translation. The oracle fits such offsets to the truth: one log offset per image row (per
-/// channel), constant over the sequence, least squares in log(x + ε) against the aligned predictions;
-/// likewise one per column; and both together (the additive two-way fit, exact in one pass on a full grid).
-/// Each is added to every aligned prediction, which is scored again (exp(·) − ε clamped to [0, 1]; PSNR per
-/// frame, averaged over the frames, as the scores). A large gain says the error sits where the motion is
-/// blind, which no objective on these events can remove; a small one, that it is elsewhere. The offsets
-/// see the truth: a diagnosis, never a score.
+/// channel), constant over the sequence, that is a gain k on x + ε (exp(log(x + ε) + log k) − ε); likewise
+/// one per column; and both together (a row gain times a column gain). The gains minimise the squared
+/// error of the aligned predictions against the truth over the sequence, as the scores weigh it (a fit in
+/// log space lets the darkest pixels decide, and can lower the score of a recording with black regions);
+/// one gain alone in closed form, both by alternating the two closed forms until they settle. Each is
+/// applied to every aligned prediction, which is scored again (clamped to [0, 1]; PSNR per frame, averaged
+/// over the frames, as the scores). A large gain says the error sits where the motion is blind, which no
+/// objective on these events can remove; a small one, that it is elsewhere. The offsets see the truth: a
+/// diagnosis, never a score.
 struct OffsetOracle {
   double rows_psnr = 0, columns_psnr = 0, both_psnr = 0;
 };
@@ -429,40 +432,57 @@ inline OffsetOracle offset_oracle(const std::vector<Image>& aligned, const std::
     require_same_shape(aligned[f], truths[f]);
     require_same_shape(aligned[f], truths.front());
   }
+  require(eps > 0, "offset_oracle: ε must be positive");
   const int W = truths.front().width, H = truths.front().height, C = truths.front().channels;
   const auto F = truths.size();
-  // Mean log residual per (row, channel), per (column, channel) and per channel over the sequence.
-  std::vector<double> row(static_cast<std::size_t>(H) * C, 0.0), col(static_cast<std::size_t>(W) * C, 0.0), all(C, 0.0);
-  for (std::size_t f = 0; f < F; ++f)
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x)
-        for (int c = 0; c < C; ++c) {
-          const std::size_t i = (static_cast<std::size_t>(y) * W + x) * C + c;
-          const double r = std::log(double(truths[f].data[i]) + eps) - std::log(double(aligned[f].data[i]) + eps);
-          row[static_cast<std::size_t>(y) * C + c] += r;
-          col[static_cast<std::size_t>(x) * C + c] += r;
-          all[c] += r;
-        }
-  for (auto& v : row) v /= double(F) * W;
-  for (auto& v : col) v /= double(F) * H;
-  for (auto& v : all) v /= double(F) * W * H;
-  auto score = [&](double wr, double wc) {  // the offsets row·wr + (col − all)·wc, then the mean PSNR
-    double sum = 0;
-    Image q(W, H, C);
-    for (std::size_t f = 0; f < F; ++f) {
+  const std::size_t nr = static_cast<std::size_t>(H) * C, nc = static_cast<std::size_t>(W) * C;
+  // Visits every value of the sequence with its row and column slots and a = prediction + ε, b = truth + ε.
+  auto each = [&](auto&& visit) {
+    for (std::size_t f = 0; f < F; ++f)
       for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x)
           for (int c = 0; c < C; ++c) {
             const std::size_t i = (static_cast<std::size_t>(y) * W + x) * C + c;
-            const double o = wr * row[static_cast<std::size_t>(y) * C + c] +
-                             wc * (col[static_cast<std::size_t>(x) * C + c] - (wr > 0 ? all[c] : 0.0));
-            q.data[i] = static_cast<float>(std::clamp(std::exp(std::log(double(aligned[f].data[i]) + eps) + o) - eps, 0.0, 1.0));
+            visit(f, i, static_cast<std::size_t>(y) * C + c, static_cast<std::size_t>(x) * C + c, double(aligned[f].data[i]) + eps,
+                  double(truths[f].data[i]) + eps);
           }
-      sum += psnr(q, truths[f]);
-    }
+  };
+  // The gains along one direction that minimise Σ (a · other · k − b)², given the other direction's gains.
+  auto fit = [&](bool rows, const std::vector<double>& other) {
+    std::vector<double> ab(rows ? nr : nc, 0.0), aa(rows ? nr : nc, 0.0);
+    each([&](std::size_t, std::size_t, std::size_t r, std::size_t k, double a, double b) {
+      const double ao = a * other[rows ? k : r];
+      ab[rows ? r : k] += ao * b;
+      aa[rows ? r : k] += ao * ao;
+    });
+    std::vector<double> g(ab.size());
+    for (std::size_t j = 0; j < g.size(); ++j) g[j] = aa[j] > 0 ? ab[j] / aa[j] : 1.0;
+    return g;
+  };
+  auto score = [&](const std::vector<double>& row_gain, const std::vector<double>& col_gain) {
+    std::vector<Image> q(F, Image(W, H, C));
+    each([&](std::size_t f, std::size_t i, std::size_t r, std::size_t k, double a, double) {
+      q[f].data[i] = static_cast<float>(std::clamp(a * row_gain[r] * col_gain[k] - eps, 0.0, 1.0));
+    });
+    double sum = 0;
+    for (std::size_t f = 0; f < F; ++f) sum += psnr(q[f], truths[f]);
     return sum / double(F);
   };
-  return {score(1, 0), score(0, 1), score(1, 1)};
+  const std::vector<double> ones_r(nr, 1.0), ones_c(nc, 1.0);
+  OffsetOracle o;
+  o.rows_psnr = score(fit(true, ones_c), ones_c);
+  o.columns_psnr = score(ones_r, fit(false, ones_r));
+  std::vector<double> gr(nr, 1.0), gc(nc, 1.0);
+  for (int round = 0; round < 200; ++round) {  // alternating least squares: each half-step lowers the error
+    gr = fit(true, gc);
+    const auto next = fit(false, gr);
+    double change = 0;
+    for (std::size_t j = 0; j < nc; ++j) change = std::max(change, std::abs(next[j] - gc[j]) / std::max(1e-300, std::abs(gc[j])));
+    gc = next;
+    if (change < 1e-10) break;
+  }
+  o.both_psnr = score(gr, gc);
+  return o;
 }
 
 /// The fine part of a sequence's error (ErrorScales' e − blur_σ(e)) split by the true depth of each pixel:
