@@ -103,28 +103,21 @@ inline void print_scores(const Scored& s, const Truth& truth) {
     fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
                "each row's, column's mean error):\n",
                short_number(es.at("sigma_px").get<double>()));
-    for (const auto& name : s.primary.names) {
+    // A method's figure in dB ("inf" for no error, "-" where an older file lacks it).
+    auto db = [&es](const std::string& name, const char* key) {
       const auto& v = es.at("methods").at(name);
-      auto db = [&v](const char* key) {
-        if (!v.contains(key)) return std::string("-");
-        const auto& x = v.at(key);
-        return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
-      };
-      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name, db("coarse_psnr"),
-                 db("fine_psnr"), db("row_psnr"), db("column_psnr"));
-    }
+      if (!v.contains(key)) return std::string("-");
+      const auto& x = v.at(key);
+      return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
+    };
+    for (const auto& name : s.primary.names)
+      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name,
+                 db(name, "coarse_psnr"), db(name, "fine_psnr"), db(name, "row_psnr"), db(name, "column_psnr"));
     fmt::print("PSNR with log offsets per image row, per column and both fitted to the truth over the sequence (what a "
                "straight motion never shows the events; a diagnosis, never a score):\n");
-    for (const auto& name : s.primary.names) {
-      const auto& v = es.at("methods").at(name);
-      auto db = [&v](const char* key) {
-        if (!v.contains(key)) return std::string("-");
-        const auto& x = v.at(key);
-        return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
-      };
-      fmt::print("{:<22} rows {:>8}   columns {:>8}   both {:>8}\n", name, db("oracle_rows_psnr"), db("oracle_columns_psnr"),
-                 db("oracle_both_psnr"));
-    }
+    for (const auto& name : s.primary.names)
+      fmt::print("{:<22} rows {:>8}   columns {:>8}   both {:>8}\n", name, db(name, "oracle_rows_psnr"),
+                 db(name, "oracle_columns_psnr"), db(name, "oracle_both_psnr"));
   }
   for (const auto& o : s.others) print_table(o);
   if (s.grey) {
