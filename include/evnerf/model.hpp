@@ -730,7 +730,7 @@ class EvNerf {
   std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
   double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
-  double view_decay_ = 0;          ///< set_view_decay
+  double view_decay_ = 0;       ///< the view-dependence decay (set_view_decay)
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
