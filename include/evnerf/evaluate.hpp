@@ -120,7 +120,7 @@ inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& t
                    : nlohmann::json{{"kind", "frames"}};
   auto& scored_truth = s.scored_truth;
   for (const auto& g : truth.images)
-    scored_truth.push_back(als.front() == eval::Alignment::MinMax ? (hdr ? hdr->log_min_max(g) : eval::min_max(g)) : (hdr ? hdr->apply(g) : g));
+    scored_truth.push_back(eval::scored_truth(g, als.front(), hdr));
   j["error_scales"] = eval::error_scales_json(s.primary, scored_truth);
   const int channels = truth.images.empty() ? 1 : truth.images.front().channels;
   j["channels"] = channels;

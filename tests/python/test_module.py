@@ -192,6 +192,15 @@ def test_evaluate_and_baselines(planes):
     s = evnerf.score(b["images"]["direct_integration"], truth, alignment="min-max")
     assert s["psnr"] == pytest.approx(b["methods"]["direct_integration"]["psnr"], abs=1e-9)
     assert evnerf.score(truth, truth, alignment="none")["mse"] == 0
+    # The offset oracle: eval's, from evaluate(); on request, score()'s for any images. A gain per row
+    # constant over the sequence is what it removes.
+    assert {"oracle_rows_psnr", "oracle_columns_psnr", "oracle_both_psnr"} <= set(r["error_scales"]["methods"]["evnerf_fast"])
+    assert "oracle" not in s
+    t = np.stack(truth).astype(np.float32) * 0.8 + 0.1
+    rows = np.exp(0.2 * np.sin(np.arange(t.shape[1]) * 0.3))[None, :, None]
+    o = evnerf.score((t + 1e-3) * rows - 1e-3, t, alignment="none", oracle=True)
+    assert o["psnr"] < 40 and o["oracle"]["rows_psnr"] > 80 and o["oracle"]["both_psnr"] > 80
+    assert o["oracle"]["columns_psnr"] < 45
 
 
 def test_colour_and_a_time_window(tmp_path):

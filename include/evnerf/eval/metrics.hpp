@@ -319,6 +319,12 @@ inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const
   }
   return out;
 }
+/// The truth as score_sequence compares it under `how`: put on [0, 1] under MinMax; with `hdr`, tone-mapped
+/// (or its log put on [0, 1] under MinMax); else as it is.
+inline Image scored_truth(const Image& g, Alignment how, const HdrTone* hdr = nullptr) {
+  if (how == Alignment::MinMax) return hdr ? hdr->log_min_max(g) : min_max(g);
+  return hdr ? hdr->apply(g) : g;
+}
 /// The mean of per-frame scores (PSNR averaged in dB, as the field reports it).
 inline Scores mean(const std::vector<Scores>& s) {
   Scores m;
