@@ -294,6 +294,7 @@ TEST_CASE("view-dependence decay: 0 leaves the step bit-identical; otherwise the
   }
   CHECK_THROWS_WITH_AS(a.set_view_decay(-1), doctest::Contains("view-dependence decay"), Error);
   CHECK_THROWS_WITH_AS(a.set_view_decay(std::nan("")), doctest::Contains("view-dependence decay"), Error);
+  CHECK(M::field_type::view_weights_known);
 }
 
 TEST_CASE("examples' parts: inverse-depth samples, the triangle-wave encoding's input gradient, the shot-noise interval") {

@@ -228,6 +228,7 @@ TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminanc
     CHECK(dlum > 1e-4);
     // The view range (EvNerf::set_view_decay's weights): zeroed, the luminance no longer depends on the
     // direction; a weight just before it (band 0's, a bias) leaves it so, a weight inside it does not.
+    static_assert(F::view_weights_known);
     CHECK(F::view_end - F::view_begin == std::size_t(Dir::out_dims - 1) * 8);
     for (std::size_t i = F::view_begin; i < F::view_end; ++i) params[i] = 0;
     auto max_change = [&] {
@@ -244,6 +245,21 @@ TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminanc
     CHECK(max_change() > 1e-4);
   }
 }
+
+namespace {
+// A colour network of a user's own that does not lay out its weights as nn::Mlp does (no layer_out): the
+// field still compiles, with no view weights named (EvNerf::set_view_decay refuses a decay for it).
+struct OpaqueColourNet {
+  static constexpr int in_dims = 3 + 4, out_dims = 1;
+  static constexpr std::size_t n_params = 10;
+  using output_activation = nn::Identity;
+  static std::string name() { return "opaque"; }
+};
+using OpaqueField = field::Field<nn::HashGrid<4, 2, 10, 4, 32>, nn::SphericalHarmonics<2>, nn::Mlp<8, 8, 1, 4, nn::ReLU, nn::Identity>,
+                                 OpaqueColourNet>;
+static_assert(!OpaqueField::view_weights_known && OpaqueField::view_begin == OpaqueField::view_end,
+              "a colour network without layer_out names no view weights");
+}  // namespace
 
 TEST_CASE("compositing: an opaque sample at depth d gives depth d and its luminance") {
   const int S = 4;

@@ -242,7 +242,7 @@ class EvNerf {
     }
     if (!std::isfinite(st.loss)) return st;
     // The field's parameters all move; of the thresholds only the step's windows' slices' (lazy Adam).
-    const double lr = adam_.learning_rate();
+    const double lr = view_decay_ > 0 ? adam_.learning_rate() : 0.0;  // the rate this update uses
     adam_.update(params_.values, params_.grads, threshold_offset(), touched_);
     if (view_decay_ > 0) {
       // Decoupled decay (as AdamW's) of the view-dependence weights, at this step's learning rate.
@@ -532,6 +532,8 @@ class EvNerf {
   /// training setting like the learning rate: not checkpointed.
   void set_view_decay(double decay) {
     require(std::isfinite(decay) && decay >= 0, "the view-dependence decay must be finite and non-negative");
+    require(decay == 0 || FieldT::view_weights_known,
+            "the view-dependence decay needs a colour network whose first layer is laid out as nn::Mlp's (layer_out)");
     view_decay_ = decay;
   }
   double view_decay() const { return view_decay_; }

@@ -129,9 +129,16 @@ struct Field {
     if constexpr (requires { DirEnc::constant_outputs; }) return static_cast<int>(DirEnc::constant_outputs);
     else return 0;
   }();
-  static constexpr std::size_t view_begin = color_offset + static_cast<std::size_t>(features + dir_constant_outputs) *
-                                                               ColorNet::layer_out(0);
-  static constexpr std::size_t view_end = color_offset + static_cast<std::size_t>(col_in) * ColorNet::layer_out(0);
+  /// Whether view_begin..view_end are known: the colour network lays out its first layer as nn::Mlp does
+  /// (column-major weights first, `layer_out(0)` rows). A colour network of your own without it still
+  /// compiles; its view range is empty, and EvNerf::set_view_decay refuses a decay it could not apply.
+  static constexpr bool view_weights_known = requires { ColorNet::layer_out(0); };
+  static constexpr std::size_t view_rows = [] {
+    if constexpr (view_weights_known) return static_cast<std::size_t>(ColorNet::layer_out(0));
+    else return std::size_t{0};
+  }();
+  static constexpr std::size_t view_begin = color_offset + static_cast<std::size_t>(features + dir_constant_outputs) * view_rows;
+  static constexpr std::size_t view_end = color_offset + static_cast<std::size_t>(col_in) * view_rows;
   /// The field's architecture: encodings, networks, density activation (what a checkpoint must match).
   static std::string architecture() {
     std::string a = "position ";
