@@ -103,11 +103,12 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 template <class Model>
-void check_model(double distortion = 0, double tv = 0, bool terminate = false) {
+void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any) {
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
   m.set_tv(tv);
+  m.set_tv_neighbours(neighbours);
   m.set_ray_termination(terminate);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
@@ -217,6 +218,55 @@ TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: fi
                    StratifiedModel<1>, OccupancyModel<1>, ExpRadianceModel<3>, ThreePoseModel<1>) {
   SUBCASE("alone") { check_model<Model>(0, 0.3); }
   SUBCASE("with the distortion term") { check_model<Model>(0.05, 0.3); }
+  SUBCASE("vertical neighbours") { check_model<Model>(0, 0.3, false, loss::TvNeighbours::Vertical); }
+}
+
+TEST_CASE("total-variation neighbours: any draws right or below, vertical and horizontal fix one, borders turn back") {
+  using loss::TvNeighbours;
+  using P = std::pair<int, int>;
+  // Any: the draw's lowest bit picks right (odd) or below (even); the last column (row) looks back.
+  CHECK(loss::tv_neighbour(3, 4, 10, 8, 7, TvNeighbours::Any) == P{4, 4});
+  CHECK(loss::tv_neighbour(3, 4, 10, 8, 6, TvNeighbours::Any) == P{3, 5});
+  CHECK(loss::tv_neighbour(9, 4, 10, 8, 1, TvNeighbours::Any) == P{8, 4});
+  CHECK(loss::tv_neighbour(3, 7, 10, 8, 0, TvNeighbours::Any) == P{3, 6});
+  // Vertical and Horizontal ignore the draw.
+  for (std::uint64_t draw : {0u, 1u, 2u, 3u}) {
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, draw, TvNeighbours::Vertical) == P{3, 5});
+    CHECK(loss::tv_neighbour(3, 7, 10, 8, draw, TvNeighbours::Vertical) == P{3, 6});
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, draw, TvNeighbours::Horizontal) == P{4, 4});
+    CHECK(loss::tv_neighbour(9, 4, 10, 8, draw, TvNeighbours::Horizontal) == P{8, 4});
+  }
+  // A sensor one pixel high (wide) has no vertical (horizontal) neighbour: the pixel itself, no cost.
+  CHECK(loss::tv_neighbour(3, 0, 10, 1, 0, TvNeighbours::Vertical) == P{3, 0});
+  CHECK(loss::tv_neighbour(0, 4, 1, 8, 1, TvNeighbours::Horizontal) == P{0, 4});
+  CHECK(std::string(loss::tv_neighbours_name(TvNeighbours::Vertical)) == "vertical");
+}
+
+TEST_CASE("total-variation neighbours: any is the default's step; vertical changes the term alone, whatever the tiling") {
+  const evtest::Fixture f;
+  using M = OccupancyModel<1>;
+  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  a.set_tv(0.2);
+  b.set_tv(0.2);
+  CHECK(a.tv_neighbours() == loss::TvNeighbours::Any);
+  const auto sa = a.gradients(f.td, 16, 3, 4);
+  const std::vector<double> ga = a.params().grads;
+  b.set_tv_neighbours(loss::TvNeighbours::Any);
+  b.gradients(f.td, 16, 3, 4);
+  CHECK(ga == b.params().grads);
+  b.set_tv_neighbours(loss::TvNeighbours::Vertical);
+  const auto sv = b.gradients(f.td, 16, 3, 4);
+  CHECK(sv.event_loss == sa.event_loss);  // the pairs' rays are the same; only the neighbours move
+  CHECK(sv.tv_loss > 0);
+  CHECK(sv.tv_loss != sa.tv_loss);
+  CHECK(sv.rays == sa.rays);
+  const std::vector<double> gv = b.params().grads;
+  CHECK(gv != ga);
+  b.gradients(f.td, 16, 3, 1);  // one pixel per tile: the same draw, summed in another order
+  double worst = 0;
+  for (std::size_t i = 0; i < gv.size(); ++i)
+    worst = std::max(worst, std::abs(b.params().grads[i] - gv[i]) / std::max(1e-12, std::abs(gv[i])));
+  CHECK(worst < 1e-9);
 }
 
 TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; its draw ignores tiling and threads") {

@@ -958,6 +958,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(first["runs"][0]["seed"] == cfg.seed);
   CHECK(first["runs"][0]["tv"].is_null());
   CHECK(first["runs"][0]["view_decay"] == 0.0);
+  CHECK(first["runs"][0]["tv_neighbours"] == "any");
   CHECK(m.view_decay() == 0.0);
   CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
   // A resumed run appends, to the log and to the settings.
@@ -1061,6 +1062,19 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   two.tv = 0.0;
   train::run(m, f.td, two, fs::path(), "tiny", "meta");
   CHECK(m.tv() == 0.0);
+  // Neighbours other than the default need the term: without a weight they would silently do nothing.
+  two.tv_neighbours = loss::TvNeighbours::Vertical;
+  const long at = m.step();
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", "meta"), doctest::Contains("'vertical' without the term"), Error);
+  CHECK(m.step() == at);
+  two.tv = 0.25;
+  train::run(m, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(m.tv_neighbours() == loss::TvNeighbours::Vertical);
+  CHECK(train::settings_json(two)["tv_neighbours"] == "vertical");
+  CHECK(train::parse_tv_neighbours("horizontal", "who") == loss::TvNeighbours::Horizontal);
+  CHECK(train::parse_tv_neighbours("any", "who") == loss::TvNeighbours::Any);
+  CHECK_THROWS_WITH_AS(train::parse_tv_neighbours("diagonal", "train --tv-neighbours"),
+                       doctest::Contains("train --tv-neighbours: unknown total-variation neighbours 'diagonal'"), Error);
 }
 
 TEST_CASE("lazy Adam: a threshold of a slice no step touched keeps its value and its moments") {

@@ -513,7 +513,8 @@ class EvNerf {
   /// The transmittance behind which training rays stop (set_ray_termination).
   double ray_cut() const { return ray_cut_; }
   /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
-  /// or below, or left or above at the border, drawn per pixel and step) rendered from the window's first
+  /// or below, or left or above at the border, drawn per pixel and step; set_tv_neighbours can fix one of
+  /// the two) rendered from the window's first
   /// pose; `weight` × the mean over the step's pixels (and channels) of their log difference's Cauchy penalty
   /// joins the loss, in every pass. A third ray per pixel: about half as much work again per step. 0 leaves
   /// the step bit-identical. A new model starts at default_tv (its objective's). A training setting like the
@@ -523,6 +524,11 @@ class EvNerf {
     tv_ = weight;
   }
   double tv() const { return tv_; }
+  /// Which neighbour the total-variation term compares each pixel with (loss::TvNeighbours): right or below
+  /// (Any, a new model's), or always the one below (Vertical) or to the right (Horizontal). Any leaves the
+  /// step bit-identical. A training setting like the weight: not checkpointed.
+  void set_tv_neighbours(loss::TvNeighbours n) { tv_neighbours_ = n; }
+  loss::TvNeighbours tv_neighbours() const { return tv_neighbours_; }
   /// A prior against view dependence the events do not ask for: after each Adam update the weights through
   /// which the radiance depends on the view direction (FieldT::view_begin..view_end, of every network) shrink
   /// by the factor 1 − lr · `decay` (a decoupled weight decay, as AdamW's). The event gradient holds up the
@@ -695,10 +701,7 @@ class EvNerf {
         // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
         const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
         const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));
-        int nx = x, ny = y;
-        if (h & 1) nx = x + 1 < width ? x + 1 : x - 1;
-        else ny = y + 1 < height ? y + 1 : y - 1;
-        if (nx < 0 || ny < 0) nx = x, ny = y;  // a one-pixel-wide sensor: no neighbour, no cost
+        const auto [nx, ny] = loss::tv_neighbour(x, y, width, height, h, tv_neighbours_);
         const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
         const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
         w.origin[(2 + extra) * P + i] = n.origin;
@@ -736,6 +739,7 @@ class EvNerf {
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
+  loss::TvNeighbours tv_neighbours_ = loss::TvNeighbours::Any;  ///< its neighbours (set_tv_neighbours)
 };
 
 }  // namespace evnerf

@@ -74,6 +74,14 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m3.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="total-variation weight must be finite and non-negative"):
         evnerf.train(d, iterations=2, threads=1, tv=-1.0)
+    # So are its neighbours: vertical ones give another model than any; without a weight, or by an unknown
+    # name, they are refused.
+    m6 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="vertical")
+    assert not np.array_equal(m6.render(P)[0], m3.render(P)[0])
+    with pytest.raises(evnerf.Error, match="'vertical' without the term"):
+        evnerf.train(d, iterations=2, threads=1, tv_neighbours="vertical")
+    with pytest.raises(evnerf.Error, match="unknown total-variation neighbours 'diagonal'"):
+        evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_neighbours="diagonal")
     # So is the view-dependence decay.
     m5 = evnerf.train(d, iterations=20, threads=2, seed=3, view_decay=30.0)
     assert not np.array_equal(m5.render(P)[0], img)

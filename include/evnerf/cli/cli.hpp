@@ -304,6 +304,13 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (a third ray "
                      "per pixel; 0 = off; default: the preset's)")
       ->check(CLI::NonNegativeNumber);
+  std::string tv_neighbours = loss::tv_neighbours_name(cfg.tv_neighbours);
+  trainc->add_option("--tv-neighbours", tv_neighbours,
+                     "which neighbour the total-variation term compares a pixel with: right or below, drawn per pixel (any), "
+                     "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
+                     "brightness against the next) or to the right (horizontal); with --tv")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"any", "vertical", "horizontal"}));
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
@@ -470,6 +477,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
       }
       cfg.box = train::parse_box(box_fit, "train --box");
+      cfg.tv_neighbours = train::parse_tv_neighbours(tv_neighbours, "train --tv-neighbours");
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
       // One run: a model trained on `td` into `dir`; returns the exit code.

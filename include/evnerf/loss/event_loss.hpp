@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <utility>
 
 #include "../ad/expr.hpp"
 
@@ -118,6 +120,34 @@ struct LogTv {
     return {vg.value, vg.grad[0], vg.grad[1]};
   }
 };
+
+/// Which neighbour a step pixel's total-variation term compares it with (EvNerf::set_tv_neighbours). `Any`
+/// (the default): the pixel to the right or the one below, drawn per pixel and step. `Vertical`: always the
+/// one below, `Horizontal`: always the one to the right (above, left at the last row, column). A camera that
+/// moves along its x axis (a slider, an orbit about the vertical) never shows the events how bright one image
+/// row is against the next: the events fix each row up to a constant. Vertical neighbours tie the rows
+/// together where nothing else does, and leave the detail along the rows, which the events do see, to the
+/// events; Horizontal does the same for a motion along y.
+enum class TvNeighbours { Any, Vertical, Horizontal };
+inline const char* tv_neighbours_name(TvNeighbours n) {
+  switch (n) {
+    case TvNeighbours::Vertical: return "vertical";
+    case TvNeighbours::Horizontal: return "horizontal";
+    case TvNeighbours::Any: break;
+  }
+  return "any";
+}
+/// The neighbour of pixel (x, y) that the term compares it with, on a width × height sensor; `draw` is the
+/// step's random bits for this pixel (its lowest bit picks right or below under Any). The pixel itself on a
+/// sensor one pixel wide (or high) in the neighbour's direction: no neighbour, no cost.
+inline std::pair<int, int> tv_neighbour(int x, int y, int width, int height, std::uint64_t draw, TvNeighbours n) {
+  const bool right = n == TvNeighbours::Horizontal || (n == TvNeighbours::Any && (draw & 1));
+  int nx = x, ny = y;
+  if (right) nx = x + 1 < width ? x + 1 : x - 1;
+  else ny = y + 1 < height ? y + 1 : y - 1;
+  if (nx < 0 || ny < 0) nx = x, ny = y;
+  return {nx, ny};
+}
 
 /// Per-slice thresholds B_i^± learned jointly with the field, with the floor loss at weight λ = 1000.
 struct JointThresholds {

@@ -37,6 +37,8 @@ struct Config {
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
   std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
                                ///< model's own, its variant's default_tv unless set_tv changed it)
+  loss::TvNeighbours tv_neighbours = loss::TvNeighbours::Any;  ///< the term's neighbours (EvNerf::set_tv_neighbours):
+                               ///< right or below (Any), or only below (Vertical) or right (Horizontal)
   double view_decay = 0;       ///< decoupled decay of the view-dependence weights (EvNerf::set_view_decay; 0 = off;
                                ///< measured in bench/README.md, session 46, and not a default)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
@@ -85,6 +87,13 @@ struct Config {
 
 /// A scene-box fit's name as the command line, the Python module and settings.json spell it.
 inline const char* box_name(Config::BoxFit b) { return b == Config::BoxFit::Frusta ? "frusta" : "cameras"; }
+/// The total-variation neighbours `name` spells (any, vertical, horizontal, as loss::tv_neighbours_name); an
+/// Error naming `who` and the known names when it spells none.
+inline loss::TvNeighbours parse_tv_neighbours(std::string_view name, const std::string& who) {
+  for (auto n : {loss::TvNeighbours::Any, loss::TvNeighbours::Vertical, loss::TvNeighbours::Horizontal})
+    if (name == loss::tv_neighbours_name(n)) return n;
+  throw Error(who + ": unknown total-variation neighbours '" + std::string(name) + "' (expected any, vertical or horizontal)");
+}
 /// The fit `name` spells; an Error naming `who` and the known names when it spells none.
 inline Config::BoxFit parse_box(std::string_view name, const std::string& who) {
   for (auto b : {Config::BoxFit::Cameras, Config::BoxFit::Frusta})
@@ -336,6 +345,7 @@ inline nlohmann::json settings_json(const Config& c) {
   j["lr_decay_steps"] = c.lr_decay_steps;
   j["distortion"] = c.distortion;
   j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
+  j["tv_neighbours"] = loss::tv_neighbours_name(c.tv_neighbours);
   j["view_decay"] = c.view_decay;
   j["average"] = c.average;
   j["terminate_rays"] = c.terminate_rays;
@@ -397,6 +407,9 @@ template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
   check(cfg);
+  require(cfg.tv_neighbours == loss::TvNeighbours::Any || cfg.tv.value_or(model.tv()) > 0,
+          std::string("train: total-variation neighbours '") + loss::tv_neighbours_name(cfg.tv_neighbours) +
+              "' without the term: give it a weight (--tv)");
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
   Group* group = cfg.processes();
@@ -415,6 +428,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   model.set_distortion(cfg.distortion);
   model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
   if (cfg.tv) model.set_tv(*cfg.tv);
+  model.set_tv_neighbours(cfg.tv_neighbours);
   model.set_view_decay(cfg.view_decay);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   // The settings first: a record it cannot read refuses the call before the log is touched.
