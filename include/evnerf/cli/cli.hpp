@@ -309,8 +309,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "which neighbour the total-variation term compares a pixel with: right or below, drawn per pixel (any), "
                      "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
                      "brightness against the next) or to the right (horizontal); with --tv")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"any", "vertical", "horizontal"}));
+      ->capture_default_str();
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
