@@ -515,9 +515,9 @@ class EvNerf {
   /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
   /// or below, or left or above at the border, drawn per pixel and step; set_tv_neighbours can fix one of
   /// the two) rendered from the window's first pose; `weight` × the mean over the step's pixels (and
-  /// channels) of their log difference's Cauchy penalty joins the loss, in every pass. A third ray per pixel: about half as much work again per step. 0 leaves
-  /// the step bit-identical. A new model starts at default_tv (its objective's). A training setting like the
-  /// learning rate: not checkpointed.
+  /// channels) of their log difference's Cauchy penalty joins the loss, in every pass. A third ray per
+  /// pixel: about half as much work again per step. 0 leaves the step bit-identical. A new model starts at
+  /// default_tv (its objective's). A training setting like the learning rate: not checkpointed.
   void set_tv(double weight) {
     require(std::isfinite(weight) && weight >= 0, "the total-variation weight must be finite and non-negative");
     tv_ = weight;
