@@ -103,12 +103,14 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 template <class Model>
-void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any) {
+void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any,
+                 double tv_share = 1) {
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
   m.set_tv(tv);
   m.set_tv_neighbours(neighbours);
+  m.set_tv_share(tv_share);
   m.set_ray_termination(terminate);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
@@ -145,10 +147,15 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     if (tv > 0) CHECK(st.tv_loss > 0);
     else CHECK(st.tv_loss == 0);
     // Two rays per pixel, a third at the inner boundary (three poses, windows of two slices or more), one
-    // more for the TV neighbour.
+    // more for the TV neighbour (for some of the pixels at a share under 1).
     const bool three = Model::poses == 3 && st.window >= 2;
     inner += three;
-    CHECK(st.rays == (2u + three + (tv > 0 ? 1u : 0u)) * 16u);
+    if (tv_share < 1) {
+      CHECK(st.rays > (2u + three) * 16u);
+      CHECK(st.rays < (3u + three) * 16u);
+    } else {
+      CHECK(st.rays == (2u + three + (tv > 0 ? 1u : 0u)) * 16u);
+    }
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
       CHECK(st.samples < st.rays * Model::Nc);
@@ -219,6 +226,56 @@ TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: fi
   SUBCASE("alone") { check_model<Model>(0, 0.3); }
   SUBCASE("with the distortion term") { check_model<Model>(0.05, 0.3); }
   SUBCASE("vertical neighbours") { check_model<Model>(0, 0.3, false, loss::TvNeighbours::Vertical); }
+  SUBCASE("half the pixels, with the distortion term") { check_model<Model>(0.05, 0.3, false, loss::TvNeighbours::Vertical, 0.5); }
+}
+
+TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels per step, keeps the term's scale, ignores the tiling") {
+  const evtest::Fixture f;
+  using M = OccupancyModel<1>;
+  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  a.set_tv(0.2);
+  b.set_tv(0.2);
+  a.set_distortion(0.05);
+  b.set_distortion(0.05);
+  CHECK(a.tv_share() == 1.0);
+  const auto sa = a.gradients(f.td, 16, 3, 4);
+  const std::vector<double> ga = a.params().grads;
+  b.set_tv_share(1.0);
+  b.gradients(f.td, 16, 3, 4);
+  CHECK(ga == b.params().grads);
+  CHECK(sa.rays == 3 * 16);
+  // Half the pixels: the pairs are the same rays, fewer neighbours are rendered, the gradient differs.
+  b.set_tv_share(0.5);
+  const auto sh = b.gradients(f.td, 16, 3, 4);
+  CHECK(sh.event_loss == sa.event_loss);
+  CHECK(sh.rays > 2 * 16);
+  CHECK(sh.rays < 3 * 16);
+  const std::vector<double> gh = b.params().grads;
+  CHECK(gh != ga);
+  const auto s1 = b.gradients(f.td, 16, 3, 1);  // one pixel per tile: the same draw, summed in another order
+  CHECK(s1.rays == sh.rays);
+  double worst = 0;
+  for (std::size_t i = 0; i < gh.size(); ++i)
+    worst = std::max(worst, std::abs(b.params().grads[i] - gh[i]) / std::max(1e-12, std::abs(gh[i])));
+  CHECK(worst < 1e-9);
+  // The weight is divided by the share: over many steps the term's mean is the whole term's. Each draw
+  // keeps about half the pixels, so a term that forgot the division would come out near half.
+  double whole = 0, half = 0;
+  std::size_t drawn = 0;
+  for (std::uint64_t seed = 1; seed <= 48; ++seed) {
+    whole += a.gradients(f.td, 32, seed, 8).tv_loss;
+    const auto st = b.gradients(f.td, 32, seed, 8);
+    half += st.tv_loss;
+    drawn += st.rays - 2 * 32;
+  }
+  CHECK(drawn > 48 * 32 * 4 / 10);
+  CHECK(drawn < 48 * 32 * 6 / 10);
+  CHECK(half / whole > 0.8);
+  CHECK(half / whole < 1.25);
+  CHECK_THROWS_AS(b.set_tv_share(0), Error);
+  CHECK_THROWS_AS(b.set_tv_share(1.5), Error);
+  CHECK_THROWS_AS(b.set_tv_share(std::nan("")), Error);
+  CHECK(b.tv_share() == 0.5);
 }
 
 TEST_CASE("total-variation neighbours: any draws right or below, vertical and horizontal fix one, borders turn back") {

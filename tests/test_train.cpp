@@ -959,6 +959,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(first["runs"][0]["tv"].is_null());
   CHECK(first["runs"][0]["view_decay"] == 0.0);
   CHECK(first["runs"][0]["tv_neighbours"] == "any");
+  CHECK(first["runs"][0]["tv_share"] == 1.0);
   CHECK(m.view_decay() == 0.0);
   CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
   // A resumed run appends, to the log and to the settings.
@@ -1048,6 +1049,9 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.ray_cut = 0; }, "ray-termination transmittance must lie in (0, 1)");
   refused([](train::Config& c) { c.ray_cut = 1; }, "ray-termination transmittance must lie in (0, 1)");
   refused([](train::Config& c) { c.ray_cut = std::nan(""); }, "ray-termination transmittance must lie in (0, 1)");
+  refused([](train::Config& c) { c.tv_share = 0; }, "total-variation share must lie in (0, 1]");
+  refused([](train::Config& c) { c.tv_share = 1.5; }, "total-variation share must lie in (0, 1]");
+  refused([](train::Config& c) { c.tv_share = std::nan(""); }, "total-variation share must lie in (0, 1]");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
@@ -1071,6 +1075,18 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   train::run(m, f.td, two, fs::path(), "tiny", "meta");
   CHECK(m.tv_neighbours() == loss::TvNeighbours::Vertical);
   CHECK(train::settings_json(two)["tv_neighbours"] == "vertical");
+  CHECK(m.tv_share() == 1.0);
+  // So does a share of the pixels.
+  two.tv = 0.0;
+  two.tv_neighbours = loss::TvNeighbours::Any;
+  two.tv_share = 0.25;
+  const long at2 = m.step();
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", "meta"), doctest::Contains("share of 0.25 without the term"), Error);
+  CHECK(m.step() == at2);
+  two.tv = 0.25;
+  train::run(m, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(m.tv_share() == 0.25);
+  CHECK(train::settings_json(two)["tv_share"] == 0.25);
   CHECK(train::parse_tv_neighbours("horizontal", "who") == loss::TvNeighbours::Horizontal);
   CHECK(train::parse_tv_neighbours("any", "who") == loss::TvNeighbours::Any);
   CHECK_THROWS_WITH_AS(train::parse_tv_neighbours("diagonal", "train --tv-neighbours"),

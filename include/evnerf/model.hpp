@@ -286,7 +286,7 @@ class EvNerf {
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.size_accumulators(threads);  // each thread zeroes its own below
     std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), loss_tv(threads, 0.0);
-    std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0);
+    std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), tv_rays(threads, 0);
     std::vector<std::array<double, 2>> pass_loss(threads);
     const geometry::Pose& pose0 = data.boundary_poses[first];
     const geometry::Pose& pose1 = data.boundary_poses[first + L];
@@ -298,6 +298,7 @@ class EvNerf {
       w.rw.evaluated = w.rw.backward_samples = 0;
       w.pass_loss = {};
       w.distortion = w.tv = 0;
+      w.tv_rays = 0;
       w.rw.training_termination = ray_termination_;
       w.rw.training_cut = static_cast<scalar>(ray_cut_);
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
@@ -309,6 +310,7 @@ class EvNerf {
       pass_loss[th] = w.pass_loss;
       loss_dist[th] = w.distortion;
       loss_tv[th] = w.tv;
+      tv_rays[th] = w.tv_rays;
       backward[th] = w.rw.backward_samples;
     });
     // The table gradients each thread held back, applied in parts (a hash grid's levels) shared out by
@@ -346,7 +348,8 @@ class EvNerf {
       }
     }
     st.loss = st.event_loss + st.threshold_loss + st.distortion_loss + st.tv_loss;
-    st.rays = static_cast<std::size_t>((extra_rays(sw) + (tv_ > 0 ? 3 : 2)) * P);
+    st.rays = static_cast<std::size_t>((extra_rays(sw) + 2) * P);
+    for (std::size_t r : tv_rays) st.rays += r;
     touched_.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
     return st;
@@ -516,8 +519,9 @@ class EvNerf {
   /// or below, or left or above at the border, drawn per pixel and step; set_tv_neighbours can fix one of
   /// the two) rendered from the window's first pose; `weight` × the mean over the step's pixels (and
   /// channels) of their log difference's Cauchy penalty joins the loss, in every pass. A third ray per
-  /// pixel: about half as much work again per step. 0 leaves the step bit-identical. A new model starts at
-  /// default_tv (its objective's). A training setting like the learning rate: not checkpointed.
+  /// pixel (set_tv_share can give it to fewer): about half as much work again per step. 0 leaves the step
+  /// bit-identical. A new model starts at default_tv (its objective's). A training setting like the
+  /// learning rate: not checkpointed.
   void set_tv(double weight) {
     require(std::isfinite(weight) && weight >= 0, "the total-variation weight must be finite and non-negative");
     tv_ = weight;
@@ -528,6 +532,17 @@ class EvNerf {
   /// step bit-identical. A training setting like the weight: not checkpointed.
   void set_tv_neighbours(loss::TvNeighbours n) { tv_neighbours_ = n; }
   loss::TvNeighbours tv_neighbours() const { return tv_neighbours_; }
+  /// The share of a step's pixels that get the total-variation term's neighbour ray, in (0, 1]: each pixel
+  /// is drawn in with this probability (keyed by step and pixel, so neither the tiling nor the thread count
+  /// changes the draw), and the term's weight is divided by it, so its expected value and gradient stay
+  /// those of the whole term at a fraction of its rays. 1 (a new model's) leaves the step bit-identical. A
+  /// training setting like the weight: not checkpointed.
+  void set_tv_share(double share) {
+    require(std::isfinite(share) && share > 0 && share <= 1,
+            "the total-variation share must lie in (0, 1], not " + std::to_string(share));
+    tv_share_ = share;
+  }
+  double tv_share() const { return tv_share_; }
   /// A prior against view dependence the events do not ask for: after each Adam update the weights through
   /// which the radiance depends on the view direction (FieldT::view_begin..view_end, of every network) shrink
   /// by the factor 1 − lr · `decay` (a decoupled weight decay, as AdamW's). The event gradient holds up the
@@ -588,6 +603,8 @@ class EvNerf {
     std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
     double distortion = 0;              ///< the thread's distortion term, this step
     double tv = 0;                      ///< the thread's total-variation term, this step
+    std::size_t tv_rays = 0;            ///< the thread's neighbour rays, this step
+    std::vector<int> tv_pixels;         ///< the tile's pixels that have a neighbour ray, in ray order
   };
 
   /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
@@ -640,18 +657,20 @@ class EvNerf {
     return total;
   }
 
-  /// The total-variation term of one pass over the tile's P pixels and their neighbours (rays 2i and
-  /// (2 + extra) P + i, both from the window's first pose; extra = extra_rays()): adds its gradient to the
-  /// pass's dcolor (after pair_loss) and returns its share of the loss.
+  /// The total-variation term of one pass over the tile's pixels drawn in (w.tv_pixels: pixel i's ray 2i and
+  /// its neighbour's ray (2 + extra) P + j for the j-th drawn pixel, both from the window's first pose;
+  /// extra = extra_rays()): adds its gradient to the pass's dcolor (after pair_loss) and returns its share of
+  /// the loss.
   double tv_loss(int P, int extra, int batch, int net, TileWork& w) const {
     const auto& comp = renderer_type::composites(w.rw, net);
     auto& dcolor = w.rw.pass[net].dcolor;
-    const double scale = tv_ / (double(batch) * channels);
+    const double scale = tv_ / (double(batch) * channels * tv_share_);
     const loss::LogTv f{FieldT::radiance::log_eps};
     double total = 0;
-    for (int i = 0; i < P; ++i)
+    for (std::size_t j = 0; j < w.tv_pixels.size(); ++j)
       for (int c = 0; c < channels; ++c) {
-        const std::size_t n = static_cast<std::size_t>((2 + extra) * P + i);
+        const int i = w.tv_pixels[j];
+        const std::size_t n = static_cast<std::size_t>((2 + extra) * P) + j;
         const auto r = f.evaluate(comp[2 * i].color[c], comp[n].color[c]);
         total += scale * r[0];
         dcolor[static_cast<std::size_t>(2 * i) * channels + c] += static_cast<Scalar>(scale * r[1]);
@@ -671,8 +690,9 @@ class EvNerf {
                     const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
     const bool tv = tv_ > 0;
     const int extra = extra_rays(sw);
-    // The pixels' pairs, then (three poses) their inner boundaries, then (with the TV term) their neighbours.
-    const int R = (2 + extra + (tv ? 1 : 0)) * P;
+    // The pixels' pairs, then (three poses) their inner boundaries, then (with the TV term) the neighbours of
+    // those drawn in (all of them at a share of 1).
+    int R = (2 + extra + (tv ? 1 : 0)) * P;
     const std::uint32_t* pix = sw.pixels.data() + p0;
     w.origin.resize(R);
     w.dir.resize(R);
@@ -696,17 +716,23 @@ class EvNerf {
     }
     if (tv) {
       const int width = data.camera.width(), height = data.camera.height();
+      w.tv_pixels.clear();
       for (int i = 0; i < P; ++i) {
         // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
         const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
+        if (tv_share_ < 1 && static_cast<double>(mix64(h ^ 0x5348415245000000ull) >> 11) * 0x1.0p-53 >= tv_share_) continue;
+        const int r = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
+        w.tv_pixels.push_back(i);
         const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));
         const auto [nx, ny] = loss::tv_neighbour(x, y, width, height, h, tv_neighbours_);
         const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
         const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
-        w.origin[(2 + extra) * P + i] = n.origin;
-        w.dir[(2 + extra) * P + i] = n.dir;
+        w.origin[r] = n.origin;
+        w.dir[r] = n.dir;
         w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 40) + q));
       }
+      R = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
+      w.tv_rays += w.tv_pixels.size();
     }
     const Scalar* params = params_.values.data();
     renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
@@ -717,8 +743,10 @@ class EvNerf {
       loss += l;
       if (tv) w.tv += tv_loss(P, extra, batch, net, w);
     }
-    // The distortion regulariser: its weight times the mean over the step's rays, every pass.
-    if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (double(R / P) * batch));
+    // The distortion regulariser: its weight times the mean over the step's rays, every pass (the expected
+    // rays per pixel, the same for every tile).
+    if (distortion_ > 0)
+      w.distortion += renderer_type::add_distortion(w.rw, distortion_ / ((2 + extra + (tv ? tv_share_ : 0.0)) * batch));
     renderer_.backward(params, w.rw, grads);
     return loss;
   }
@@ -739,6 +767,7 @@ class EvNerf {
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
   loss::TvNeighbours tv_neighbours_ = loss::TvNeighbours::Any;  ///< its neighbours (set_tv_neighbours)
+  double tv_share_ = 1;         ///< the share of pixels with a neighbour ray (set_tv_share)
 };
 
 }  // namespace evnerf

@@ -82,6 +82,13 @@ def test_round_trip_numpy_train_render_numpy(planes):
         evnerf.train(d, iterations=2, threads=1, tv_neighbours="vertical")
     with pytest.raises(evnerf.Error, match="unknown total-variation neighbours 'diagonal'"):
         evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_neighbours="diagonal")
+    # And its share of the pixels: half of them give another model; without a weight, or out of (0, 1], refused.
+    m7 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="vertical", tv_share=0.5)
+    assert not np.array_equal(m7.render(P)[0], m6.render(P)[0])
+    with pytest.raises(evnerf.Error, match="share of 0.5 without the term"):
+        evnerf.train(d, iterations=2, threads=1, tv_share=0.5)
+    with pytest.raises(evnerf.Error, match=r"total-variation share must lie in \(0, 1\]"):
+        evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_share=0.0)
     # So is the view-dependence decay.
     m5 = evnerf.train(d, iterations=20, threads=2, seed=3, view_decay=30.0)
     assert not np.array_equal(m5.render(P)[0], img)

@@ -310,6 +310,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
                      "brightness against the next) or to the right (horizontal); with --tv")
       ->capture_default_str();
+  trainc->add_option("--tv-share", cfg.tv_share,
+                     "share of the step's pixels, drawn at random, that get the total-variation term's neighbour ray; the "
+                     "weight is divided by it, so the term keeps its expected value at fewer rays (with --tv)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
