@@ -229,12 +229,21 @@ TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: fi
   SUBCASE("half the pixels, with the distortion term") { check_model<Model>(0.05, 0.3, false, loss::TvNeighbours::Vertical, 0.5); }
 }
 
-TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels per step, keeps the term's scale, ignores the tiling") {
+/// Two fresh models of the tiny fixture with the total-variation term at weight 0.2: `a` keeps the term's
+/// other settings at their defaults, `b` is the one a test changes.
+struct TvModels {
   const evtest::Fixture f;
-  using M = OccupancyModel<1>;
-  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  a.set_tv(0.2);
-  b.set_tv(0.2);
+  OccupancyModel<1> a{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5}, b{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5};
+  TvModels() {
+    a.set_tv(0.2);
+    b.set_tv(0.2);
+  }
+};
+
+TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels per step, keeps the term's scale, ignores the tiling") {
+  TvModels t;
+  const evtest::Fixture& f = t.f;
+  auto &a = t.a, &b = t.b;
   a.set_distortion(0.05);
   b.set_distortion(0.05);
   CHECK(a.tv_share() == 1.0);
@@ -300,11 +309,9 @@ TEST_CASE("total-variation neighbours: any draws right or below, vertical and ho
 }
 
 TEST_CASE("total-variation neighbours: any is the default's step; vertical changes the term alone, whatever the tiling") {
-  const evtest::Fixture f;
-  using M = OccupancyModel<1>;
-  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  a.set_tv(0.2);
-  b.set_tv(0.2);
+  TvModels t;
+  const evtest::Fixture& f = t.f;
+  auto &a = t.a, &b = t.b;
   CHECK(a.tv_neighbours() == loss::TvNeighbours::Any);
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const std::vector<double> ga = a.params().grads;
