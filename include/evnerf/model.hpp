@@ -720,7 +720,7 @@ class EvNerf {
       for (int i = 0; i < P; ++i) {
         // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
         const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
-        if (tv_share_ < 1 && static_cast<double>(mix64(h ^ 0x5348415245000000ull) >> 11) * 0x1.0p-53 >= tv_share_) continue;
+        if (tv_share_ < 1 && unit_double(mix64(h ^ 0x5348415245000000ull)) >= tv_share_) continue;
         const int r = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
         w.tv_pixels.push_back(i);
         const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));

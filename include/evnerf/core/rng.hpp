@@ -14,6 +14,9 @@ constexpr std::uint64_t mix64(std::uint64_t z) {
   return z ^ (z >> 31);
 }
 
+/// The top 53 bits of `bits` as a double uniform in [0, 1) (for hashed, keyed draws; Rng::uniform's map).
+constexpr double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
+
 /// Counter-based generator. Derive independent streams with `split(k)`; each draw advances a counter,
 /// so a stream's sequence depends only on its seed, never on scheduling.
 class Rng {
@@ -23,7 +26,7 @@ class Rng {
 
   constexpr std::uint64_t next_u64() { return mix64(key_ ^ mix64(counter_++)); }
   /// Uniform in [0, 1) with 53 random bits.
-  double uniform() { return static_cast<double>(next_u64() >> 11) * 0x1.0p-53; }
+  double uniform() { return unit_double(next_u64()); }
   float uniformf() { return static_cast<float>(next_u64() >> 40) * 0x1.0p-24f; }
   double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
   /// Uniform integer in [0, n) (Lemire's multiply-shift; bias < 2^-32 for n < 2^32).

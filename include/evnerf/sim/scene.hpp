@@ -41,7 +41,7 @@ struct Texture {
     return (integral(x + 0.5 * fw) - integral(x - 0.5 * fw)) / fw;
   }
   static double hash01(std::int64_t x, std::int64_t y, std::uint64_t seed) {
-    return static_cast<double>(mix64(seed ^ mix64(static_cast<std::uint64_t>(x) * 0x9E3779B1ull + static_cast<std::uint64_t>(y))) >> 11) * 0x1.0p-53;
+    return unit_double(mix64(seed ^ mix64(static_cast<std::uint64_t>(x) * 0x9E3779B1ull + static_cast<std::uint64_t>(y))));
   }
   static double value_noise(double x, double y, std::uint64_t seed) {
     const double fx = std::floor(x), fy = std::floor(y);
