@@ -104,6 +104,44 @@ TEST_CASE("camera: rays go through the pixel they were made from") {
   CHECK(cam_pt.z() == doctest::Approx(2.7));  // dir has unit z in camera coordinates
 }
 
+TEST_CASE("image-motion axis: along the translation, tangential under a roll, undirected through the fixation depth, zero without motion") {
+  const Camera cam(64, 48, 50, 50, 31.5, 23.5);
+  const Pose from;
+  auto moved = [](Vec3 t) {
+    Pose p;
+    p.t = t;
+    return p;
+  };
+  const Vec3 d(0.3, -0.2, 1.0);  // a pixel off the principal point, unit z
+  // A sideways translation moves every depth's point along x only: the axis is exactly (±1, 0).
+  Vec2 a = image_motion_axis(cam, from, moved(Vec3(0.1, 0, 0)), d, 0.5, 3.0);
+  CHECK(std::abs(a.x()) == 1.0);
+  CHECK(a.y() == 0.0);
+  a = image_motion_axis(cam, from, moved(Vec3(0, -0.1, 0)), d, 0.5, 3.0);
+  CHECK(std::abs(a.y()) == doctest::Approx(1.0).epsilon(1e-12));
+  CHECK(std::abs(a.x()) < 1e-12);
+  a = image_motion_axis(cam, from, moved(Vec3(0.1, 0.1, 0)), d, 0.5, 3.0);
+  CHECK(std::abs(a.x() - a.y()) < 1e-12);  // the diagonal (fx = fy)
+  CHECK(a.norm() == doctest::Approx(1.0));
+  // A roll about the optical axis moves the point around the principal point: the axis is tangential.
+  Pose roll;
+  roll.q = Quat(Eigen::AngleAxisd(0.05, Vec3::UnitZ()));
+  a = image_motion_axis(cam, from, roll, d, 0.5, 3.0);
+  const Vec2 radial = cam.project(d) - Vec2(cam.cx(), cam.cy());
+  CHECK(std::abs(a.dot(radial.normalized())) < 0.05);
+  // An arc about a fixation point 1 m ahead: the point at 1 m stays put (no vote), nearer and farther ones
+  // move in opposite senses along x; the axis is x either way.
+  const Pose l = Pose::look_at(Vec3(-0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0)), r = Pose::look_at(Vec3(0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0));
+  a = image_motion_axis(cam, l, r, Vec3(0, 0, 1), 0.25, 4.0, 3);
+  CHECK(std::abs(a.x()) == doctest::Approx(1.0).epsilon(1e-9));
+  CHECK(std::abs(a.y()) < 1e-9);
+  // No motion, or every depth behind the second camera: no axis.
+  CHECK(image_motion_axis(cam, from, from, d, 0.5, 3.0) == Vec2::Zero());
+  CHECK(image_motion_axis(cam, from, moved(Vec3(0, 0, 10)), d, 0.5, 3.0) == Vec2::Zero());
+  // A motion under min_px pixels at every depth does not count either.
+  CHECK(image_motion_axis(cam, from, moved(Vec3(1e-6, 0, 0)), d, 0.5, 3.0) == Vec2::Zero());
+}
+
 TEST_CASE("poses: OpenGL conversion round-trips and look_at looks along +z") {
   Pose p = Pose::look_at(Vec3(0, 0, -5), Vec3(0, 0, 0), Vec3(0, -1, 0));
   CHECK((p.q * Vec3::UnitZ() - Vec3::UnitZ()).norm() < 1e-12);

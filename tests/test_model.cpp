@@ -306,6 +306,22 @@ TEST_CASE("total-variation neighbours: any draws right or below, vertical and ho
   CHECK(loss::tv_neighbour(3, 0, 10, 1, 0, TvNeighbours::Vertical) == P{3, 0});
   CHECK(loss::tv_neighbour(0, 4, 1, 8, 1, TvNeighbours::Horizontal) == P{0, 4});
   CHECK(std::string(loss::tv_neighbours_name(TvNeighbours::Vertical)) == "vertical");
+  // Across: the pixel axis nearest the perpendicular of the motion axis, whichever its sign.
+  for (double s : {1.0, -1.0}) {
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 1, TvNeighbours::Across, s, 0.0) == P{3, 5});            // along x: below
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, 0.0, s) == P{4, 4});            // along y: right
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, s) == P{2, 5});              // diagonal: below-left
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, -s) == P{4, 5});             // the other: below-right
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s * 0.95, s * 0.31) == P{3, 5});  // 18° from x: below
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s * 0.9, s * 0.44) == P{2, 5});   // 26°: below-left
+  }
+  CHECK(loss::tv_neighbour(0, 4, 10, 8, 0, TvNeighbours::Across, 1.0, 1.0) == P{1, 3});   // the first column turns back
+  CHECK(loss::tv_neighbour(3, 7, 10, 8, 0, TvNeighbours::Across, 1.0, -1.0) == P{2, 6});  // the last row turns back
+  CHECK(loss::tv_neighbour(0, 0, 1, 1, 0, TvNeighbours::Across, 1.0, 1.0) == P{0, 0});    // nowhere to go
+  // No motion: Any's draw.
+  CHECK(loss::tv_neighbour(3, 4, 10, 8, 7, TvNeighbours::Across) == P{4, 4});
+  CHECK(loss::tv_neighbour(3, 4, 10, 8, 6, TvNeighbours::Across) == P{3, 5});
+  CHECK(std::string(loss::tv_neighbours_name(TvNeighbours::Across)) == "across");
 }
 
 TEST_CASE("total-variation neighbours: any is the default's step; vertical changes the term alone, whatever the tiling") {
@@ -331,6 +347,30 @@ TEST_CASE("total-variation neighbours: any is the default's step; vertical chang
   for (std::size_t i = 0; i < gv.size(); ++i)
     worst = std::max(worst, std::abs(b.params().grads[i] - gv[i]) / std::max(1e-12, std::abs(gv[i])));
   CHECK(worst < 1e-9);
+}
+
+TEST_CASE("total-variation neighbours: across is vertical's step on a slider along x, horizontal's along y") {
+  TvModels t;
+  const evtest::Fixture& f = t.f;
+  auto &a = t.a, &b = t.b;
+  a.set_tv_neighbours(loss::TvNeighbours::Vertical);
+  b.set_tv_neighbours(loss::TvNeighbours::Across);
+  const auto sa = a.gradients(f.td, 16, 3, 4);
+  const auto sb = b.gradients(f.td, 16, 3, 4);
+  CHECK(sb.tv_loss == sa.tv_loss);
+  CHECK(b.params().grads == a.params().grads);
+  // The same scene's slider turned to run along y (every pose's x and y swapped, so the camera moves along
+  // its own y axis): across now picks the pixel to the right, Horizontal's.
+  TrainingData ty = f.td;
+  for (auto& p : ty.boundary_poses) std::swap(p.t.x(), p.t.y());
+  a.set_tv_neighbours(loss::TvNeighbours::Horizontal);
+  const auto sh = a.gradients(ty, 16, 3, 4);
+  const std::vector<double> gh = a.params().grads;
+  const auto sy = b.gradients(ty, 16, 3, 4);
+  CHECK(sy.tv_loss == sh.tv_loss);
+  CHECK(b.params().grads == gh);
+  a.set_tv_neighbours(loss::TvNeighbours::Vertical);
+  CHECK(a.gradients(ty, 16, 3, 4).tv_loss != sh.tv_loss);  // the choice matters on this data
 }
 
 TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; its draw ignores tiling and threads") {

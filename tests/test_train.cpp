@@ -1089,6 +1089,7 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   CHECK(train::settings_json(two)["tv_share"] == 0.25);
   CHECK(train::parse_tv_neighbours("horizontal", "who") == loss::TvNeighbours::Horizontal);
   CHECK(train::parse_tv_neighbours("any", "who") == loss::TvNeighbours::Any);
+  CHECK(train::parse_tv_neighbours("across", "who") == loss::TvNeighbours::Across);
   CHECK_THROWS_WITH_AS(train::parse_tv_neighbours("diagonal", "train --tv-neighbours"),
                        doctest::Contains("train --tv-neighbours: unknown total-variation neighbours 'diagonal'"), Error);
 }

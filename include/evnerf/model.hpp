@@ -724,7 +724,10 @@ class EvNerf {
         const int r = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
         w.tv_pixels.push_back(i);
         const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));
-        const auto [nx, ny] = loss::tv_neighbour(x, y, width, height, h, tv_neighbours_);
+        Vec2 axis = Vec2::Zero();
+        if (tv_neighbours_ == loss::TvNeighbours::Across)
+          axis = geometry::image_motion_axis(data.camera, pose0, pose1, data.pixel_dirs[pix[i]].cast<double>(), box().near, box().far);
+        const auto [nx, ny] = loss::tv_neighbour(x, y, width, height, h, tv_neighbours_, axis.x(), axis.y());
         const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
         const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
         w.origin[r] = n.origin;

@@ -80,6 +80,9 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m6.render(P)[0], m3.render(P)[0])
     with pytest.raises(evnerf.Error, match="'vertical' without the term"):
         evnerf.train(d, iterations=2, threads=1, tv_neighbours="vertical")
+    # Across the image motion: planes' slider moves along x, so it is vertical's model to the bit.
+    m8 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="across")
+    assert np.array_equal(m8.render(P)[0], m6.render(P)[0])
     with pytest.raises(evnerf.Error, match="unknown total-variation neighbours 'diagonal'"):
         evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_neighbours="diagonal")
     # And its share of the pixels: half of them give another model; without a weight, or out of (0, 1], refused.

@@ -308,7 +308,9 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--tv-neighbours", tv_neighbours,
                      "which neighbour the total-variation term compares a pixel with: right or below, drawn per pixel (any), "
                      "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
-                     "brightness against the next) or to the right (horizontal); with --tv")
+                     "brightness against the next) or to the right (horizontal), or across the image motion the window's poses "
+                     "imply at each pixel (across: vertical's neighbour for a motion along x, horizontal's along y, a "
+                     "diagonal between); with --tv")
       ->capture_default_str();
   trainc->add_option("--tv-share", cfg.tv_share,
                      "share of the step's pixels, drawn at random, that get the total-variation term's neighbour ray; the "

@@ -1,6 +1,7 @@
 // geometry/camera.hpp — pinhole camera with radial-tangential (OpenCV "plumb bob") distortion; rays in
 // world space. Depends on core/ and geometry/pose.hpp only.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -87,5 +88,34 @@ class Camera {
   double fx_ = 1, fy_ = 1, cx_ = 0, cy_ = 0;
   std::array<double, 5> k_{};
 };
+
+/// The axis along which a scene point on the ray of camera-frame direction `dir` (unit z, as
+/// render::pixel_directions gives) moves in the image from pose `from` to pose `to`, over the depths the
+/// scene may hold: the major eigenvector of Σ_k f̂_k f̂_kᵀ, f̂_k the unit image displacement of the point at
+/// depth z_k, `depths` depths spaced evenly in log between `near` and `far`. An axis, not a direction (a
+/// point before the fixation distance and one behind it move in opposite senses along the same line), so
+/// the unit vector's sign carries no meaning. Displacements under `min_px` pixels, and points behind or in
+/// the plane of the second camera, do not vote; zero when none does (no motion).
+inline Vec2 image_motion_axis(const Camera& cam, const Pose& from, const Pose& to, const Vec3& dir, double near, double far,
+                              int depths = 4, double min_px = 1e-2) {
+  near = std::max(near, 1e-6);
+  far = std::max(far, near);
+  double a = 0, b = 0, c = 0;
+  for (int k = 0; k < depths; ++k) {
+    const double z = depths > 1 ? near * std::pow(far / near, double(k) / (depths - 1)) : std::sqrt(near * far);
+    const Vec3 p0 = dir * z;
+    const Vec3 p1 = to.q.conjugate() * (from.q * p0 + from.t - to.t);
+    if (!(p1.z() > 1e-9 * z)) continue;
+    const Vec2 f = cam.project(p1) - cam.project(p0);
+    const double n = f.norm();
+    if (!(n >= min_px)) continue;
+    a += f.x() * f.x() / (n * n);
+    b += f.x() * f.y() / (n * n);
+    c += f.y() * f.y() / (n * n);
+  }
+  if (a + c == 0) return Vec2::Zero();
+  const double theta = 0.5 * std::atan2(2 * b, a - c);
+  return {std::cos(theta), std::sin(theta)};
+}
 
 }  // namespace evnerf::geometry

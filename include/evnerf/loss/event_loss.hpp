@@ -127,26 +127,50 @@ struct LogTv {
 /// moves along its x axis (a slider, an orbit about the vertical) never shows the events how bright one image
 /// row is against the next: the events fix each row up to a constant. Vertical neighbours tie the rows
 /// together where nothing else does, and leave the detail along the rows, which the events do see, to the
-/// events; Horizontal does the same for a motion along y.
-enum class TvNeighbours { Any, Vertical, Horizontal };
+/// events; Horizontal does the same for a motion along y. `Across` generalises both to any motion: the
+/// neighbour across the axis along which the pixel's scene point moves between the window's two poses
+/// (geometry::image_motion_axis), the nearest of the four pixel axes (right, below-right, below,
+/// below-left) to its perpendicular; Vertical's neighbour under a motion along x, Horizontal's along y, and
+/// Any's draw where the poses show no motion.
+enum class TvNeighbours { Any, Vertical, Horizontal, Across };
 inline const char* tv_neighbours_name(TvNeighbours n) {
   switch (n) {
     case TvNeighbours::Vertical: return "vertical";
     case TvNeighbours::Horizontal: return "horizontal";
+    case TvNeighbours::Across: return "across";
     case TvNeighbours::Any: break;
   }
   return "any";
 }
+/// Pixel (x, y)'s neighbour one step (dx, dy) away on a width × height sensor, or one step back where that
+/// leaves the sensor; the pixel itself where both do (no neighbour, no cost).
+inline std::pair<int, int> tv_step(int x, int y, int width, int height, int dx, int dy) {
+  const auto inside = [&](int u, int v) { return u >= 0 && v >= 0 && u < width && v < height; };
+  if (inside(x + dx, y + dy)) return {x + dx, y + dy};
+  if (inside(x - dx, y - dy)) return {x - dx, y - dy};
+  return {x, y};
+}
+/// Across's step for the image-motion axis (ax, ay) (either sign): of right (1, 0), below-right (1, 1),
+/// below (0, 1) and below-left (−1, 1), the one nearest in angle to the axis's perpendicular; right or below
+/// by the draw's lowest bit (as Any) for the zero axis.
+inline std::pair<int, int> across_step(double ax, double ay, std::uint64_t draw) {
+  if (ax == 0 && ay == 0) return (draw & 1) ? std::pair{1, 0} : std::pair{0, 1};
+  constexpr double pi = 3.14159265358979323846;
+  const long k = std::lround((std::atan2(ay, ax) + pi / 2) / (pi / 4));
+  static constexpr std::pair<int, int> steps[4] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1}};
+  return steps[((k % 4) + 4) % 4];
+}
 /// The neighbour of pixel (x, y) that the term compares it with, on a width × height sensor; `draw` is the
-/// step's random bits for this pixel (its lowest bit picks right or below under Any). The pixel itself on a
-/// sensor one pixel wide (or high) in the neighbour's direction: no neighbour, no cost.
-inline std::pair<int, int> tv_neighbour(int x, int y, int width, int height, std::uint64_t draw, TvNeighbours n) {
+/// step's random bits for this pixel (its lowest bit picks right or below under Any, and under Across
+/// without motion), (ax, ay) the pixel's image-motion axis (read under Across only).
+inline std::pair<int, int> tv_neighbour(int x, int y, int width, int height, std::uint64_t draw, TvNeighbours n, double ax = 0,
+                                        double ay = 0) {
+  if (n == TvNeighbours::Across) {
+    const auto [dx, dy] = across_step(ax, ay, draw);
+    return tv_step(x, y, width, height, dx, dy);
+  }
   const bool right = n == TvNeighbours::Horizontal || (n == TvNeighbours::Any && (draw & 1));
-  int nx = x, ny = y;
-  if (right) nx = x + 1 < width ? x + 1 : x - 1;
-  else ny = y + 1 < height ? y + 1 : y - 1;
-  if (nx < 0 || ny < 0) nx = x, ny = y;
-  return {nx, ny};
+  return right ? tv_step(x, y, width, height, 1, 0) : tv_step(x, y, width, height, 0, 1);
 }
 
 /// Per-slice thresholds B_i^± learned jointly with the field, with the floor loss at weight λ = 1000.

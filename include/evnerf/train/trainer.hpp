@@ -89,12 +89,12 @@ struct Config {
 
 /// A scene-box fit's name as the command line, the Python module and settings.json spell it.
 inline const char* box_name(Config::BoxFit b) { return b == Config::BoxFit::Frusta ? "frusta" : "cameras"; }
-/// The total-variation neighbours `name` spells (any, vertical, horizontal, as loss::tv_neighbours_name); an
+/// The total-variation neighbours `name` spells (any, vertical, horizontal, across, as loss::tv_neighbours_name); an
 /// Error naming `who` and the known names when it spells none.
 inline loss::TvNeighbours parse_tv_neighbours(std::string_view name, const std::string& who) {
-  for (auto n : {loss::TvNeighbours::Any, loss::TvNeighbours::Vertical, loss::TvNeighbours::Horizontal})
+  for (auto n : {loss::TvNeighbours::Any, loss::TvNeighbours::Vertical, loss::TvNeighbours::Horizontal, loss::TvNeighbours::Across})
     if (name == loss::tv_neighbours_name(n)) return n;
-  throw Error(who + ": unknown total-variation neighbours '" + std::string(name) + "' (expected any, vertical or horizontal)");
+  throw Error(who + ": unknown total-variation neighbours '" + std::string(name) + "' (expected any, vertical, horizontal or across)");
 }
 /// The fit `name` spells; an Error naming `who` and the known names when it spells none.
 inline Config::BoxFit parse_box(std::string_view name, const std::string& who) {
