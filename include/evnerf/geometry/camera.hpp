@@ -100,11 +100,12 @@ inline Vec2 image_motion_axis(const Camera& cam, const Pose& from, const Pose& t
                               int depths = 4, double min_px = 1e-2) {
   near = std::max(near, 1e-6);
   far = std::max(far, near);
+  const Pose rel = to.inverse() * from;  // camera `from` → camera `to`
   double a = 0, b = 0, c = 0;
   for (int k = 0; k < depths; ++k) {
     const double z = depths > 1 ? near * std::pow(far / near, double(k) / (depths - 1)) : std::sqrt(near * far);
     const Vec3 p0 = dir * z;
-    const Vec3 p1 = to.q.conjugate() * (from.q * p0 + from.t - to.t);
+    const Vec3 p1 = rel.apply(p0);
     if (!(p1.z() > 1e-9 * z)) continue;
     const Vec2 f = cam.project(p1) - cam.project(p0);
     const double n = f.norm();
