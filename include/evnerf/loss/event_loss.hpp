@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <utility>
 
 #include "../ad/expr.hpp"
@@ -155,8 +156,7 @@ inline std::pair<int, int> tv_step(int x, int y, int width, int height, int dx, 
 /// by the draw's lowest bit (as Any) for the zero axis.
 inline std::pair<int, int> across_step(double ax, double ay, std::uint64_t draw) {
   if (ax == 0 && ay == 0) return (draw & 1) ? std::pair{1, 0} : std::pair{0, 1};
-  constexpr double pi = 3.14159265358979323846;
-  const long k = std::lround((std::atan2(ay, ax) + pi / 2) / (pi / 4));
+  const long k = std::lround((std::atan2(ay, ax) + std::numbers::pi / 2) / (std::numbers::pi / 4));
   static constexpr std::pair<int, int> steps[4] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1}};
   return steps[((k % 4) + 4) % 4];
 }
