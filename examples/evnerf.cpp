@@ -22,6 +22,6 @@ int main(int argc, char** argv) {
                            Variant<FastColourDenseGrid, "colour-dense-grid">, Variant<FastSigmoid, "fast-sigmoid">,
                            Variant<FastColourSigmoid, "colour-sigmoid">, Variant<Paper, "paper">, Variant<PaperBf16, "paper-bf16">,
                            Variant<PaperNoJointThresholds, "paper-no-joint">, Variant<PaperNoNoiseInjection, "paper-no-noise">,
-                           Variant<FastRatio, "fast-ratio">, Variant<FastPrune, "fast-prune">, Variant<FastTv, "fast-tv">, Variant<FastDiffuse, "fast-diffuse">, Variant<FastLog, "fast-log">, Variant<FastLogOffset, "fast-log-offset">, Variant<FastThreePoses, "fast-3poses">, Variant<FastWindow<8>, "fast-w8">, Variant<FastWindow<48>, "fast-w48">,
+                           Variant<FastRatio, "fast-ratio">, Variant<FastPrune, "fast-prune">, Variant<FastTv, "fast-tv">, Variant<FastNoTv, "fast-no-tv">, Variant<FastDiffuse, "fast-diffuse">, Variant<FastLog, "fast-log">, Variant<FastLogOffset, "fast-log-offset">, Variant<FastThreePoses, "fast-3poses">, Variant<FastWindow<8>, "fast-w8">, Variant<FastWindow<48>, "fast-w48">,
                            Variant<FastWindow<24, evnerf::events::EventPixels<100>>, "fast-events">>(argc, argv, "evnerf: neural radiance fields from event cameras", group);
 }

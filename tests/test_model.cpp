@@ -410,6 +410,35 @@ TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; 
   CHECK(st.rays == 48u);
   t.set_tv(0);
   CHECK(t.gradients(f.td, 16, 3, 4).tv_loss == 0);
+  CHECK(T::default_tv_neighbours == loss::TvNeighbours::Any);
+  CHECK(T::default_tv_share == 1.0);
+  CHECK(M::default_tv_neighbours == loss::TvNeighbours::Any);
+  CHECK(M::default_tv_share == 1.0);
+  // Neighbours and a share named by the objective: a new model starts at them, and its steps are those of
+  // a model given the same settings by hand.
+  using U = EvNerf<HashTiny<1>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise,
+                   loss::WithTv<Window, 250, loss::TvNeighbours::Vertical, 500>, double>;
+  static_assert(U::default_tv == 0.25 && U::default_tv_share == 0.5 && U::default_tv_neighbours == loss::TvNeighbours::Vertical);
+  U u(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  CHECK(u.tv() == 0.25);
+  CHECK(u.tv_share() == 0.5);
+  CHECK(u.tv_neighbours() == loss::TvNeighbours::Vertical);
+  T byhand(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  byhand.set_tv_neighbours(loss::TvNeighbours::Vertical);
+  byhand.set_tv_share(0.5);
+  const auto su = u.gradients(f.td, 16, 3, 4);
+  const auto sh = byhand.gradients(f.td, 16, 3, 4);
+  CHECK(su.tv_loss > 0);
+  CHECK(su.tv_loss == sh.tv_loss);
+  CHECK(su.rays < 48u);  // half the pixels get the neighbour ray
+  CHECK(su.rays == sh.rays);
+  CHECK(u.params().grads == byhand.params().grads);
+  // Fast's: the term at 0.1, across the motion, half the pixels; FastNoTv is the event objective alone.
+  static_assert(presets::Fast::default_tv == 0.1 && presets::Fast::default_tv_share == 0.5 &&
+                presets::Fast::default_tv_neighbours == loss::TvNeighbours::Across);
+  static_assert(presets::FastNoTv::default_tv == 0.0 && presets::FastNoTv::default_tv_share == 1.0 &&
+                presets::FastNoTv::default_tv_neighbours == loss::TvNeighbours::Any);
+  CHECK(presets::Fast::loss_description() == presets::FastNoTv::loss_description());
 }
 
 TEST_CASE("view-dependence decay: 0 leaves the step bit-identical; otherwise the view weights alone shrink by 1 - lr * decay") {

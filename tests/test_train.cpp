@@ -956,7 +956,10 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(first["runs"][0]["pixels_per_step"] == 64);
   CHECK(first["runs"][0]["terminate_rays"] == cfg.terminate_rays);
   CHECK(first["runs"][0]["seed"] == cfg.seed);
-  CHECK(first["runs"][0]["tv"].is_null());
+  CHECK(first["runs"][0]["tv"] == 0.0);  // the term's settings as the model has them (cfg leaves them unset)
+  CHECK(train::settings_json(cfg)["tv"].is_null());
+  CHECK(train::settings_json(cfg)["tv_neighbours"].is_null());
+  CHECK(train::settings_json(cfg)["tv_share"].is_null());
   CHECK(first["runs"][0]["view_decay"] == 0.0);
   CHECK(first["runs"][0]["tv_neighbours"] == "any");
   CHECK(first["runs"][0]["tv_share"] == 1.0);
@@ -1087,6 +1090,14 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   train::run(m, f.td, two, fs::path(), "tiny", "meta");
   CHECK(m.tv_share() == 0.25);
   CHECK(train::settings_json(two)["tv_share"] == 0.25);
+  // Unset, the neighbours and the share stay the model's own (its variant's, or what a setter gave it).
+  train::Config three = cfg;
+  three.iterations = m.step() + 1;
+  m.set_tv_neighbours(loss::TvNeighbours::Across);
+  m.set_tv_share(0.5);
+  train::run(m, f.td, three, fs::path(), "tiny", "meta");
+  CHECK(m.tv_neighbours() == loss::TvNeighbours::Across);
+  CHECK(m.tv_share() == 0.5);
   CHECK(train::parse_tv_neighbours("horizontal", "who") == loss::TvNeighbours::Horizontal);
   CHECK(train::parse_tv_neighbours("any", "who") == loss::TvNeighbours::Any);
   CHECK(train::parse_tv_neighbours("across", "who") == loss::TvNeighbours::Across);

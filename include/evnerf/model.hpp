@@ -104,6 +104,16 @@ class EvNerf {
     if constexpr (requires { objective::tv_weight; }) return static_cast<double>(objective::tv_weight);
     else return 0.0;
   }();
+  /// The total-variation term's neighbours and share a new model starts with: its objective's (loss::WithTv),
+  /// else Any and every pixel.
+  static constexpr loss::TvNeighbours default_tv_neighbours = [] {
+    if constexpr (requires { objective::tv_neighbours; }) return objective::tv_neighbours;
+    else return loss::TvNeighbours::Any;
+  }();
+  static constexpr double default_tv_share = [] {
+    if constexpr (requires { objective::tv_share; }) return static_cast<double>(objective::tv_share);
+    else return 1.0;
+  }();
   static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
   static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "EvNerf: Scalar must be float or double.");
 
@@ -528,15 +538,16 @@ class EvNerf {
   }
   double tv() const { return tv_; }
   /// Which neighbour the total-variation term compares each pixel with (loss::TvNeighbours): right or below
-  /// (Any, a new model's), or always the one below (Vertical) or to the right (Horizontal). Any leaves the
-  /// step bit-identical. A training setting like the weight: not checkpointed.
+  /// (Any), or always the one below (Vertical) or to the right (Horizontal), or across the image motion
+  /// (Across). A new model starts at default_tv_neighbours (its objective's; Any where it names none). A
+  /// training setting like the weight: not checkpointed.
   void set_tv_neighbours(loss::TvNeighbours n) { tv_neighbours_ = n; }
   loss::TvNeighbours tv_neighbours() const { return tv_neighbours_; }
   /// The share of a step's pixels that get the total-variation term's neighbour ray, in (0, 1]: each pixel
   /// is drawn in with this probability (keyed by step and pixel, so neither the tiling nor the thread count
   /// changes the draw), and the term's weight is divided by it, so its expected value and gradient stay
-  /// those of the whole term at a fraction of its rays. 1 (a new model's) leaves the step bit-identical. A
-  /// training setting like the weight: not checkpointed.
+  /// those of the whole term at a fraction of its rays. A new model starts at default_tv_share (its
+  /// objective's; 1, every pixel, where it names none). A training setting like the weight: not checkpointed.
   void set_tv_share(double share) {
     require(std::isfinite(share) && share > 0 && share <= 1,
             "the total-variation share must lie in (0, 1], not " + std::to_string(share));
@@ -769,8 +780,8 @@ class EvNerf {
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
-  loss::TvNeighbours tv_neighbours_ = loss::TvNeighbours::Any;  ///< its neighbours (set_tv_neighbours)
-  double tv_share_ = 1;         ///< the share of pixels with a neighbour ray (set_tv_share)
+  loss::TvNeighbours tv_neighbours_ = default_tv_neighbours;  ///< its neighbours (set_tv_neighbours)
+  double tv_share_ = default_tv_share;  ///< the share of pixels with a neighbour ray (set_tv_share)
 };
 
 }  // namespace evnerf

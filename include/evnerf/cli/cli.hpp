@@ -301,21 +301,20 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.999999));
   trainc->add_option("--tv", cfg.tv,
-                     "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (a third ray "
-                     "per pixel; 0 = off; default: the preset's)")
+                     "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (one more ray "
+                     "per pixel it compares; 0 = off; default: the preset's, fast: 0.1)")
       ->check(CLI::NonNegativeNumber);
-  std::string tv_neighbours = loss::tv_neighbours_name(cfg.tv_neighbours);
+  std::string tv_neighbours;  // empty: the preset's
   trainc->add_option("--tv-neighbours", tv_neighbours,
                      "which neighbour the total-variation term compares a pixel with: right or below, drawn per pixel (any), "
                      "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
                      "brightness against the next) or to the right (horizontal), or across the image motion the window's poses "
                      "imply at each pixel (across: vertical's neighbour for a motion along x, horizontal's along y, a "
-                     "diagonal between); with --tv")
-      ->capture_default_str();
+                     "diagonal between); default: the preset's (fast: across)");
   trainc->add_option("--tv-share", cfg.tv_share,
                      "share of the step's pixels, drawn at random, that get the total-variation term's neighbour ray; the "
-                     "weight is divided by it, so the term keeps its expected value at fewer rays (with --tv)")
-      ->capture_default_str()
+                     "weight is divided by it, so the term keeps its expected value at fewer rays; default: the preset's "
+                     "(fast: 0.5)")
       ->check(CLI::Range(0.0, 1.0));
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
@@ -483,7 +482,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
       }
       cfg.box = train::parse_box(box_fit, "train --box");
-      cfg.tv_neighbours = train::parse_tv_neighbours(tv_neighbours, "train --tv-neighbours");
+      if (!tv_neighbours.empty()) cfg.tv_neighbours = train::parse_tv_neighbours(tv_neighbours, "train --tv-neighbours");
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
       // One run: a model trained on `td` into `dir`; returns the exit code.

@@ -149,12 +149,17 @@ concept Objective = requires {
 } && BoundPolicy<typename O::bound>;
 
 /// Objective O with the total-variation regulariser (loss::LogTv, EvNerf::set_tv) on by default at weight
-/// PerMille/1000. A training setting like the learning rate: the checkpoints' loss text is O's, and
-/// EvNerf::set_tv (train --tv) overrides the weight.
-template <Objective O, int PerMille>
+/// PerMille/1000, comparing each pixel with the neighbour `Neighbours` picks (EvNerf::set_tv_neighbours),
+/// for a share SharePerMille/1000 of the step's pixels (EvNerf::set_tv_share). Training settings like the
+/// learning rate: the checkpoints' loss text is O's, and EvNerf's setters (train --tv, --tv-neighbours,
+/// --tv-share) override them.
+template <Objective O, int PerMille, TvNeighbours Neighbours = TvNeighbours::Any, int SharePerMille = 1000>
 struct WithTv : O {
   static_assert(PerMille >= 0, "WithTv: the weight must not be negative.");
+  static_assert(SharePerMille > 0 && SharePerMille <= 1000, "WithTv: the share must lie in (0, 1000] per mille.");
   static constexpr double tv_weight = PerMille / 1000.0;
+  static constexpr TvNeighbours tv_neighbours = Neighbours;
+  static constexpr double tv_share = SharePerMille / 1000.0;
 };
 
 template <class P>

@@ -37,10 +37,12 @@ struct Config {
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
   std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
                                ///< model's own, its variant's default_tv unless set_tv changed it)
-  loss::TvNeighbours tv_neighbours = loss::TvNeighbours::Any;  ///< the term's neighbours (EvNerf::set_tv_neighbours):
-                               ///< right or below (Any), or only below (Vertical) or right (Horizontal)
-  double tv_share = 1;         ///< the share of step pixels that get the term's neighbour ray, in (0, 1]
-                               ///< (EvNerf::set_tv_share: the weight is divided by it; 1 = every pixel)
+  std::optional<loss::TvNeighbours> tv_neighbours;  ///< the term's neighbours (EvNerf::set_tv_neighbours): right or
+                               ///< below (Any), only below (Vertical) or right (Horizontal), or across the image
+                               ///< motion (Across); unset: the model's own, its variant's default_tv_neighbours
+  std::optional<double> tv_share;  ///< the share of step pixels that get the term's neighbour ray, in (0, 1]
+                               ///< (EvNerf::set_tv_share: the weight is divided by it; 1 = every pixel); unset:
+                               ///< the model's own, its variant's default_tv_share
   double view_decay = 0;       ///< decoupled decay of the view-dependence weights (EvNerf::set_view_decay; 0 = off;
                                ///< measured in bench/README.md, session 46, and not a default)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
@@ -117,7 +119,8 @@ inline void check(const Config& c) {
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
   need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
   need(c.ray_cut > 0 && c.ray_cut < 1, "the ray-termination transmittance must lie in (0, 1), got " + short_number(c.ray_cut));
-  need(c.tv_share > 0 && c.tv_share <= 1, "the total-variation share must lie in (0, 1], got " + short_number(c.tv_share));
+  need(!c.tv_share || (*c.tv_share > 0 && *c.tv_share <= 1),
+       "the total-variation share must lie in (0, 1], got " + short_number(c.tv_share.value_or(1)));
   need(c.view_decay >= 0 && std::isfinite(c.view_decay), "the view-dependence decay must be finite and non-negative, got " + short_number(c.view_decay));
   need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
@@ -338,7 +341,8 @@ struct StepReport {
   double seconds = 0;
 };
 
-/// Every setting of `c` as JSON, as `out/settings.json` records it (the process group as its size).
+/// Every setting of `c` as JSON, as `out/settings.json` records it (the process group as its size; null for
+/// the total-variation settings `c` leaves to the model, which train::run records as the model has them).
 inline nlohmann::json settings_json(const Config& c) {
   nlohmann::json j;
   j["iterations"] = c.iterations;
@@ -348,8 +352,8 @@ inline nlohmann::json settings_json(const Config& c) {
   j["lr_decay_steps"] = c.lr_decay_steps;
   j["distortion"] = c.distortion;
   j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
-  j["tv_neighbours"] = loss::tv_neighbours_name(c.tv_neighbours);
-  j["tv_share"] = c.tv_share;
+  j["tv_neighbours"] = c.tv_neighbours ? nlohmann::json(loss::tv_neighbours_name(*c.tv_neighbours)) : nlohmann::json(nullptr);
+  j["tv_share"] = c.tv_share ? nlohmann::json(*c.tv_share) : nlohmann::json(nullptr);
   j["view_decay"] = c.view_decay;
   j["average"] = c.average;
   j["terminate_rays"] = c.terminate_rays;
@@ -411,11 +415,12 @@ template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
   check(cfg);
-  require(cfg.tv_neighbours == loss::TvNeighbours::Any || cfg.tv.value_or(model.tv()) > 0,
-          std::string("train: total-variation neighbours '") + loss::tv_neighbours_name(cfg.tv_neighbours) +
+  // Neighbours or a share given for a term that is off would be silently ignored: refuse them.
+  require(!cfg.tv_neighbours || *cfg.tv_neighbours == loss::TvNeighbours::Any || cfg.tv.value_or(model.tv()) > 0,
+          std::string("train: total-variation neighbours '") + loss::tv_neighbours_name(cfg.tv_neighbours.value_or(loss::TvNeighbours::Any)) +
               "' without the term: give it a weight (--tv)");
-  require(cfg.tv_share == 1 || cfg.tv.value_or(model.tv()) > 0,
-          "train: a total-variation share of " + short_number(cfg.tv_share) + " without the term: give it a weight (--tv)");
+  require(!cfg.tv_share || *cfg.tv_share == 1 || cfg.tv.value_or(model.tv()) > 0,
+          "train: a total-variation share of " + short_number(cfg.tv_share.value_or(1)) + " without the term: give it a weight (--tv)");
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
   Group* group = cfg.processes();
@@ -434,12 +439,19 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   model.set_distortion(cfg.distortion);
   model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
   if (cfg.tv) model.set_tv(*cfg.tv);
-  model.set_tv_neighbours(cfg.tv_neighbours);
-  model.set_tv_share(cfg.tv_share);
+  if (cfg.tv_neighbours) model.set_tv_neighbours(*cfg.tv_neighbours);
+  if (cfg.tv_share) model.set_tv_share(*cfg.tv_share);
   model.set_view_decay(cfg.view_decay);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
-  // The settings first: a record it cannot read refuses the call before the log is touched.
-  if (files) record_settings(out, cfg, name, model.step());
+  // The settings first: a record it cannot read refuses the call before the log is touched. The term's
+  // settings as the model now has them, its variant's where cfg leaves them unset: what trains the run.
+  if (files) {
+    Config used = cfg;
+    used.tv = model.tv();
+    used.tv_neighbours = model.tv_neighbours();
+    used.tv_share = model.tv_share();
+    record_settings(out, used, name, model.step());
+  }
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
     std::string kept, line;
     std::istringstream in(read_file(out / "log.jsonl"));
