@@ -1,5 +1,6 @@
-// The paper's ablation as compile-time variants: full model vs no joint thresholds vs no noise injection,
-// trained on the same recording with the same seed, scored against its frames (MSE / SSIM / PSNR).
+// The paper's ablation as compile-time variants: full model vs no joint thresholds vs no noise injection
+// (and, for Fast, vs no total-variation term), trained on the same recording with the same seed, scored
+// against its frames (MSE / SSIM / PSNR).
 // Usage: ablation <recording folder> [iterations] [--paper]
 #include <evnerf/evnerf.hpp>
 
@@ -52,6 +53,7 @@ int main(int argc, char** argv) {
       rows.push_back({"full", train_and_score<presets::Fast>(d, cfg, "full")});
       rows.push_back({"without joint training", train_and_score<presets::FastNoJointThresholds>(d, cfg, "no-joint")});
       rows.push_back({"without noise injection", train_and_score<presets::FastNoNoiseInjection>(d, cfg, "no-noise")});
+      rows.push_back({"without total variation", train_and_score<presets::FastNoTv>(d, cfg, "no-tv")});
     }
     std::printf("%-26s %8s %8s %8s | %8s %8s %8s   (%s preset, %ld iterations)\n", "variant", "MSE", "SSIM", "PSNR", "MSE",
                 "SSIM", "PSNR", paper ? "Paper" : "Fast", cfg.iterations);
