@@ -43,8 +43,9 @@ using FastEventObjective = loss::WindowInterval<24, loss::HalfSlackCounts>;
 /// 2; the weight divided by the share). Over sessions 47–50 against the event objective alone: `planes`
 /// +0.51 dB over three seeds, the real slider chunk +0.37 (every seed), random scenes 1–10 pass 9 of 10
 /// (8), the unseen 11–16 +0.24 dB; `object`, `room`, the noisy and HDR scenes within their seed spread;
-/// 1.3 times the training time (bench/README.md, sessions 47–50). Its checkpoints record
-/// FastEventObjective's loss text (the term is a training setting).
+/// 1.14 times the time of a whole 6000-step run (1.30 over the first 1000 steps; bench/README.md, sessions
+/// 47–50). Its checkpoints record FastEventObjective's loss text (the term is a training setting), so a run
+/// from before session 50, resumed as `fast`, goes on with the term unless given --tv 0.
 using FastObjective = loss::WithTv<FastEventObjective, 100, loss::TvNeighbours::Across, 500>;
 static_assert(FastObjective::tv_weight == 0.1 && FastObjective::tv_share == 0.5 &&
                   FastObjective::tv_neighbours == loss::TvNeighbours::Across && std::is_base_of_v<FastEventObjective, FastObjective>,
