@@ -18,6 +18,9 @@ ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" train "$work/rec" --out "$work/grey" --preset fast "${ARGS[@]}" > /dev/null 2>&1
 "$EV" eval "$work/colour/model.ckpt" "$work/rec" --out "$work/eval_colour" > /dev/null 2>&1
 "$EV" eval "$work/grey/model.ckpt" "$work/rec" --out "$work/eval_grey" > /dev/null 2>&1
+# A sigmoid radiance renders within [0, 1]: its views get the float .npy all the same (checked below).
+"$EV" train "$work/rec" --out "$work/sigmoid" --preset fast-sigmoid "${ARGS[@]}" > /dev/null 2>&1
+"$EV" eval "$work/sigmoid/model.ckpt" "$work/rec" --out "$work/eval_sigmoid" > /dev/null 2>&1
 "$EV" baselines "$work/rec" --out "$work/base" > /dev/null 2>&1
 "$EV" train "$work/rec" --out "$work/pc" --per-channel "${ARGS[@]}" > /dev/null 2>&1
 "$EV" eval "$work/pc/channels.json" "$work/rec" --out "$work/eval_pc" > /dev/null 2>&1
@@ -35,6 +38,15 @@ if "$EV" eval "$work/pc2/wrong.json" "$work/rec" --out "$work/eval_wrong" > "$wo
 grep -q "its camera is not the G sites of the sensor" "$work/err" || fail "wrong green_sites: $(cat "$work/err")"
 if "$EV" render "$work/pc/channels.json" --out "$work/render_bad" --channel-upsampling nearest > "$work/err" 2>&1; then fail "--channel-upsampling nearest was taken"; fi
 [ -f "$work/render_pc/novel_0000.png" ] && [ -f "$work/render_pc/boundary_0001_depth.npy" ] || fail "render of channels.json"
+# Every view's intensity is also written as float32 .npy, whatever its range (before session 52 only where
+# the luminance passed 1, so never for a sigmoid radiance): one beside each intensity PNG of eval's renders
+# and of render's views.
+for d in "$work/eval_colour/renders" "$work/eval_grey/renders" "$work/eval_sigmoid/renders" "$work/render_pc"; do
+  for png in "$d"/*.png; do
+    case "$png" in *_depth.png) continue ;; esac
+    [ -f "${png%.png}.npy" ] || fail "no ${png%.png}.npy beside $png"
+  done
+done
 for c in r g b; do [ -f "$work/pc/$c/model.ckpt" ] || fail "per-channel: no $c/model.ckpt"; done
 if "$EV" train "$work/rec" --out "$work/pc_colour" --per-channel --preset colour "${ARGS[@]}" > "$work/err" 2>&1; then fail "--per-channel took a colour variant"; fi
 grep -q "renders colour; name a grey one" "$work/err" || fail "--per-channel with a colour variant: $(cat "$work/err")"
@@ -87,6 +99,19 @@ def npy_f32(path):  # a little-endian float32 .npy of shape (24, 32), without nu
     head = b[10:10 + n].decode()
     assert "'<f4'" in head and "(24, 32)" in head, head
     return struct.unpack(f"<{24 * 32}f", b[10 + n:])
+def npy_head(path):
+    b = open(path, "rb").read()
+    n = struct.unpack("<H", b[8:10])[0]
+    return b[10:10 + n].decode()
+assert "'<f4'" in npy_head(f"{w}/render_pc/novel_0000.npy") and "(24, 32, 3)" in npy_head(f"{w}/render_pc/novel_0000.npy"), "colour views: H x W x 3"
+import glob
+sig = glob.glob(f"{w}/eval_sigmoid/renders/frame_*[0-9].npy")
+assert sig, "no intensity .npy among the sigmoid model's renders"
+for f in sig:
+    h = npy_head(f)
+    assert "'<f4'" in h and "(24, 32)" in h, (f, h)
+    v = struct.unpack(f"<{24 * 32}f", open(f, "rb").read()[10 + len(h):])
+    assert 0 <= min(v) and max(v) <= 1, f"{f}: a sigmoid radiance outside [0, 1]"
 for stem in ("boundary_0001", "novel_0000"):
     v = npy_f32(f"{w}/render_pc/{stem}_depth.npy")
     s = npy_f32(f"{w}/render_sites/{stem}_depth.npy")

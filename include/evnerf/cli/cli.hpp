@@ -126,18 +126,19 @@ inline void print_scores(const Scored& s, const Truth& truth) {
   }
 }
 
-/// Intensity and depth of one view. Luminance beyond 1 (a field of unbounded radiance) is written as its log
-/// put on [0, 1] (PNG) and as linear float32 (`<stem>.npy`).
+/// Intensity and depth of one view: the intensity as linear float32 (`<stem>.npy`, H × W or H × W × C) and
+/// as a PNG, on [0, 1] as it is or, where the luminance passes 1 (a field of unbounded radiance), its log put
+/// on [0, 1]; the depth as float32 (`<stem>_depth.npy`) and a colour-mapped PNG. The .npy is written for
+/// every view, so a script reading renders/*.npy finds one beside each PNG.
 inline void write_rendering(const fs::path& out, const std::string& stem, const Rendering& r, float dlo, float dhi) {
   const auto& l = r.luminance;
-  if (!l.data.empty() && *std::max_element(l.data.begin(), l.data.end()) > 1.0f) {
-    std::vector<std::size_t> shape{static_cast<std::size_t>(l.height), static_cast<std::size_t>(l.width)};
-    if (l.channels > 1) shape.push_back(static_cast<std::size_t>(l.channels));
-    io::save_npy(out / (stem + ".npy"), l.data.data(), shape);
+  std::vector<std::size_t> shape{static_cast<std::size_t>(l.height), static_cast<std::size_t>(l.width)};
+  if (l.channels > 1) shape.push_back(static_cast<std::size_t>(l.channels));
+  io::save_npy(out / (stem + ".npy"), l.data.data(), shape);
+  if (!l.data.empty() && *std::max_element(l.data.begin(), l.data.end()) > 1.0f)
     io::write_png(out / (stem + ".png"), eval::HdrTone{eval::kLogEps}.log_min_max(l));
-  } else {
+  else
     io::write_png(out / (stem + ".png"), l);
-  }
   io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
   io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
