@@ -93,24 +93,21 @@ assert png_colour_type(f"{w}/render_pc/novel_0000.png") == 2, "per-channel rende
 # The two ways to the full sensor agree where the green model's sites are (both render the same ray there:
 # the sites' camera is the sensor's at half the focal length) and differ between them. Depth is the green
 # model's; RGGB's first green is at odd x, even y.
-def npy_f32(path):  # a little-endian float32 .npy of shape (24, 32), without numpy
+def npy_read(path):  # a version-1 .npy's header text and payload, without numpy
     b = open(path, "rb").read()
     n = struct.unpack("<H", b[8:10])[0]
-    head = b[10:10 + n].decode()
-    assert "'<f4'" in head and "(24, 32)" in head, head
-    return struct.unpack(f"<{24 * 32}f", b[10 + n:])
-def npy_head(path):
-    b = open(path, "rb").read()
-    n = struct.unpack("<H", b[8:10])[0]
-    return b[10:10 + n].decode()
-assert "'<f4'" in npy_head(f"{w}/render_pc/novel_0000.npy") and "(24, 32, 3)" in npy_head(f"{w}/render_pc/novel_0000.npy"), "colour views: H x W x 3"
+    return b[10:10 + n].decode(), b[10 + n:]
+def npy_f32(path):  # a little-endian float32 .npy of shape (24, 32)
+    head, payload = npy_read(path)
+    assert "'<f4'" in head and "(24, 32)" in head, (path, head)
+    return struct.unpack(f"<{24 * 32}f", payload)
+head, _ = npy_read(f"{w}/render_pc/novel_0000.npy")
+assert "'<f4'" in head and "(24, 32, 3)" in head, ("colour views: H x W x 3", head)
 import glob
 sig = glob.glob(f"{w}/eval_sigmoid/renders/frame_*[0-9].npy")
 assert sig, "no intensity .npy among the sigmoid model's renders"
 for f in sig:
-    h = npy_head(f)
-    assert "'<f4'" in h and "(24, 32)" in h, (f, h)
-    v = struct.unpack(f"<{24 * 32}f", open(f, "rb").read()[10 + len(h):])
+    v = npy_f32(f)
     assert 0 <= min(v) and max(v) <= 1, f"{f}: a sigmoid radiance outside [0, 1]"
 for stem in ("boundary_0001", "novel_0000"):
     v = npy_f32(f"{w}/render_pc/{stem}_depth.npy")
