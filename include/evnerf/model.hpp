@@ -1,9 +1,10 @@
 // model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
 // composition of its parts. The renderer (render/renderer.hpp: rays → samples → field → compositing, and
-// the sampler's state) turns rays into luminance; this class draws a step's window of slices, its pixels
-// and noise, asks the objective (loss/objective.hpp) for the loss and its gradients, runs the renderer's
-// backward per tile of pixels with per-thread gradients reduced in a fixed order, applies Adam, and reads
-// and writes checkpoints (io/checkpoint.hpp). The named variants are in presets.hpp.
+// the sampler's state) turns rays into luminance; the objective (loss/objective.hpp) says which rays a tile
+// renders and scores them. This class draws a step's window of slices, its pixels and noise, renders each
+// tile's rays, hands the values to the objective, runs the renderer's backward per tile of pixels with
+// per-thread gradients reduced in a fixed order, applies Adam, and reads and writes checkpoints
+// (io/checkpoint.hpp). The named variants are in presets.hpp.
 #pragma once
 #include <array>
 #include <string>
@@ -62,7 +63,10 @@ struct StepShards {
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   double distortion_loss = 0;  ///< the distortion regulariser's term (0 unless set_distortion() was given a weight)
-  double tv_loss = 0;          ///< the total-variation regulariser's term (0 unless set_tv() was given a weight)
+  /// The objective's terms: term_loss[0] is event_loss, term_loss[k] the k-th regulariser's (loss::Plus;
+  /// named by the model's term_name(k)).
+  static constexpr int kMaxTerms = 4;
+  std::array<double, kMaxTerms> term_loss{};
   std::size_t rays = 0;
   std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
   std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
@@ -87,35 +91,18 @@ class EvNerf {
   using renderer_type = render::Renderer<FieldT, SamplerT, Scalar>;
   using threshold_policy = ThresholdP;
   using noise_policy = NoiseP;
-  using objective = typename loss::as_objective<ObjectiveP>::type;
-  using bound_policy = typename objective::bound;
-  using pixel_policy = typename objective::pixels;
+  using objective_type = typename loss::as_objective<ObjectiveP>::type;
+  using pixel_policy = typename objective_type::pixels;
   using scalar = Scalar;
-  static constexpr int max_window = objective::max_window;
-  /// Poses per pixel of a step's window (loss::poses_of): 2, its ends; 3, also one inner boundary.
-  static constexpr int poses = loss::poses_of<objective>();
+  static constexpr int max_window = objective_type::max_window;
+  static constexpr int n_terms = objective_type::n_terms;
   static constexpr int channels = FieldT::channels;
   static constexpr int n_fields = renderer_type::networks;
   static constexpr std::size_t field_params = FieldT::n_params;
   static constexpr int Nc = renderer_type::n_coarse, Nf = renderer_type::n_fine;
-  /// The weight of the total-variation regulariser a new model starts with: its objective's (loss::WithTv),
-  /// else 0.
-  static constexpr double default_tv = [] {
-    if constexpr (requires { objective::tv_weight; }) return static_cast<double>(objective::tv_weight);
-    else return 0.0;
-  }();
-  /// The total-variation term's neighbours and share a new model starts with: its objective's (loss::WithTv),
-  /// else Any and every pixel.
-  static constexpr loss::TvNeighbours default_tv_neighbours = [] {
-    if constexpr (requires { objective::tv_neighbours; }) return objective::tv_neighbours;
-    else return loss::TvNeighbours::Any;
-  }();
-  static constexpr double default_tv_share = [] {
-    if constexpr (requires { objective::tv_share; }) return static_cast<double>(objective::tv_share);
-    else return 1.0;
-  }();
   static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
   static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "EvNerf: Scalar must be float or double.");
+  static_assert(n_terms >= 1 && n_terms <= StepStats::kMaxTerms, "EvNerf: an objective has one event term and at most three regularisers.");
 
   EvNerf() = default;
   /// A fresh model for `n_slices` slices, seeded initialisation.
@@ -268,7 +255,6 @@ class EvNerf {
         bp = std::max(bp, static_cast<Scalar>(ThresholdP::init));
         bm = std::min(bm, static_cast<Scalar>(-ThresholdP::init));
       }
-      if constexpr (requires { ThresholdP::shared_scale; }) ThresholdP::project(bp, bm);
     }
     if (average_.active()) average_.update(params_.values, adam_.step());
     return st;
@@ -287,7 +273,7 @@ class EvNerf {
     Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
     if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
     StepWindow& sw = window_;
-    loss::draw_step<objective>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites,
+    loss::draw_step<objective_type>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites,
                                data.slices_per_interval);
     const std::size_t first = sw.first, L = sw.len;
     const int P = static_cast<int>(sw.pixels.size());
@@ -295,11 +281,10 @@ class EvNerf {
     const int n_tiles = (P + tile - 1) / tile;
     const int threads = std::max(1, std::min(thread_count(), n_tiles));
     params_.size_accumulators(threads);  // each thread zeroes its own below
-    std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), loss_tv(threads, 0.0);
-    std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), tv_rays(threads, 0);
+    std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0);
+    std::vector<std::array<double, StepStats::kMaxTerms>> loss_terms(threads);
+    std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), rays(threads, 0);
     std::vector<std::array<double, 2>> pass_loss(threads);
-    const geometry::Pose& pose0 = data.boundary_poses[first];
-    const geometry::Pose& pose1 = data.boundary_poses[first + L];
     const std::uint64_t ray_key = rng.next_u64();
     if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
     parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
@@ -307,20 +292,21 @@ class EvNerf {
       TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
       w.rw.evaluated = w.rw.backward_samples = 0;
       w.pass_loss = {};
-      w.distortion = w.tv = 0;
-      w.tv_rays = 0;
+      w.distortion = 0;
+      w.terms = {};
+      w.rays = 0;
       w.rw.training_termination = ray_termination_;
       w.rw.training_cut = static_cast<scalar>(ray_cut_);
       renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
       for (std::size_t t = b; t < e; ++t) {
         const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
-        loss_ev[th] += train_tile(data, sw, p0, pose0, pose1, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
+        loss_ev[th] += train_tile(data, sw, p0, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
       }
       evaluated[th] = w.rw.evaluated;
       pass_loss[th] = w.pass_loss;
       loss_dist[th] = w.distortion;
-      loss_tv[th] = w.tv;
-      tv_rays[th] = w.tv_rays;
+      loss_terms[th] = w.terms;
+      rays[th] = w.rays;
       backward[th] = w.rw.backward_samples;
     });
     // The table gradients each thread held back, applied in parts (a hash grid's levels) shared out by
@@ -338,7 +324,8 @@ class EvNerf {
     st.window = L;
     for (double l : loss_ev) st.event_loss += l;
     for (double l : loss_dist) st.distortion_loss += l;
-    for (double l : loss_tv) st.tv_loss += l;
+    for (const auto& l : loss_terms)
+      for (int k = 1; k < n_terms; ++k) st.term_loss[k] += l[k];
     for (const auto& l : pass_loss)
       for (int net = 0; net < 2; ++net) st.pass_event_loss[net] += l[net];
     for (std::size_t e : evaluated) st.samples += e;
@@ -357,9 +344,10 @@ class EvNerf {
         params_.grads[to] = params_.grads[to + 1] = Scalar(0);
       }
     }
-    st.loss = st.event_loss + st.threshold_loss + st.distortion_loss + st.tv_loss;
-    st.rays = static_cast<std::size_t>((extra_rays(sw) + 2) * P);
-    for (std::size_t r : tv_rays) st.rays += r;
+    st.term_loss[0] = st.event_loss;
+    st.loss = st.event_loss + st.threshold_loss + st.distortion_loss;
+    for (int k = 1; k < n_terms; ++k) st.loss += st.term_loss[k];
+    for (std::size_t r : rays) st.rays += r;
     touched_.clear();
     for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
     return st;
@@ -488,12 +476,10 @@ class EvNerf {
   /// A checkpoint written under another one is refused (resuming would silently change the objective).
   static std::string loss_description() {
     std::string d = "bounds ";  // appended piece by piece: GCC 12's -Wrestrict misfires on chains of operator+
-    d.append(bound_policy::name);
-    if constexpr (requires { bound_policy::slack; }) d.append(" ").append(std::to_string(bound_policy::slack));
-    if constexpr (requires { bound_policy::per_mille; }) d.append(" ").append(std::to_string(bound_policy::per_mille)).append(" per mille");
+    d.append(objective_type::bounds());
     d.append(", thresholds ").append(ThresholdP::name).append(", noise ");
     d.append(std::to_string(static_cast<int>(NoiseP::ratio * 1000 + 0.5))).append(" per mille");
-    d.append(objective::description());  // empty for the paper's one-slice objective (older files compare equal)
+    d.append(objective_type::description());
     return d;
   }
   /// Set by deserialize(): empty, or a warning the caller should show (a checkpoint older than version 4
@@ -512,11 +498,11 @@ class EvNerf {
   /// behind carry no gradient either way; the forward's composite loses less than that fraction of a ray's
   /// luminance, and a step evaluates fewer samples (about 40 % fewer on `planes` late in a Fast run).
   /// Off for a new model, whose step is then bit-identical to one without this setting; train::Config turns
-  /// it on (its default since session 40), with a cut of 1e-2 since session 43, as it turns on the parameter
-  /// average. A training setting like the learning rate: not checkpointed.
+  /// it on with a cut of 1e-2, as it turns on the parameter average. A training setting like the learning
+  /// rate: not checkpointed.
   /// `cut` is the transmittance behind which a ray stops (renderer_type::kMinTransmittance unless given):
   /// a larger cut evaluates fewer samples and drops more of each ray's far end from the composite and the
-  /// gradient (session 42 measures 1e-3 and 1e-2, bench/README.md). It must lie in (0, 1).
+  /// gradient. It must lie in (0, 1).
   void set_ray_termination(bool on, double cut = static_cast<double>(renderer_type::kMinTransmittance)) {
     require(std::isfinite(cut) && cut > 0 && cut < 1, "the ray-termination transmittance must lie in (0, 1), not " + std::to_string(cut));
     ray_termination_ = on;
@@ -525,40 +511,27 @@ class EvNerf {
   bool ray_termination() const { return ray_termination_; }
   /// The transmittance behind which training rays stop (set_ray_termination).
   double ray_cut() const { return ray_cut_; }
-  /// The total-variation regulariser (loss::LogTv on log-luminance): each step pixel gets a neighbour (right
-  /// or below, or left or above at the border, drawn per pixel and step; set_tv_neighbours can fix one of
-  /// the two) rendered from the window's first pose; `weight` × the mean over the step's pixels (and
-  /// channels) of their log difference's Cauchy penalty joins the loss, in every pass. A third ray per
-  /// pixel (set_tv_share can give it to fewer): about half as much work again per step. 0 leaves the step
-  /// bit-identical. A new model starts at default_tv (its objective's). A training setting like the
-  /// learning rate: not checkpointed.
-  void set_tv(double weight) {
-    require(std::isfinite(weight) && weight >= 0, "the total-variation weight must be finite and non-negative");
-    tv_ = weight;
+  /// The objective, whose regularisers' settings a run may change (a TV term's weight, say). Not
+  /// checkpointed: training settings, like the learning rate.
+  objective_type& objective() { return objective_; }
+  const objective_type& objective() const { return objective_; }
+  /// The first regulariser of the objective that is T or derives from it (loss::Plus::find), or null.
+  template <class T>
+  T* term() {
+    if constexpr (requires { objective_.template find<T>(); }) return objective_.template find<T>();
+    else return nullptr;
   }
-  double tv() const { return tv_; }
-  /// Which neighbour the total-variation term compares each pixel with (loss::TvNeighbours): right or below
-  /// (Any), or always the one below (Vertical) or to the right (Horizontal), or across the image motion
-  /// (Across). A new model starts at default_tv_neighbours (its objective's; Any where it names none). A
-  /// training setting like the weight: not checkpointed.
-  void set_tv_neighbours(loss::TvNeighbours n) { tv_neighbours_ = n; }
-  loss::TvNeighbours tv_neighbours() const { return tv_neighbours_; }
-  /// The share of a step's pixels that get the total-variation term's neighbour ray, in (0, 1]: each pixel
-  /// is drawn in with this probability (keyed by step and pixel, so neither the tiling nor the thread count
-  /// changes the draw), and the term's weight is divided by it, so its expected value and gradient stay
-  /// those of the whole term at a fraction of its rays. A new model starts at default_tv_share (its
-  /// objective's; 1, every pixel, where it names none). A training setting like the weight: not checkpointed.
-  void set_tv_share(double share) {
-    require(std::isfinite(share) && share > 0 && share <= 1,
-            "the total-variation share must lie in (0, 1], not " + std::to_string(share));
-    tv_share_ = share;
+  template <class T>
+  const T* term() const {
+    return const_cast<EvNerf*>(this)->template term<T>();
   }
-  double tv_share() const { return tv_share_; }
+  /// The name of the objective's term k (0: the event term; log.jsonl writes `<name>_loss` for the others).
+  static const char* term_name(int k) { return objective_type::term_name(k); }
   /// A prior against view dependence the events do not ask for: after each Adam update the weights through
   /// which the radiance depends on the view direction (FieldT::view_begin..view_end, of every network) shrink
   /// by the factor 1 − lr · `decay` (a decoupled weight decay, as AdamW's). The event gradient holds up the
   /// view dependence the events explain; the rest (under a pure translation a function of the direction is
-  /// an image-fixed pattern, which no event sees) decays, towards the diffuse field (presets::FastDiffuse)
+  /// an image-fixed pattern, which no event sees) decays, towards a diffuse field
   /// with a time constant of 1/(lr · decay) steps. 0 (a new model's) leaves the step bit-identical. A
   /// training setting like the learning rate: not checkpointed.
   void set_view_decay(double decay) {
@@ -571,11 +544,12 @@ class EvNerf {
  private:
   /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
   /// samples, backward samples and the two passes' event losses.
-  static constexpr std::size_t kTotals = 10;
+  static constexpr std::size_t kTotals = 9 + StepStats::kMaxTerms;
   static void add_totals(std::vector<double>& t, const StepStats& s) {
-    const double v[kTotals] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
-                               s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss, s.tv_loss};
-    for (std::size_t i = 0; i < kTotals; ++i) t[i] += v[i];
+    const double v[9] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
+                         s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss};
+    for (std::size_t i = 0; i < 9; ++i) t[i] += v[i];
+    for (int k = 0; k < StepStats::kMaxTerms; ++k) t[9 + k] += s.term_loss[k];
   }
   StepStats from_totals(const std::vector<double>& t, int count) const {
     StepStats s;
@@ -587,7 +561,7 @@ class EvNerf {
     s.backward_samples = static_cast<std::size_t>(t[5]);
     s.pass_event_loss = {t[6] / count, t[7] / count};
     s.distortion_loss = t[8] / count;
-    s.tv_loss = t[9] / count;
+    for (int k = 0; k < StepStats::kMaxTerms; ++k) s.term_loss[k] = t[9 + k] / count;
     s.first_slice = window_.first;
     s.window = window_.len;
     return s;
@@ -600,167 +574,83 @@ class EvNerf {
   }
   static constexpr int default_tile_pixels() {
     // About 1–4 k samples per tile: the activations of the widest layer stay within L2.
-    constexpr int per_pixel = poses * (Nc + (n_fields == 2 ? Nc + Nf : 0));
+    constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
     return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
   }
 
-  /// A thread's scratch: the renderer's workspace, the tile's rays and their random streams, the window's
-  /// thresholds and one pixel's threshold gradients.
+  /// A thread's scratch: the renderer's workspace, the tile's rays (as the objective asks for them, then
+  /// cast) and their random streams, the window's thresholds, the objective's own scratch.
   struct TileWork {
     typename renderer_type::Workspace rw;
+    loss::RayList list;
     std::vector<Vec3> origin, dir;
     std::vector<Rng> rng;
-    std::vector<double> bp, bm, gbp, gbm;
-    std::array<double, 2> pass_loss{};  ///< the thread's event loss by pass, this step
-    double distortion = 0;              ///< the thread's distortion term, this step
-    double tv = 0;                      ///< the thread's total-variation term, this step
-    std::size_t tv_rays = 0;            ///< the thread's neighbour rays, this step
-    std::vector<int> tv_pixels;         ///< the tile's pixels that have a neighbour ray, in ray order
+    std::vector<double> bp, bm;
+    typename objective_type::scratch scratch;
+    std::array<double, 2> pass_loss{};                ///< the thread's event loss by pass, this step
+    std::array<double, StepStats::kMaxTerms> terms{};  ///< the thread's regulariser terms, this step
+    double distortion = 0;                            ///< the thread's distortion term, this step
+    std::size_t rays = 0;                             ///< the thread's rays, this step
   };
 
-  /// Loss over the tile's pixel pairs (pixels p0 .. p0+P of the step) for one network's composites; fills
-  /// that pass's dcolor (2P×C) and adds the threshold gradients of the window's slices. Returns the loss
-  /// contribution (already divided by the batch size).
-  double pair_loss(const StepWindow& sw, int p0, int P, int batch, int net, Scalar* grads, TileWork& w, int width,
-                   const geometry::BayerPattern& bayer) const {
-    const bool three = extra_rays(sw) == 1;
-    const auto& comp = renderer_type::composites(w.rw, net);
-    auto& dcolor = w.rw.pass[net].dcolor;  // zeroed by the forward
+  /// One tile of the step (pixels p0 .. p0 + P of the step's draw): the objective's rays, each with its random
+  /// stream keyed by the objective (so that the result depends on neither the tiling nor the thread count),
+  /// forward through every pass, the objective's score of each pass, backward. Returns the event term's
+  /// loss (already a mean over the step's pixels).
+  double train_tile(const TrainingData& data, const StepWindow& sw, int p0, int P, int batch, std::uint64_t ray_key, Scalar* grads,
+                    TileWork& w) const {
+    loss::TileView t;
+    t.draw = &sw;
+    t.p0 = p0;
+    t.P = P;
+    t.batch = batch;
+    t.channels = channels;
+    t.camera = &data.camera;
+    t.bayer = &data.bayer;
+    t.poses = data.boundary_poses.data();
+    t.pixel_dirs = data.pixel_dirs.data();
+    t.near = box().near;
+    t.far = box().far;
+    t.log_eps = FieldT::radiance::log_eps;
+    t.ray_key = ray_key;
+    w.list.clear();
+    objective_.rays(t, w.list, w.scratch);
+    const int R = w.list.size();
+    w.origin.resize(R);
+    w.dir.resize(R);
+    w.rng.clear();
+    for (int r = 0; r < R; ++r) {
+      const std::size_t pose = w.list.pose[r], pixel = w.list.pixel[r];
+      const auto a = geometry::Camera::ray_along(data.boundary_poses[pose], data.pixel_dirs[pixel].cast<double>());
+      w.origin[r] = a.origin;
+      w.dir[r] = a.dir;
+      w.rng.push_back(Rng(ray_key).split(w.list.key[r]));
+    }
+    w.rays += static_cast<std::size_t>(R);
     const int L = static_cast<int>(sw.len);
     const std::size_t to = threshold_offset() + 2 * sw.first;
     w.bp.resize(static_cast<std::size_t>(L));
     w.bm.resize(static_cast<std::size_t>(L));
-    w.gbp.resize(static_cast<std::size_t>(L));
-    w.gbm.resize(static_cast<std::size_t>(L));
     for (int k = 0; k < L; ++k) {
       w.bp[k] = params_.values[to + 2 * k];
       w.bm[k] = params_.values[to + 2 * k + 1];
     }
-    double total = 0;
-    for (int i = 0; i < P; ++i) {
-      const std::uint32_t pix = sw.pixels[p0 + i];
-      const int c = channels == 1 ? 0 : bayer.at(static_cast<int>(pix % width), static_cast<int>(pix / width));
-      std::fill(w.gbp.begin(), w.gbp.end(), 0.0);
-      std::fill(w.gbm.begin(), w.gbm.end(), 0.0);
-      const std::size_t o = static_cast<std::size_t>(p0 + i) * L;
-      const double l0 = comp[2 * i].color[c], l1 = comp[2 * i + 1].color[c];
-      loss::PixelLoss r;
-      if (three) {  // ray 2P + i is the pixel at its inner boundary first + m
-        const int m = static_cast<int>(sw.mid[static_cast<std::size_t>(p0 + i)]);
-        const auto t = loss::three_pose_pixel_loss<bound_policy>(l0, comp[2 * P + i].color[c], l1, m, L, &sw.npos[o], &sw.nneg[o],
-                                                                 w.bp.data(), w.bm.data(), w.gbp.data(), w.gbm.data(),
-                                                                 FieldT::radiance::log_eps);
-        r = {t.value, t.dl0, t.dl1};
-        dcolor[static_cast<std::size_t>(2 * P + i) * channels + c] = static_cast<Scalar>(t.dlm / batch);
-      } else {
-        r = loss::window_pixel_loss<bound_policy>(l0, l1, L, &sw.npos[o], &sw.nneg[o], w.bp.data(), w.bm.data(), w.gbp.data(),
-                                                  w.gbm.data(), FieldT::radiance::log_eps);
-      }
-      total += r.value / batch;
-      dcolor[static_cast<std::size_t>(2 * i) * channels + c] = static_cast<Scalar>(r.dl0 / batch);
-      dcolor[static_cast<std::size_t>(2 * i + 1) * channels + c] = static_cast<Scalar>(r.dl1 / batch);
-      if constexpr (ThresholdP::learnable)
-        for (int k = 0; k < L; ++k) {
-          grads[to + 2 * k] += static_cast<Scalar>(w.gbp[k] / batch);
-          grads[to + 2 * k + 1] += static_cast<Scalar>(w.gbm[k] / batch);
-        }
-    }
-    return total;
-  }
-
-  /// The total-variation term of one pass over the tile's pixels drawn in (w.tv_pixels: pixel i's ray 2i and
-  /// its neighbour's ray (2 + extra) P + j for the j-th drawn pixel, both from the window's first pose;
-  /// extra = extra_rays()): adds its gradient to the pass's dcolor (after pair_loss) and returns its share of
-  /// the loss.
-  double tv_loss(int P, int extra, int batch, int net, TileWork& w) const {
-    const auto& comp = renderer_type::composites(w.rw, net);
-    auto& dcolor = w.rw.pass[net].dcolor;
-    const double scale = tv_ / (double(batch) * channels * tv_share_);
-    const loss::LogTv f{FieldT::radiance::log_eps};
-    double total = 0;
-    for (std::size_t j = 0; j < w.tv_pixels.size(); ++j)
-      for (int c = 0; c < channels; ++c) {
-        const int i = w.tv_pixels[j];
-        const std::size_t n = static_cast<std::size_t>((2 + extra) * P) + j;
-        const auto r = f.evaluate(comp[2 * i].color[c], comp[n].color[c]);
-        total += scale * r[0];
-        dcolor[static_cast<std::size_t>(2 * i) * channels + c] += static_cast<Scalar>(scale * r[1]);
-        dcolor[n * channels + c] += static_cast<Scalar>(scale * r[2]);
-      }
-    return total;
-  }
-
-  /// Rays per pixel beyond the window's two ends: 1 where the objective renders an inner boundary and the
-  /// window has one (two slices or more), else 0.
-  static int extra_rays(const StepWindow& sw) { return poses == 3 && sw.len >= 2 ? 1 : 0; }
-
-  /// One tile of the step: pixel i's rays at the window's two end poses (Camera::ray_along of its cached
-  /// direction), each with a random stream keyed by (pixel, end) so that the result depends on neither the
-  /// tiling nor the thread count; forward through every pass, the objective, backward.
-  double train_tile(const TrainingData& data, const StepWindow& sw, int p0, const geometry::Pose& pose0,
-                    const geometry::Pose& pose1, int P, int batch, std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
-    const bool tv = tv_ > 0;
-    const int extra = extra_rays(sw);
-    // The pixels' pairs, then (three poses) their inner boundaries, then (with the TV term) the neighbours of
-    // those drawn in (all of them at a share of 1).
-    int R = (2 + extra + (tv ? 1 : 0)) * P;
-    const std::uint32_t* pix = sw.pixels.data() + p0;
-    w.origin.resize(R);
-    w.dir.resize(R);
-    w.rng.clear();
-    for (int i = 0; i < P; ++i) {
-      const Vec3 d = data.pixel_dirs[pix[i]].cast<double>();
-      const auto a = geometry::Camera::ray_along(pose0, d), b = geometry::Camera::ray_along(pose1, d);
-      w.origin[2 * i] = a.origin;
-      w.dir[2 * i] = a.dir;
-      w.origin[2 * i + 1] = b.origin;
-      w.dir[2 * i + 1] = b.dir;
-    }
-    for (int r = 0; r < 2 * P; ++r)
-      w.rng.push_back(Rng(ray_key).split(static_cast<std::uint64_t>(pix[r / 2]) * 2 + static_cast<std::uint64_t>(r & 1)));
-    for (int i = 0; i < P && extra; ++i) {
-      const std::size_t m = sw.first + sw.mid[static_cast<std::size_t>(p0 + i)];
-      const auto a = geometry::Camera::ray_along(data.boundary_poses[m], data.pixel_dirs[pix[i]].cast<double>());
-      w.origin[2 * P + i] = a.origin;
-      w.dir[2 * P + i] = a.dir;
-      w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 41) + pix[i]));  // keyed apart from the ends and the neighbours
-    }
-    if (tv) {
-      const int width = data.camera.width(), height = data.camera.height();
-      w.tv_pixels.clear();
-      for (int i = 0; i < P; ++i) {
-        // Keyed by (step, pixel) like the rays: neither the tiling nor the thread count changes the draw.
-        const std::uint64_t h = mix64(ray_key ^ mix64(0x7456000000000000ull + pix[i]));
-        if (tv_share_ < 1 && unit_double(mix64(h ^ 0x5348415245000000ull)) >= tv_share_) continue;
-        const int r = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
-        w.tv_pixels.push_back(i);
-        const int x = static_cast<int>(pix[i] % static_cast<std::uint32_t>(width)), y = static_cast<int>(pix[i] / static_cast<std::uint32_t>(width));
-        Vec2 axis = Vec2::Zero();
-        if (tv_neighbours_ == loss::TvNeighbours::Across)
-          axis = geometry::image_motion_axis(data.camera, pose0, pose1, data.pixel_dirs[pix[i]].cast<double>(), box().near, box().far);
-        const auto [nx, ny] = loss::tv_neighbour(x, y, width, height, h, tv_neighbours_, axis.x(), axis.y());
-        const std::uint32_t q = static_cast<std::uint32_t>(ny) * static_cast<std::uint32_t>(width) + static_cast<std::uint32_t>(nx);
-        const auto n = geometry::Camera::ray_along(pose0, data.pixel_dirs[q].cast<double>());
-        w.origin[r] = n.origin;
-        w.dir[r] = n.dir;
-        w.rng.push_back(Rng(ray_key).split((std::uint64_t{1} << 40) + q));
-      }
-      R = (2 + extra) * P + static_cast<int>(w.tv_pixels.size());
-      w.tv_rays += w.tv_pixels.size();
-    }
+    const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr};
     const Scalar* params = params_.values.data();
     renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
     double loss = 0;
     for (int net = 0; net < n_fields; ++net) {
-      const double l = pair_loss(sw, p0, P, batch, net, grads, w, data.camera.width(), data.bayer);
-      w.pass_loss[net] += l;
-      loss += l;
-      if (tv) w.tv += tv_loss(P, extra, batch, net, w);
+      const loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(),
+                                                                          w.rw.pass[net].dcolor.data(), channels};
+      std::array<double, StepStats::kMaxTerms> l{};
+      objective_.score(t, v, th, w.scratch, l.data());
+      w.pass_loss[net] += l[0];
+      loss += l[0];
+      for (int k = 1; k < n_terms; ++k) w.terms[k] += l[k];
     }
     // The distortion regulariser: its weight times the mean over the step's rays, every pass (the expected
     // rays per pixel, the same for every tile).
-    if (distortion_ > 0)
-      w.distortion += renderer_type::add_distortion(w.rw, distortion_ / ((2 + extra + (tv ? tv_share_ : 0.0)) * batch));
+    if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (objective_.rays_per_pixel() * batch));
     renderer_.backward(params, w.rw, grads);
     return loss;
   }
@@ -779,9 +669,7 @@ class EvNerf {
   double view_decay_ = 0;       ///< the view-dependence decay (set_view_decay)
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
-  double tv_ = default_tv;      ///< the total-variation regulariser's weight (set_tv)
-  loss::TvNeighbours tv_neighbours_ = default_tv_neighbours;  ///< its neighbours (set_tv_neighbours)
-  double tv_share_ = default_tv_share;  ///< the share of pixels with a neighbour ray (set_tv_share)
+  objective_type objective_;    ///< the objective and its regularisers' settings (objective(), term<T>())
 };
 
 }  // namespace evnerf

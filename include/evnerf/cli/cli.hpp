@@ -264,7 +264,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   trainc->add_option("--out", out, "output folder")->required();
   trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
   trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at its window's poses: both ends, and an inner boundary for fast-3poses)")
+  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at its window's two ends)")
       ->capture_default_str()
       ->check(CLI::Range(1, 1 << 22));
   trainc->add_option("--seed", cfg.seed, "random seed")->capture_default_str();
@@ -302,21 +302,9 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.999999));
   trainc->add_option("--tv", cfg.tv,
-                     "weight of the total-variation regulariser on neighbouring pixels' rendered log-luminance (one more ray "
-                     "per pixel it compares; 0 = off; default: the preset's, fast: 0.1)")
+                     "weight of the variant's total-variation term on neighbouring pixels' rendered log-luminance (0 = off; "
+                     "default: the variant's, fast: 0.1)")
       ->check(CLI::NonNegativeNumber);
-  std::string tv_neighbours;  // empty: the preset's
-  trainc->add_option("--tv-neighbours", tv_neighbours,
-                     "which neighbour the total-variation term compares a pixel with: right or below, drawn per pixel (any), "
-                     "or only the one below (vertical: for cameras moving along x, which never show the events one row's "
-                     "brightness against the next) or to the right (horizontal), or across the image motion the window's poses "
-                     "imply at each pixel (across: vertical's neighbour for a motion along x, horizontal's along y, a "
-                     "diagonal between); default: the preset's (fast: across)");
-  trainc->add_option("--tv-share", cfg.tv_share,
-                     "share of the step's pixels, drawn at random, that get the total-variation term's neighbour ray; the "
-                     "weight is divided by it, so the term keeps its expected value at fewer rays; default: the preset's "
-                     "(fast: 0.5)")
-      ->check(CLI::Range(0.0, 1.0));
   trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
@@ -483,7 +471,6 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
         if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
       }
       cfg.box = train::parse_box(box_fit, "train --box");
-      if (!tv_neighbours.empty()) cfg.tv_neighbours = train::parse_tv_neighbours(tv_neighbours, "train --tv-neighbours");
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
       // One run: a model trained on `td` into `dir`; returns the exit code.

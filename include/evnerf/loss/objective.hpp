@@ -1,25 +1,29 @@
-// loss/objective.hpp — what a training step compares. An objective chooses the window of slices whose two
-// end poses a step renders, the pixels it renders there (an events/pixels.hpp policy), and scores each
-// pixel's rendered log change against the events counted in the window through the per-slice thresholds.
-//   SliceInterval<Bound>             the paper's: one slice, its two ends (spec §2).
-//   WindowInterval<W, Bound, Pixels, Poses>
-//                                    poses 1..W frame intervals apart (slices where each interval is one),
-//                                    drawn uniformly per step: the counts of every slice in the window,
-//                                    each with its own learned thresholds; with Poses = 3 also one inner
-//                                    boundary per pixel, each pair of the three poses a term.
-// A new objective is one type with the members the `Objective` concept names. draw_step() draws a step of
-// any objective: its window, its noise, its pixels and their counts. Depends on ad/ and events/.
+// loss/objective.hpp — what a training step compares. An objective is one type: how a step draws its window
+// of slices and its pixels (max_window, an events/pixels.hpp policy), which rays a tile renders (rays), and
+// how the rendered values score (score: the loss, its gradient with respect to every rendered value and to
+// the window's thresholds; loss/step.hpp). The model calls it and holds no objective-specific code.
+//   SliceInterval<Bound>             the paper's: one slice, its two ends, each pixel's change inside the
+//                                    interval its counts imply (spec §2).
+//   WindowInterval<W, Bound, Pixels> poses 1..W frame intervals apart, drawn uniformly per step: the counts
+//                                    of every slice in the window, each with its own learned thresholds.
+//   Plus<O, R...>                    objective O with regularisers R... (loss/total_variation.hpp's, or your
+//                                    own: a type with the members `Regulariser` names), each rendering the
+//                                    rays it needs after O's.
+// A new objective or regulariser is one type in your own header (examples/parts/). Depends on ad/, events/
+// and geometry/ (through step.hpp).
 #pragma once
+#include <algorithm>
+#include <array>
 #include <concepts>
 #include <cstdint>
 #include <string>
+#include <tuple>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
-#include "../core/rng.hpp"
-#include "../core/error.hpp"
-#include "../events/pixels.hpp"
-#include "../events/slicing.hpp"
 #include "event_loss.hpp"
+#include "step.hpp"
 
 namespace evnerf::loss {
 
@@ -29,6 +33,14 @@ concept BoundPolicy = requires(int a, int b) {
   { B::make(a, b) } -> std::same_as<EventBounds>;
   { B::name } -> std::convertible_to<const char*>;
 };
+
+/// A bound policy's name as checkpoints record it: its name, and its slack where it has one.
+template <BoundPolicy B>
+std::string bound_text() {
+  std::string d = B::name;
+  if constexpr (requires { B::slack; }) d.append(" ").append(std::to_string(B::slack));
+  return d;
+}
 
 /// One pixel's loss and its gradient w.r.t. the luminance rendered at the window's two ends.
 struct PixelLoss {
@@ -75,196 +87,202 @@ PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const 
   return {r[0], r[1], r[2]};
 }
 
-/// One pixel's loss at three poses of its window and its gradient w.r.t. the luminance rendered at each.
-struct ThreePoseLoss {
-  double value = 0, dl0 = 0, dlm = 0, dl1 = 0;
+
+/// A rendered composite with up to three channels: what the concepts below probe objectives with.
+struct ProbeComposite {
+  float color[3];
 };
 
-/// Scores one pixel rendered at three boundaries of its window of L slices: the start (ℓ0), the inner
-/// boundary m with 0 < m < L (ℓm) and the end (ℓ1). The sum of window_pixel_loss over the three pairs:
-/// (ℓ0, ℓ1) over slices [0, L), (ℓ0, ℓm) over [0, m) and (ℓm, ℓ1) over [m, L), each with its own slices'
-/// counts and thresholds. Adds dloss/dB±_k to gbp[k], gbm[k].
+/// An objective: how a step draws (`pixels`, `max_window`), the rays of a tile (`rays`: the ends first, as
+/// add_end_rays lays them out), their score (`score` adds each term's loss to losses[term] and the gradients
+/// to the values and thresholds), the expected rays per pixel of a step (`rays_per_pixel`: the distortion
+/// regulariser's mean over rays divides by it), its terms' names (the first its event term; log.jsonl
+/// writes `<name>_loss` for the others), and the text checkpoints record (`bounds`, `description`).
+/// `scratch` is a thread's state between rays and score. EvNerf's fifth parameter takes one (a bare bound
+/// policy means SliceInterval<that bound>).
+template <class O>
+concept Objective = std::default_initializable<O> && requires(const O& o, const TileView& t, RayList& rays, typename O::scratch& s,
+                                                              const RenderedValues<ProbeComposite, float>& v, const WindowThresholds<float>& th,
+                                                              double* losses) {
+  typename O::pixels;
+  { O::max_window } -> std::convertible_to<int>;
+  { O::n_terms } -> std::convertible_to<int>;
+  { O::term_name(0) } -> std::convertible_to<const char*>;
+  { O::bounds() } -> std::convertible_to<std::string>;
+  { O::description() } -> std::convertible_to<std::string>;
+  o.rays(t, rays, s);
+  o.score(t, v, th, s, losses);
+  { o.rays_per_pixel() } -> std::convertible_to<double>;
+  { o.active(0) } -> std::convertible_to<bool>;
+};
+
+/// A regulariser: a term added to an objective by Plus. `rays` appends the rays it needs (it may read the
+/// objective's end rays, 2i and 2i + 1 for tile pixel i), `score` returns its loss over the tile (a mean over
+/// the step's pixels) and adds its gradients; `active` false means it renders and adds nothing (the step is
+/// then the objective's alone, to the bit); `rays_per_pixel` its expected rays per step pixel.
+template <class R>
+concept Regulariser = std::default_initializable<R> && requires(const R& r, const TileView& t, RayList& rays, typename R::scratch& s,
+                                                                const RenderedValues<ProbeComposite, float>& v, const WindowThresholds<float>& th) {
+  { R::name } -> std::convertible_to<const char*>;
+  r.rays(t, rays, s);
+  { r.score(t, v, th, s) } -> std::convertible_to<double>;
+  { r.rays_per_pixel() } -> std::convertible_to<double>;
+  { r.active() } -> std::convertible_to<bool>;
+};
+
+/// The part every objective that renders a pixel at its window's two ends shares: the draw (`Pixels`, windows
+/// of up to W intervals) and the rays (add_end_rays). Derive from it and add `score` and the names.
+template <int W, class Pixels = events::UniformPixels>
+struct EndsObjective {
+  static_assert(W >= 1, "EndsObjective<W>: a window spans at least one slice.");
+  using pixels = Pixels;
+  static constexpr int max_window = W;
+  static constexpr int n_terms = 1;
+  static const char* term_name(int) { return "event"; }
+  template <class Scratch>
+  void rays(const TileView& t, RayList& rays, Scratch&) const {
+    add_end_rays(t, rays);
+  }
+  double rays_per_pixel() const { return 2; }
+  bool active(int) const { return true; }
+};
+
+/// Ev-NeRF's event term over a window's two ends: each pixel's rendered log change against the interval
+/// its counts imply (window_pixel_loss), a mean over the step's pixels.
 template <BoundPolicy Bound>
-ThreePoseLoss three_pose_pixel_loss(double l0, double lm, double l1, int m, int L, const int* npos, const int* nneg, const double* bp,
-                                    const double* bm, double* gbp, double* gbm, double log_eps = EventBounds{}.eps) {
-  require(m > 0 && m < L, "three_pose_pixel_loss: the inner boundary must lie strictly inside the window");
-  const auto w = window_pixel_loss<Bound>(l0, l1, L, npos, nneg, bp, bm, gbp, gbm, log_eps);
-  const auto a = window_pixel_loss<Bound>(l0, lm, m, npos, nneg, bp, bm, gbp, gbm, log_eps);
-  const auto b = window_pixel_loss<Bound>(lm, l1, L - m, npos + m, nneg + m, bp + m, bm + m, gbp + m, gbm + m, log_eps);
-  return {w.value + a.value + b.value, w.dl0 + a.dl0, a.dl1 + b.dl0, w.dl1 + b.dl1};
-}
+struct IntervalScore {
+  struct scratch {
+    std::vector<double> gbp, gbm;
+  };
+  template <class V, class T>
+  static double score(const TileView& t, const V& v, const T& th, scratch& s) {
+    const int L = t.len();
+    s.gbp.resize(static_cast<std::size_t>(L));
+    s.gbm.resize(static_cast<std::size_t>(L));
+    double total = 0;
+    for (int i = 0; i < t.P; ++i) {
+      const int c = t.channel(i);
+      std::fill(s.gbp.begin(), s.gbp.end(), 0.0);
+      std::fill(s.gbm.begin(), s.gbm.end(), 0.0);
+      const auto r = window_pixel_loss<Bound>(v.at(2 * i, c), v.at(2 * i + 1, c), L, t.npos(i), t.nneg(i), th.pos, th.neg, s.gbp.data(),
+                                              s.gbm.data(), t.log_eps);
+      total += r.value / t.batch;
+      v.add(2 * i, c, r.dl0 / t.batch);
+      v.add(2 * i + 1, c, r.dl1 / t.batch);
+      for (int k = 0; k < L; ++k) th.add(k, s.gbp[k] / t.batch, s.gbm[k] / t.batch);
+    }
+    return total;
+  }
+};
 
 /// The paper's objective: a step draws one slice and renders its two ends at uniformly drawn pixels.
 template <BoundPolicy Bound = SplitCounts<1>>
-struct SliceInterval {
+struct SliceInterval : EndsObjective<1> {
   using bound = Bound;
-  using pixels = events::UniformPixels;
-  static constexpr int max_window = 1;
-  static std::string description() { return {}; }  // the checkpoints' loss text before windows existed
+  using scratch = typename IntervalScore<Bound>::scratch;
+  static std::string bounds() { return bound_text<Bound>(); }
+  static std::string description() { return {}; }
+  template <class V, class T>
+  void score(const TileView& t, const V& v, const T& th, scratch& s, double* losses) const {
+    losses[0] += IntervalScore<Bound>::score(t, v, th, s);
+  }
 };
 
 /// Windows of 1..W intervals of the recording's own cut (1..W·K consecutive slices where train's --subslices
 /// cuts each interval into K), the length uniform per step, then the start uniform among the windows of that
-/// length made of trainable slices. Ours (after EventNeRF and Robust e-NeRF, which also
-/// compare poses a random interval apart); the paper compares only the two ends of one slice, which leaves
-/// low spatial frequencies free. `Pixels` chooses the rendered pixels.
-/// `Poses` is how many boundaries of the window a pixel is rendered at: 2, the window's two ends; or 3, the
-/// ends and one slice boundary strictly inside the window, drawn per pixel (uniform; a one-slice window has
-/// none, and its pixels are rendered at the ends only). With three poses each of the three pairs is a term
-/// (the whole window and its two parts, each with its own slices' counts and thresholds): three terms from
-/// three rays where two poses give one from two. Ours.
-template <int W, BoundPolicy Bound = HalfSlackCounts, class Pixels = events::UniformPixels, int Poses = 2>
-struct WindowInterval {
-  static_assert(W >= 1, "WindowInterval<W>: a window spans at least one slice.");
-  static_assert(Poses == 2 || Poses == 3, "WindowInterval: a pixel is rendered at 2 or 3 poses of its window.");
+/// length made of trainable slices. Ours (after EventNeRF and Robust e-NeRF, which also compare poses a
+/// random interval apart); the paper compares only the two ends of one slice, which leaves low spatial
+/// frequencies free. `Pixels` chooses the rendered pixels.
+template <int W, BoundPolicy Bound = HalfSlackCounts, class Pixels = events::UniformPixels>
+struct WindowInterval : EndsObjective<W, Pixels> {
   using bound = Bound;
-  using pixels = Pixels;
-  static constexpr int max_window = W;
-  static constexpr int poses = Poses;
+  using scratch = typename IntervalScore<Bound>::scratch;
+  static std::string bounds() { return bound_text<Bound>(); }
   static std::string description() {
     std::string d = ", window 1..";
     d.append(std::to_string(W)).append(", pixels ").append(Pixels::name);
     if constexpr (requires { Pixels::empty_per_mille; }) d.append(" ").append(std::to_string(Pixels::empty_per_mille));
-    if constexpr (Poses != 2) d.append(", ").append(std::to_string(Poses)).append(" poses");
     return d;
+  }
+  template <class V, class T>
+  void score(const TileView& t, const V& v, const T& th, scratch& s, double* losses) const {
+    losses[0] += IntervalScore<Bound>::score(t, v, th, s);
   }
 };
 
-/// How many poses of its window objective O renders a pixel at: O::poses where O names it, else 2 (the
-/// window's two ends, as SliceInterval and every objective written before the member existed).
-template <class O>
-constexpr int poses_of() {
-  if constexpr (requires { O::poses; }) return O::poses;
-  else return 2;
-}
+/// Objective O with the regularisers R... added: O's rays, then each regulariser's; the loss is O's event
+/// term plus each regulariser's term. The checkpoints' loss text is O's: a regulariser's weight is a training
+/// setting (a fast checkpoint resumes as fast-no-tv, and the other way).
+template <Objective O, Regulariser... R>
+struct Plus : O {
+  static_assert(O::n_terms == 1, "loss::Plus: the first part is an objective of one term; add every regulariser in one Plus.");
+  static constexpr int n_terms = 1 + static_cast<int>(sizeof...(R));
+  std::tuple<R...> regularisers;
+  struct scratch {
+    typename O::scratch objective;
+    std::tuple<typename R::scratch...> terms;
+  };
+  static const char* term_name(int k) {
+    if (k == 0) return O::term_name(0);
+    const char* names[] = {R::name...};
+    return names[k - 1];
+  }
+  void rays(const TileView& t, RayList& rays, scratch& s) const {
+    O::rays(t, rays, s.objective);
+    each([&](const auto& r, auto& rs, int) { r.rays(t, rays, rs); }, s);
+  }
+  template <class V, class T>
+  void score(const TileView& t, const V& v, const T& th, scratch& s, double* losses) const {
+    O::score(t, v, th, s.objective, losses);
+    each([&](const auto& r, auto& rs, int k) { losses[1 + k] += r.score(t, v, th, rs); }, s);
+  }
+  double rays_per_pixel() const {
+    double n = O::rays_per_pixel();
+    std::apply([&](const auto&... r) { ((n += r.active() ? r.rays_per_pixel() : 0.0), ...); }, regularisers);
+    return n;
+  }
+  bool active(int k) const {
+    if (k == 0) return true;
+    bool on = false;
+    int i = 1;
+    std::apply([&](const auto&... r) { ((on = i++ == k ? r.active() : on), ...); }, regularisers);
+    return on;
+  }
+  /// The first regulariser that is T or derives from it, or null.
+  template <class T>
+  T* find() {
+    T* p = nullptr;
+    std::apply([&](auto&... r) { ((p = p ? p : as<T>(r)), ...); }, regularisers);
+    return p;
+  }
+  template <class T>
+  const T* find() const {
+    return const_cast<Plus*>(this)->template find<T>();
+  }
 
-/// An objective: a bound policy, a pixel policy, the longest window in slices, and the text checkpoints
-/// record. EvNerf's fifth parameter takes one (a bare bound policy means SliceInterval<that bound>).
-template <class O>
-concept Objective = requires {
-  typename O::bound;
-  typename O::pixels;
-  { O::max_window } -> std::convertible_to<int>;
-  { O::description() } -> std::convertible_to<std::string>;
-} && BoundPolicy<typename O::bound>;
-
-/// Objective O with the total-variation regulariser (loss::LogTv, EvNerf::set_tv) on by default at weight
-/// PerMille/1000, comparing each pixel with the neighbour `Neighbours` picks (EvNerf::set_tv_neighbours),
-/// for a share SharePerMille/1000 of the step's pixels (EvNerf::set_tv_share). Training settings like the
-/// learning rate: the checkpoints' loss text is O's, and EvNerf's setters (train --tv, --tv-neighbours,
-/// --tv-share) override them.
-template <Objective O, int PerMille, TvNeighbours Neighbours = TvNeighbours::Any, int SharePerMille = 1000>
-struct WithTv : O {
-  static_assert(PerMille >= 0, "WithTv: the weight must not be negative.");
-  static_assert(SharePerMille > 0 && SharePerMille <= 1000, "WithTv: the share must lie in (0, 1000] per mille.");
-  static constexpr double tv_weight = PerMille / 1000.0;
-  static constexpr TvNeighbours tv_neighbours = Neighbours;
-  static constexpr double tv_share = SharePerMille / 1000.0;
+ private:
+  template <class T, class X>
+  static T* as(X& x) {
+    if constexpr (std::is_base_of_v<T, X>) return &x;
+    else return nullptr;
+  }
+  template <class F>
+  void each(F&& f, scratch& s) const {
+    [&]<std::size_t... I>(std::index_sequence<I...>) {
+      (f(std::get<I>(regularisers), std::get<I>(s.terms), static_cast<int>(I)), ...);
+    }(std::index_sequence_for<R...>{});
+  }
 };
 
 template <class P>
 struct as_objective {
-  static_assert(Objective<P>, "EvNerf: the fifth parameter must be an objective (loss::SliceInterval, loss::WindowInterval, ...) "
-                              "or a bound policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts).");
+  static_assert(Objective<P>, "EvNerf: the fifth parameter must be an objective (loss::SliceInterval, loss::WindowInterval, loss::Plus, "
+                              "your own) or a bound policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts).");
   using type = P;
 };
 template <BoundPolicy P>
 struct as_objective<P> {
   using type = SliceInterval<P>;
 };
-
-/// What a training step draws: its window of slices [first, first + len), its pixels, and for every pixel
-/// and slice of the window the counts with the injected noise; the rest is scratch kept between steps.
-struct StepDraw {
-  std::size_t first = 0, len = 1;
-  std::vector<std::uint32_t> pixels;
-  std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
-  /// Objectives of three poses: pixel i's inner boundary, first + mid[i], with 0 < mid[i] < len (0 where
-  /// the window is one slice long and has none). Empty for objectives of two poses.
-  std::vector<std::uint32_t> mid;
-  std::vector<events::NoiseEvent> noise;
-  std::vector<std::size_t> starts;
-  std::vector<std::uint8_t> taken;
-  std::vector<int> slot;
-};
-
-/// Draws a step of objective O from `rng`: the window (one slice when O::max_window = 1: uniform among
-/// the trainable slices, as the paper; otherwise the length uniform in 1..max_window × `per_interval`, then
-/// the start uniform among the windows of that length whose slices are all trainable, shorter when there is
-/// none; `per_interval` is the slices per interval of the recording's own cut, TrainingData's
-/// slices_per_interval, so finer cuts move the windows' ends, not their span in time),
-/// then Ev-NeRF's noise (noise_ratio × the window's count, each event in a random slice of the window,
-/// redrawn at every step; drawn before the pixels, so a one-slice step draws as inject_noise does), then
-/// the pixels by O's pixel policy, then their counts with the noise added (saturating like inject_noise).
-/// `enabled` marks trainable slices (empty: all); `sites`, where not null and not all(), restricts the pixels
-/// and the noise to the pixels that carry events. Deterministic for a given rng.
-template <Objective O>
-void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
-               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr,
-               int per_interval = 1) {
-  require(per_interval >= 1, "train_step: slices per interval must be at least 1, got " + std::to_string(per_interval));
-  const std::size_t N = slices.size();
-  auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
-  d.starts.clear();
-  if constexpr (O::max_window == 1) {
-    for (std::size_t i = 0; i < N; ++i)
-      if (trainable(i)) d.starts.push_back(i);
-    require(!d.starts.empty(), "train_step: no slice to train on");
-    d.first = d.starts[rng.below(d.starts.size())];
-    d.len = 1;
-  } else {
-    std::vector<std::size_t> run(N + 1, 0);  // run[i]: trainable slices in a row from i
-    for (std::size_t i = N; i-- > 0;) run[i] = trainable(i) ? run[i + 1] + 1 : 0;
-    std::size_t L = 1 + rng.below(static_cast<std::uint64_t>(O::max_window) * static_cast<std::uint64_t>(per_interval));
-    for (; L >= 1; --L) {
-      for (std::size_t i = 0; i + L <= N; ++i)
-        if (run[i] >= L) d.starts.push_back(i);
-      if (!d.starts.empty()) break;
-    }
-    require(!d.starts.empty(), "train_step: no slice to train on");
-    d.first = d.starts[rng.below(d.starts.size())];
-    d.len = L;
-  }
-  const std::size_t first = d.first, L = d.len;
-  const std::size_t hw = slices.slices[first].pixels();
-  d.noise.clear();
-  if (noise_ratio > 0) {
-    std::size_t total = 0;
-    for (std::size_t k = 0; k < L; ++k) total += slices.slices[first + k].total;
-    events::draw_noise(total, noise_ratio, hw, L, rng, d.noise, sites ? &sites->list : nullptr);
-  }
-  if (d.taken.size() != hw) d.taken.assign(hw, 0);
-  if (sites && !sites->all()) require(sites->mask.size() == hw, "train_step: the pixel sites do not match the sensor");
-  O::pixels::draw(events::PixelWindow{hw, first, first + L, &prefix, sites && !sites->all() ? sites : nullptr}, pixels_per_step, rng,
-                  d.pixels, d.taken);
-  const int P = static_cast<int>(d.pixels.size());
-  require(P > 0, "train_step: no pixel to train on");
-  d.npos.resize(static_cast<std::size_t>(P) * L);
-  d.nneg.resize(static_cast<std::size_t>(P) * L);
-  for (int i = 0; i < P; ++i)
-    for (std::size_t k = 0; k < L; ++k) {
-      const auto& c = slices.slices[first + k];
-      d.npos[static_cast<std::size_t>(i) * L + k] = c.pos[d.pixels[i]];
-      d.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[d.pixels[i]];
-    }
-  if (!d.noise.empty()) {
-    if (d.slot.size() != hw) d.slot.assign(hw, -1);
-    for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = i;
-    for (const auto& e : d.noise) {
-      const int i = d.slot[e.pixel];
-      if (i < 0) continue;
-      int& c = (e.positive ? d.npos : d.nneg)[static_cast<std::size_t>(i) * L + e.slice];
-      if (c < INT16_MAX) ++c;
-    }
-    for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = -1;
-  }
-  // Drawn last, so that an objective of two poses draws exactly as before the inner boundary existed.
-  d.mid.clear();
-  if constexpr (poses_of<O>() == 3) {
-    d.mid.resize(static_cast<std::size_t>(P), 0);
-    if (L >= 2)
-      for (int i = 0; i < P; ++i) d.mid[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(1 + rng.below(L - 1));
-  }
-}
 
 }  // namespace evnerf::loss

@@ -294,8 +294,6 @@ inline train::Config config_of(const py::kwargs& kw) {
     else if (k == "terminate_rays") c.terminate_rays = value.cast<bool>();
     else if (k == "ray_cut") c.ray_cut = value.cast<double>();
     else if (k == "tv") c.tv = value.cast<double>();
-    else if (k == "tv_neighbours") c.tv_neighbours = train::parse_tv_neighbours(value.cast<std::string>(), "train");
-    else if (k == "tv_share") c.tv_share = value.cast<double>();
     else if (k == "view_decay") c.view_decay = value.cast<double>();
     else if (k == "near") c.near = value.cast<double>();
     else if (k == "far") c.far = value.cast<double>();
@@ -309,7 +307,7 @@ inline train::Config config_of(const py::kwargs& kw) {
     else if (k == "box") c.box = train::parse_box(value.cast<std::string>(), "train");
     else
       throw py::type_error("train: unknown keyword '" + k +
-                           "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, tv_neighbours, tv_share, view_decay, near, far, "
+                           "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, view_decay, near, far, "
                            "checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box)");
   }
   train::check(c);
@@ -603,7 +601,7 @@ void define(py::module_& m) {
           std::string s;
           for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
           return s;
-        }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, tv_neighbours, tv_share, view_decay, near, "
+        }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, view_decay, near, "
               "far, checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box. callback(step, loss, thresholds) "
               "runs after every step; returning False stops the run. With out, settings.json, log.jsonl and model.ckpt are written there (resume "
               "continues from it); without, nothing is written.").c_str());

@@ -18,6 +18,7 @@
 #include "../eval/metrics.hpp"
 #include "../io/dataset.hpp"
 #include "../io/image_io.hpp"
+#include "../loss/total_variation.hpp"
 #include "../model.hpp"
 #include "group.hpp"
 
@@ -35,14 +36,8 @@ struct Config {
   int pixels_per_step = 1024;  ///< each rendered at its window's poses (the objective's: 2 or 3)
   double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
   double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
-  std::optional<double> tv;    ///< weight of the total-variation regulariser (EvNerf::set_tv; 0 = off; unset: the
-                               ///< model's own, its variant's default_tv unless set_tv changed it)
-  std::optional<loss::TvNeighbours> tv_neighbours;  ///< the term's neighbours (EvNerf::set_tv_neighbours): right or
-                               ///< below (Any), only below (Vertical) or right (Horizontal), or across the image
-                               ///< motion (Across); unset: the model's own, its variant's default_tv_neighbours
-  std::optional<double> tv_share;  ///< the share of step pixels that get the term's neighbour ray, in (0, 1]
-                               ///< (EvNerf::set_tv_share: the weight is divided by it; 1 = every pixel); unset:
-                               ///< the model's own, its variant's default_tv_share
+  std::optional<double> tv;    ///< weight of the variant's total-variation term (loss::TvTerm; 0 = off; unset:
+                               ///< the variant's own). A variant without the term refuses a weight above 0.
   double view_decay = 0;       ///< decoupled decay of the view-dependence weights (EvNerf::set_view_decay; 0 = off;
                                ///< measured in bench/README.md, session 46, and not a default)
   double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
@@ -91,13 +86,6 @@ struct Config {
 
 /// A scene-box fit's name as the command line, the Python module and settings.json spell it.
 inline const char* box_name(Config::BoxFit b) { return b == Config::BoxFit::Frusta ? "frusta" : "cameras"; }
-/// The total-variation neighbours `name` spells (any, vertical, horizontal, across, as loss::tv_neighbours_name); an
-/// Error naming `who` and the known names when it spells none.
-inline loss::TvNeighbours parse_tv_neighbours(std::string_view name, const std::string& who) {
-  for (auto n : {loss::TvNeighbours::Any, loss::TvNeighbours::Vertical, loss::TvNeighbours::Horizontal, loss::TvNeighbours::Across})
-    if (name == loss::tv_neighbours_name(n)) return n;
-  throw Error(who + ": unknown total-variation neighbours '" + std::string(name) + "' (expected any, vertical, horizontal or across)");
-}
 /// The fit `name` spells; an Error naming `who` and the known names when it spells none.
 inline Config::BoxFit parse_box(std::string_view name, const std::string& who) {
   for (auto b : {Config::BoxFit::Cameras, Config::BoxFit::Frusta})
@@ -119,8 +107,6 @@ inline void check(const Config& c) {
   need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
   need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
   need(c.ray_cut > 0 && c.ray_cut < 1, "the ray-termination transmittance must lie in (0, 1), got " + short_number(c.ray_cut));
-  need(!c.tv_share || (*c.tv_share > 0 && *c.tv_share <= 1),
-       "the total-variation share must lie in (0, 1], got " + short_number(c.tv_share.value_or(1)));
   need(c.view_decay >= 0 && std::isfinite(c.view_decay), "the view-dependence decay must be finite and non-negative, got " + short_number(c.view_decay));
   need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
   need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
@@ -342,7 +328,7 @@ struct StepReport {
 };
 
 /// Every setting of `c` as JSON, as `out/settings.json` records it (the process group as its size; null for
-/// the total-variation settings `c` leaves to the model, which train::run records as the model has them).
+/// a total-variation weight `c` leaves to the variant; train::run records the model's).
 inline nlohmann::json settings_json(const Config& c) {
   nlohmann::json j;
   j["iterations"] = c.iterations;
@@ -351,9 +337,7 @@ inline nlohmann::json settings_json(const Config& c) {
   j["lr_decay"] = c.lr_decay;
   j["lr_decay_steps"] = c.lr_decay_steps;
   j["distortion"] = c.distortion;
-  j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own
-  j["tv_neighbours"] = c.tv_neighbours ? nlohmann::json(loss::tv_neighbours_name(*c.tv_neighbours)) : nlohmann::json(nullptr);
-  j["tv_share"] = c.tv_share ? nlohmann::json(*c.tv_share) : nlohmann::json(nullptr);
+  j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own (or none)
   j["view_decay"] = c.view_decay;
   j["average"] = c.average;
   j["terminate_rays"] = c.terminate_rays;
@@ -415,12 +399,11 @@ template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
               const std::string& meta, OnStep&& on_step = nullptr) {
   check(cfg);
-  // Neighbours or a share given for a term that is off would be silently ignored: refuse them.
-  require(!cfg.tv_neighbours || *cfg.tv_neighbours == loss::TvNeighbours::Any || cfg.tv.value_or(model.tv()) > 0,
-          std::string("train: total-variation neighbours '") + loss::tv_neighbours_name(cfg.tv_neighbours.value_or(loss::TvNeighbours::Any)) +
-              "' without the term: give it a weight (--tv)");
-  require(!cfg.tv_share || *cfg.tv_share == 1 || cfg.tv.value_or(model.tv()) > 0,
-          "train: a total-variation share of " + short_number(cfg.tv_share.value_or(1)) + " without the term: give it a weight (--tv)");
+  auto* tv_term = model.template term<loss::TvTerm>();
+  // A weight for a term the variant does not have would be silently ignored: refuse it.
+  require(!cfg.tv || *cfg.tv == 0 || tv_term,
+          "train: a total-variation weight of " + short_number(cfg.tv.value_or(0)) + " for a variant without the term (use fast, or add "
+          "loss::TotalVariation to the variant's objective)");
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
   Group* group = cfg.processes();
@@ -438,18 +421,14 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
   model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
-  if (cfg.tv) model.set_tv(*cfg.tv);
-  if (cfg.tv_neighbours) model.set_tv_neighbours(*cfg.tv_neighbours);
-  if (cfg.tv_share) model.set_tv_share(*cfg.tv_share);
+  if (cfg.tv && tv_term) tv_term->set_weight(*cfg.tv);
   model.set_view_decay(cfg.view_decay);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   // The settings first: a record it cannot read refuses the call before the log is touched. The term's
-  // settings as the model now has them, its variant's where cfg leaves them unset: what trains the run.
+  // weight as the model now has it, its variant's where cfg leaves it unset: what trains the run.
   if (files) {
     Config used = cfg;
-    used.tv = model.tv();
-    used.tv_neighbours = model.tv_neighbours();
-    used.tv_share = model.tv_share();
+    if (tv_term) used.tv = tv_term->weight;
     record_settings(out, used, name, model.step());
   }
   if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
@@ -470,7 +449,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   Progress bar(cfg.iterations, "train", cfg.progress && rank == 0);
   RunResult r;
   const double t_start = bar.elapsed();
-  double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_distortion = 0, sum_tv = 0, sum_samples = 0, sum_backward = 0;
+  double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_distortion = 0, sum_samples = 0, sum_backward = 0;
+  std::array<double, StepStats::kMaxTerms> sum_terms{};
   double start_event = 0, recent_event = 0;  // event loss: mean of the first kLogEvery steps, and of the last period
   long start_steps = 0;
   long window = 0;
@@ -510,7 +490,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     sum_event += st.event_loss;
     sum_threshold += st.threshold_loss;
     sum_distortion += st.distortion_loss;
-    sum_tv += st.tv_loss;
+    for (int k = 1; k < Model::n_terms; ++k) sum_terms[k] += st.term_loss[k];
     sum_samples += static_cast<double>(st.samples) / std::max<std::size_t>(1, st.rays);
     sum_backward += static_cast<double>(st.backward_samples) / std::max<std::size_t>(1, st.rays);
     ++window;
@@ -538,7 +518,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
       if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
-      if (model.tv() > 0) j["tv_loss"] = sum_tv / window;
+      for (int k = 1; k < Model::n_terms; ++k)  // each regulariser that is on, as <name>_loss
+        if (model.objective().active(k)) j[std::string(Model::term_name(k)) + "_loss"] = sum_terms[k] / window;
       if (shard_count > 1) {
         j["shards"] = shard_count;
         if (group) {
@@ -587,7 +568,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
         log << j.dump() << "\n";
         log.flush();
       }
-      sum_loss = sum_event = sum_threshold = sum_distortion = sum_tv = sum_samples = sum_backward = 0;
+      sum_loss = sum_event = sum_threshold = sum_distortion = sum_samples = sum_backward = 0;
+      sum_terms = {};
       window = 0;
       if (r.collapsed && !cfg.allow_collapse) {
         ++r.steps;
