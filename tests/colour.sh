@@ -19,7 +19,7 @@ ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" eval "$work/colour/model.ckpt" "$work/rec" --out "$work/eval_colour" > /dev/null 2>&1
 "$EV" eval "$work/grey/model.ckpt" "$work/rec" --out "$work/eval_grey" > /dev/null 2>&1
 # A sigmoid radiance renders within [0, 1]: its views get the float .npy all the same (checked below).
-"$EV" train "$work/rec" --out "$work/sigmoid" --preset fast-sigmoid "${ARGS[@]}" > /dev/null 2>&1
+"$EV" train "$work/rec" --out "$work/sigmoid" --preset fast-slice "${ARGS[@]}" > /dev/null 2>&1
 "$EV" eval "$work/sigmoid/model.ckpt" "$work/rec" --out "$work/eval_sigmoid" > /dev/null 2>&1
 "$EV" baselines "$work/rec" --out "$work/base" > /dev/null 2>&1
 "$EV" train "$work/rec" --out "$work/pc" --per-channel "${ARGS[@]}" > /dev/null 2>&1

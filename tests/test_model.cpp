@@ -6,7 +6,9 @@
 
 #include <evnerf/evnerf.hpp>
 
+#include "../examples/parts/eventnerf_mse.hpp"
 #include "../examples/parts/inverse_depth.hpp"
+#include "../examples/parts/quiet_pixels.hpp"
 #include "../examples/parts/shot_noise_counts.hpp"
 #include "../examples/parts/triangle_wave.hpp"
 #include "common.hpp"
@@ -35,14 +37,9 @@ using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>
 template <int C>
 using LogOccupancyModel =
     EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
-// Three poses per pixel (the window's ends and an inner boundary drawn per pixel, each pair a term).
-using Window3 = loss::WindowInterval<4, loss::HalfSlackCounts, events::UniformPixels, 3>;
 // 24 samples per ray (three chunks of the renderer's kEvalChunk): rays that stop early can skip some.
 template <int C>
 using LongOccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<24, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
-template <int C>
-using ThreePoseModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window3, double>;
-using ThreePoseHierarchical = EvNerf<FreqTiny<1>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window3, double>;
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
 
@@ -58,6 +55,20 @@ using CustomParts = EvNerf<field::FieldOf<mylab::TriangleWave<2>, nn::SphericalH
                                           nn::MlpShape{.width = 8}>,
                            mylab::InverseDepth<8>, loss::ProjectedThresholds, loss::DefaultNoise,
                            loss::WindowInterval<4, mylab::ShotNoiseCounts, events::EventPixels<100>>, double>;
+
+// Model M with the total-variation term added to its objective, off until a test gives it a weight.
+template <class M>
+using TvOf = EvNerf<typename M::field_type, typename M::sampler_type, typename M::threshold_policy, typename M::noise_policy,
+                    loss::Plus<typename M::objective_type, loss::TotalVariation<0>>, double>;
+
+// The examples' objective and regulariser (examples/parts/): EventNeRF's normalised squared loss with the
+// paper's floor on its thresholds, and Window plus the total-variation and quiet-pixels terms.
+template <int C>
+using EventNerfModel =
+    EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::JointThresholds, loss::DefaultNoise, mylab::EventNerfMse<4>, double>;
+template <int C>
+using QuietModel = EvNerf<HashTiny<C>, render::Stratified<8>, loss::ProjectedThresholds, loss::DefaultNoise,
+                          loss::Plus<Window, loss::TotalVariation<300>, mylab::QuietPixels<2000>>, double>;
 
 struct GradCheck {
   std::size_t checked = 0, nonzero = 0, kinks = 0, bad = 0;
@@ -108,9 +119,13 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
   const evtest::Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
-  m.set_tv(tv);
-  m.set_tv_neighbours(neighbours);
-  m.set_tv_share(tv_share);
+  if (auto* term = m.template term<loss::TvTerm>()) {
+    term->set_weight(tv);
+    term->neighbours = neighbours;
+    term->set_share(tv_share);
+  } else {
+    REQUIRE(tv == 0);
+  }
   m.set_ray_termination(terminate);
   // Hash tables away from their tiny initial values: the hidden units' inputs are then far from the ReLU's
   // kink compared with the step of the differences (the comparison is of a smooth function).
@@ -136,7 +151,7 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     REQUIRE(occ > 0);
     REQUIRE(occ < 1);
   }
-  int threshold_grads = 0, inner = 0;
+  int threshold_grads = 0;
   for (const std::uint64_t seed : {1u, 2u}) {
     const auto st = m.gradients(f.td, 16, seed, 4);
     CAPTURE(seed);
@@ -144,17 +159,14 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     REQUIRE(st.loss > 0);
     if (distortion > 0) CHECK(st.distortion_loss > 0);
     else CHECK(st.distortion_loss == 0);
-    if (tv > 0) CHECK(st.tv_loss > 0);
-    else CHECK(st.tv_loss == 0);
-    // Two rays per pixel, a third at the inner boundary (three poses, windows of two slices or more), one
-    // more for the TV neighbour (for some of the pixels at a share under 1).
-    const bool three = Model::poses == 3 && st.window >= 2;
-    inner += three;
+    if (tv > 0) CHECK(st.term_loss[1] > 0);
+    else CHECK(st.term_loss[1] == 0);
+    // Two rays per pixel, one more for the TV neighbour (for some of the pixels at a share under 1).
     if (tv_share < 1) {
-      CHECK(st.rays > (2u + three) * 16u);
-      CHECK(st.rays < (3u + three) * 16u);
+      CHECK(st.rays > 2u * 16u);
+      CHECK(st.rays < 3u * 16u);
     } else {
-      CHECK(st.rays == (2u + three + (tv > 0 ? 1u : 0u)) * 16u);
+      CHECK(st.rays == (2u + (tv > 0 ? 1u : 0u)) * 16u);
     }
     if constexpr (Model::sampler_type::skips_samples) {
       CHECK(st.samples > 0);
@@ -191,14 +203,13 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     }
   }
   CHECK(threshold_grads > 0);  // and some of them did (the comparison above covered them)
-  if constexpr (Model::poses == 3) CHECK(inner > 0);  // the check covered a step with an inner boundary
 }
 }  // namespace
 
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
                    StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
                    OccupancyModel<3>, LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>,
-                   CustomParts, ThreePoseModel<1>, ThreePoseModel<3>, ThreePoseHierarchical) {
+                   CustomParts) {
   check_model<Model>();
 }
 
@@ -212,6 +223,24 @@ TEST_CASE("samples spaced in log depth: a box with near <= 0 is refused when the
   CHECK_NOTHROW(OccupancyModel<1>(f.td.slices.size(), bx, 5));  // uniform spacing has no such need
 }
 
+// An objective and a regulariser of a user's own, through the same model: the whole loss, every parameter.
+TEST_CASE_TEMPLATE("whole training loss with the examples' objective and regulariser: finite differences in double", Model,
+                   EventNerfModel<1>, EventNerfModel<3>, QuietModel<1>, QuietModel<3>) {
+  if constexpr (Model::n_terms == 3) {
+    check_model<Model>(0.05, 0.3);
+    // The quiet-pixels term did score some pixels (those whose window holds no event).
+    const evtest::Fixture f;
+    Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+    double quiet = 0;
+    for (std::uint64_t seed = 1; seed <= 8; ++seed) quiet += m.gradients(f.td, 16, seed, 4).term_loss[2];
+    CHECK(quiet > 0);
+    CHECK(std::string(Model::term_name(2)) == "quiet");
+  } else {
+    check_model<Model>();
+    CHECK(Model::loss_description() != OccupancyModel<1>::loss_description());
+  }
+}
+
 // The distortion regulariser joins the loss of every pass; one-network models, where the loss is one sum
 // (a two-network model's coarse gradient excludes the fine pass through its resampled depths, see above).
 TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite differences in double", Model, StratifiedModel<1>,
@@ -219,13 +248,15 @@ TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite 
   check_model<Model>(0.05);
 }
 
-// The total-variation regulariser: a third ray per pixel (a neighbour from the window's first pose), its
-// term in every pass; with the distortion term too, whose mean then runs over all three rays.
+// The total-variation regulariser (loss::Plus with loss::TotalVariation): a third ray per pixel (a neighbour
+// from the window's first pose), its term in every pass; with the distortion term too, whose mean then runs
+// over all three rays.
 TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: finite differences in double", Model,
-                   StratifiedModel<1>, OccupancyModel<1>, ExpRadianceModel<3>, ThreePoseModel<1>) {
+                   TvOf<StratifiedModel<1>>, TvOf<OccupancyModel<1>>, TvOf<ExpRadianceModel<3>>) {
   SUBCASE("alone") { check_model<Model>(0, 0.3); }
   SUBCASE("with the distortion term") { check_model<Model>(0.05, 0.3); }
   SUBCASE("vertical neighbours") { check_model<Model>(0, 0.3, false, loss::TvNeighbours::Vertical); }
+  SUBCASE("neighbours across the image motion") { check_model<Model>(0, 0.3, false, loss::TvNeighbours::Across); }
   SUBCASE("half the pixels, with the distortion term") { check_model<Model>(0.05, 0.3, false, loss::TvNeighbours::Vertical, 0.5); }
 }
 
@@ -233,10 +264,11 @@ TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: fi
 /// other settings at their defaults, `b` is the one a test changes.
 struct TvModels {
   const evtest::Fixture f;
-  OccupancyModel<1> a{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5}, b{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5};
+  TvOf<OccupancyModel<1>> a{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5}, b{f.td.slices.size(), train::scene_box(f.td, f.cfg), 5};
+  loss::TvTerm &ta = *a.term<loss::TvTerm>(), &tb = *b.term<loss::TvTerm>();
   TvModels() {
-    a.set_tv(0.2);
-    b.set_tv(0.2);
+    ta.set_weight(0.2);
+    tb.set_weight(0.2);
   }
 };
 
@@ -246,15 +278,15 @@ TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels 
   auto &a = t.a, &b = t.b;
   a.set_distortion(0.05);
   b.set_distortion(0.05);
-  CHECK(a.tv_share() == 1.0);
+  CHECK(t.ta.share == 1.0);
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const std::vector<double> ga = a.params().grads;
-  b.set_tv_share(1.0);
+  t.tb.set_share(1.0);
   b.gradients(f.td, 16, 3, 4);
   CHECK(ga == b.params().grads);
   CHECK(sa.rays == 3 * 16);
   // Half the pixels: the pairs are the same rays, fewer neighbours are rendered, the gradient differs.
-  b.set_tv_share(0.5);
+  t.tb.set_share(0.5);
   const auto sh = b.gradients(f.td, 16, 3, 4);
   CHECK(sh.event_loss == sa.event_loss);
   CHECK(sh.rays > 2 * 16);
@@ -272,19 +304,19 @@ TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels 
   double whole = 0, half = 0;
   std::size_t drawn = 0;
   for (std::uint64_t seed = 1; seed <= 48; ++seed) {
-    whole += a.gradients(f.td, 32, seed, 8).tv_loss;
+    whole += a.gradients(f.td, 32, seed, 8).term_loss[1];
     const auto st = b.gradients(f.td, 32, seed, 8);
-    half += st.tv_loss;
+    half += st.term_loss[1];
     drawn += st.rays - 2 * 32;
   }
   CHECK(drawn > 48 * 32 * 4 / 10);
   CHECK(drawn < 48 * 32 * 6 / 10);
   CHECK(half / whole > 0.8);
   CHECK(half / whole < 1.25);
-  CHECK_THROWS_AS(b.set_tv_share(0), Error);
-  CHECK_THROWS_AS(b.set_tv_share(1.5), Error);
-  CHECK_THROWS_AS(b.set_tv_share(std::nan("")), Error);
-  CHECK(b.tv_share() == 0.5);
+  CHECK_THROWS_AS(t.tb.set_share(0), Error);
+  CHECK_THROWS_AS(t.tb.set_share(1.5), Error);
+  CHECK_THROWS_AS(t.tb.set_share(std::nan("")), Error);
+  CHECK(t.tb.share == 0.5);
 }
 
 TEST_CASE("total-variation neighbours: any draws right or below, vertical and horizontal fix one, borders turn back") {
@@ -328,17 +360,17 @@ TEST_CASE("total-variation neighbours: any is the default's step; vertical chang
   TvModels t;
   const evtest::Fixture& f = t.f;
   auto &a = t.a, &b = t.b;
-  CHECK(a.tv_neighbours() == loss::TvNeighbours::Any);
+  CHECK(t.ta.neighbours == loss::TvNeighbours::Any);
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const std::vector<double> ga = a.params().grads;
-  b.set_tv_neighbours(loss::TvNeighbours::Any);
+  t.tb.neighbours = loss::TvNeighbours::Any;
   b.gradients(f.td, 16, 3, 4);
   CHECK(ga == b.params().grads);
-  b.set_tv_neighbours(loss::TvNeighbours::Vertical);
+  t.tb.neighbours = loss::TvNeighbours::Vertical;
   const auto sv = b.gradients(f.td, 16, 3, 4);
   CHECK(sv.event_loss == sa.event_loss);  // the pairs' rays are the same; only the neighbours move
-  CHECK(sv.tv_loss > 0);
-  CHECK(sv.tv_loss != sa.tv_loss);
+  CHECK(sv.term_loss[1] > 0);
+  CHECK(sv.term_loss[1] != sa.term_loss[1]);
   CHECK(sv.rays == sa.rays);
   const std::vector<double> gv = b.params().grads;
   CHECK(gv != ga);
@@ -353,40 +385,42 @@ TEST_CASE("total-variation neighbours: across is vertical's step on a slider alo
   TvModels t;
   const evtest::Fixture& f = t.f;
   auto &a = t.a, &b = t.b;
-  a.set_tv_neighbours(loss::TvNeighbours::Vertical);
-  b.set_tv_neighbours(loss::TvNeighbours::Across);
+  t.ta.neighbours = loss::TvNeighbours::Vertical;
+  t.tb.neighbours = loss::TvNeighbours::Across;
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const auto sb = b.gradients(f.td, 16, 3, 4);
-  CHECK(sb.tv_loss == sa.tv_loss);
+  CHECK(sb.term_loss[1] == sa.term_loss[1]);
   CHECK(b.params().grads == a.params().grads);
   // The same scene's slider turned to run along y (every pose's x and y swapped, so the camera moves along
   // its own y axis): across now picks the pixel to the right, Horizontal's.
   TrainingData ty = f.td;
   for (auto& p : ty.boundary_poses) std::swap(p.t.x(), p.t.y());
-  a.set_tv_neighbours(loss::TvNeighbours::Horizontal);
+  t.ta.neighbours = loss::TvNeighbours::Horizontal;
   const auto sh = a.gradients(ty, 16, 3, 4);
   const std::vector<double> gh = a.params().grads;
   const auto sy = b.gradients(ty, 16, 3, 4);
-  CHECK(sy.tv_loss == sh.tv_loss);
+  CHECK(sy.term_loss[1] == sh.term_loss[1]);
   CHECK(b.params().grads == gh);
-  a.set_tv_neighbours(loss::TvNeighbours::Vertical);
-  CHECK(a.gradients(ty, 16, 3, 4).tv_loss != sh.tv_loss);  // the choice matters on this data
+  t.ta.neighbours = loss::TvNeighbours::Vertical;
+  CHECK(a.gradients(ty, 16, 3, 4).term_loss[1] != sh.term_loss[1]);  // the choice matters on this data
 }
 
 TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; its draw ignores tiling and threads") {
   const evtest::Fixture f;
   using M = OccupancyModel<1>;
-  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  b.set_tv(0.0);
+  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  TvOf<M> b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  loss::TvTerm& tb = *b.term<loss::TvTerm>();
+  CHECK(a.term<loss::TvTerm>() == nullptr);  // an objective without the term has none to find
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const std::vector<double> ga = a.params().grads;
   b.gradients(f.td, 16, 3, 4);
   CHECK(ga == b.params().grads);
-  b.set_tv(0.2);
+  tb.set_weight(0.2);
   const auto sb = b.gradients(f.td, 16, 3, 4);
   CHECK(sb.event_loss == sa.event_loss);  // the pairs' rays and their random streams are the same
-  CHECK(sb.tv_loss > 0);
-  CHECK(sb.loss == doctest::Approx(sa.loss + sb.tv_loss).epsilon(1e-12));
+  CHECK(sb.term_loss[1] > 0);
+  CHECK(sb.loss == doctest::Approx(sa.loss + sb.term_loss[1]).epsilon(1e-12));
   CHECK(b.params().grads != ga);
   const std::vector<double> gb = b.params().grads;
   b.gradients(f.td, 16, 3, 1);  // one pixel per tile
@@ -394,50 +428,45 @@ TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; 
   for (std::size_t i = 0; i < gb.size(); ++i)
     worst = std::max(worst, std::abs(b.params().grads[i] - gb[i]) / std::max(1e-12, std::abs(gb[i])));
   CHECK(worst < 1e-9);
-  CHECK_THROWS_WITH_AS(b.set_tv(-1), doctest::Contains("total-variation weight"), Error);
-  CHECK(M::default_tv == 0.0);
-  CHECK(a.tv() == 0.0);
-  // An objective with the term on by default (loss::WithTv): a new or restored model starts at its weight,
-  // set_tv overrides it, and checkpoints record the inner objective's loss (the weight is a training setting).
+  CHECK_THROWS_WITH_AS(tb.set_weight(-1), doctest::Contains("total-variation weight"), Error);
+  CHECK(std::string(TvOf<M>::term_name(1)) == "tv");
+  // A term on by default (loss::TotalVariation<250>): a new model starts at its weight, which a run may
+  // change, and checkpoints record the objective's loss alone (the weight is a training setting).
   using T = EvNerf<HashTiny<1>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise,
-                   loss::WithTv<Window, 250>, double>;
-  static_assert(T::default_tv == 0.25);
+                   loss::Plus<Window, loss::TotalVariation<250>>, double>;
   T t(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  CHECK(t.tv() == 0.25);
+  CHECK(t.term<loss::TvTerm>()->weight == 0.25);
+  CHECK(t.term<loss::TvTerm>()->neighbours == loss::TvNeighbours::Any);
+  CHECK(t.term<loss::TvTerm>()->share == 1.0);
   CHECK(T::loss_description() == M::loss_description());
   const auto st = t.gradients(f.td, 16, 3, 4);
-  CHECK(st.tv_loss > 0);
+  CHECK(st.term_loss[1] > 0);
   CHECK(st.rays == 48u);
-  t.set_tv(0);
-  CHECK(t.gradients(f.td, 16, 3, 4).tv_loss == 0);
-  CHECK(T::default_tv_neighbours == loss::TvNeighbours::Any);
-  CHECK(T::default_tv_share == 1.0);
-  CHECK(M::default_tv_neighbours == loss::TvNeighbours::Any);
-  CHECK(M::default_tv_share == 1.0);
-  // Neighbours and a share named by the objective: a new model starts at them, and its steps are those of
+  t.term<loss::TvTerm>()->set_weight(0);
+  CHECK(t.gradients(f.td, 16, 3, 4).term_loss[1] == 0);
+  // Neighbours and a share named by the term's type: a new model starts at them, and its steps are those of
   // a model given the same settings by hand.
   using U = EvNerf<HashTiny<1>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise,
-                   loss::WithTv<Window, 250, loss::TvNeighbours::Vertical, 500>, double>;
-  static_assert(U::default_tv == 0.25 && U::default_tv_share == 0.5 && U::default_tv_neighbours == loss::TvNeighbours::Vertical);
+                   loss::Plus<Window, loss::TotalVariation<250, loss::TvNeighbours::Vertical, 500>>, double>;
   U u(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  CHECK(u.tv() == 0.25);
-  CHECK(u.tv_share() == 0.5);
-  CHECK(u.tv_neighbours() == loss::TvNeighbours::Vertical);
+  CHECK(u.term<loss::TvTerm>()->share == 0.5);
+  CHECK(u.term<loss::TvTerm>()->neighbours == loss::TvNeighbours::Vertical);
   T byhand(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  byhand.set_tv_neighbours(loss::TvNeighbours::Vertical);
-  byhand.set_tv_share(0.5);
+  byhand.term<loss::TvTerm>()->neighbours = loss::TvNeighbours::Vertical;
+  byhand.term<loss::TvTerm>()->set_share(0.5);
   const auto su = u.gradients(f.td, 16, 3, 4);
   const auto sh = byhand.gradients(f.td, 16, 3, 4);
-  CHECK(su.tv_loss > 0);
-  CHECK(su.tv_loss == sh.tv_loss);
+  CHECK(su.term_loss[1] > 0);
+  CHECK(su.term_loss[1] == sh.term_loss[1]);
   CHECK(su.rays < 48u);  // half the pixels get the neighbour ray
   CHECK(su.rays == sh.rays);
   CHECK(u.params().grads == byhand.params().grads);
   // Fast's: the term at 0.1, across the motion, half the pixels; FastNoTv is the event objective alone.
-  static_assert(presets::Fast::default_tv == 0.1 && presets::Fast::default_tv_share == 0.5 &&
-                presets::Fast::default_tv_neighbours == loss::TvNeighbours::Across);
-  static_assert(presets::FastNoTv::default_tv == 0.0 && presets::FastNoTv::default_tv_share == 1.0 &&
-                presets::FastNoTv::default_tv_neighbours == loss::TvNeighbours::Any);
+  const presets::FastTv fast_tv;
+  CHECK(fast_tv.weight == 0.1);
+  CHECK(fast_tv.share == 0.5);
+  CHECK(fast_tv.neighbours == loss::TvNeighbours::Across);
+  static_assert(presets::Fast::n_terms == 2 && presets::FastNoTv::n_terms == 1);
   CHECK(presets::Fast::loss_description() == presets::FastNoTv::loss_description());
 }
 
@@ -543,40 +572,6 @@ TEST_CASE("colour models: each pixel's channel follows the recording's Bayer pat
   CHECK(std::abs(b.gradients(f.td, 64, 7, 2).loss - sa.loss) > 1e-9);
 }
 
-TEST_CASE("three poses: the ends' rays are two poses' to the bit, the parts' terms add to the loss; the draw ignores tiling") {
-  const evtest::Fixture f;
-  using M2 = OccupancyModel<1>;
-  using M3 = ThreePoseModel<1>;
-  static_assert(M2::poses == 2 && M3::poses == 3 && M2::field_params == M3::field_params);
-  CHECK(M3::loss_description() == M2::loss_description() + ", 3 poses");
-  M2 a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  M3 b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  b.params().values = a.params().values;
-  int inner = 0;
-  for (const std::uint64_t seed : {1u, 2u, 3u, 4u}) {
-    CAPTURE(seed);
-    const auto sa = a.gradients(f.td, 16, seed, 4);
-    const auto sb = b.gradients(f.td, 16, seed, 4);
-    REQUIRE(sa.first_slice == sb.first_slice);
-    REQUIRE(sa.window == sb.window);
-    CHECK(a.last_draw().pixels == b.last_draw().pixels);
-    if (sb.window == 1) {  // no inner boundary: the same step exactly
-      CHECK(sb.loss == sa.loss);
-      CHECK(b.params().grads == a.params().grads);
-      CHECK(sb.rays == 32u);
-      continue;
-    }
-    ++inner;
-    CHECK(sb.rays == 48u);
-    CHECK(sb.event_loss > sa.event_loss);  // the span's term, the same, plus the parts' (positive here)
-    const std::vector<double> g = b.params().grads;
-    b.gradients(f.td, 16, seed, 1);  // one pixel per tile: the same draw, summed in another order
-    double worst = 0;
-    for (std::size_t i = 0; i < g.size(); ++i) worst = std::max(worst, std::abs(b.params().grads[i] - g[i]) / std::max(1e-12, std::abs(g[i])));
-    CHECK(worst < 1e-9);
-  }
-  CHECK(inner > 0);
-}
 // Training rays that stop where their transmittance falls below the backward pass's cut (set_ray_termination,
 // samplers that skip): the loss is then a function of the samples evaluated before each ray's stop, and its
 // gradient still matches finite differences.

@@ -1,8 +1,10 @@
-// Objectives (loss/objective.hpp) and pixel policies (events/pixels.hpp).
+// Objectives (loss/objective.hpp), the total-variation penalty (loss/total_variation.hpp) and pixel policies
+// (events/pixels.hpp).
 #include <algorithm>
 #include <set>
 
 #include <evnerf/loss/objective.hpp>
+#include <evnerf/loss/total_variation.hpp>
 
 #include "common.hpp"
 
@@ -39,7 +41,7 @@ std::vector<double> window_grad(const std::vector<double>& x, const std::vector<
 }  // namespace
 
 TEST_CASE_TEMPLATE("window objective: finite differences in double match the gradient for every luminance and threshold", Bound,
-                   loss::SplitCounts<1>, loss::HalfSlackCounts, loss::SignedCount, loss::CentredCounts<1000>) {
+                   loss::SplitCounts<1>, loss::HalfSlackCounts, loss::SignedCount) {
   Rng rng(4);
   int checked_nonzero = 0;
   for (int trial = 0; trial < 200; ++trial) {
@@ -89,33 +91,6 @@ TEST_CASE("window objective: one slice is spec §2's EventBounds exactly; the wi
   // Beyond the upper end (centre + B⁺_eff, B⁺_eff = (2·0.2 + 0.4)/3) by 0.1.
   const double hi = centre + (2 * 0.2 + 0.4) / 3 + 0.1, b2 = std::exp(hi) * (a + 1e-3) - 1e-3;
   CHECK(loss::window_pixel_loss<loss::SplitCounts<1>>(a, b2, 2, np2, nn2, bp2, bm2, gp, gm).value == doctest::Approx(0.1));
-}
-
-TEST_CASE("centred counts: the half-slack hinge plus weight · (change − μ)²; weight 0 is HalfSlackCounts to the bit") {
-  const int np2[2] = {2, 1}, nn2[2] = {0, 1};
-  const double bp2[2] = {0.2, 0.4}, bm2[2] = {-0.3, -0.5};
-  const double mu = 2 * 0.2 + 1 * 0.4 - 0.5, eps = 1e-3, a = 0.3;
-  auto at = [&](double change) { return std::exp(change) * (a + eps) - eps; };
-  double gp[2] = {0, 0}, gm[2] = {0, 0};
-  using C = loss::CentredCounts<2500>;
-  // Inside the half slack: only the square, 2.5 · d².
-  const double d = 0.05;
-  CHECK(loss::window_pixel_loss<C>(a, at(mu + d), 2, np2, nn2, bp2, bm2, gp, gm, eps).value == doctest::Approx(2.5 * d * d));
-  CHECK(loss::window_pixel_loss<loss::HalfSlackCounts>(a, at(mu + d), 2, np2, nn2, bp2, bm2, gp, gm, eps).value == 0.0);
-  // Beyond the upper end (μ + ½ B⁺_eff) by 0.1: the hinge's distance plus the square.
-  const double up = 0.5 * (2 * 0.2 + 0.4) / 3 + 0.1;
-  CHECK(loss::window_pixel_loss<C>(a, at(mu + up), 2, np2, nn2, bp2, bm2, gp, gm, eps).value ==
-        doctest::Approx(0.1 + 2.5 * up * up));
-  // No events: the change is pulled to zero.
-  const int z[1] = {0};
-  const double b1[1] = {0.3}, m1[1] = {-0.3};
-  CHECK(loss::window_pixel_loss<C>(a, at(0.1), 1, z, z, b1, m1, gp, gm, eps).value == doctest::Approx(2.5 * 0.01));
-  // EventBounds with centre 0 takes the hinge's own path: bit-identical values and gradients.
-  auto e = loss::HalfSlackCounts::make(3, 1);
-  const auto r0 = e.evaluate(0.2, 0.7, 0.31, -0.29);
-  e.centre = 0.0;
-  CHECK(e.evaluate(0.2, 0.7, 0.31, -0.29) == r0);
-  CHECK(std::string(loss::CentredCounts<2500>::name) == "half-slack-centred");
 }
 
 TEST_CASE("total variation of log-luminance: Cauchy penalty of the log step, symmetric, its gradient matches finite differences") {
@@ -243,113 +218,3 @@ TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel a
   CHECK(o0 == o1);
 }
 
-TEST_CASE("three poses: the three pairs' losses on brute-force sums of the counts; finite differences in double") {
-  using B = loss::HalfSlackCounts;
-  Rng rng(21);
-  int checked_nonzero = 0;
-  for (int trial = 0; trial < 200; ++trial) {
-    const int L = 2 + static_cast<int>(rng.below(5)), m = 1 + static_cast<int>(rng.below(static_cast<std::uint64_t>(L - 1)));
-    std::vector<int> np(L), nn(L);
-    for (int k = 0; k < L; ++k) {
-      np[k] = static_cast<int>(rng.below(4));
-      nn[k] = static_cast<int>(rng.below(3));
-    }
-    // x = (ℓ0, ℓm, ℓ1, B⁺_0, B⁻_0, …).
-    std::vector<double> x{0.05 + 0.9 * rng.uniform(), 0.05 + 0.9 * rng.uniform(), 0.05 + 0.9 * rng.uniform()};
-    for (int k = 0; k < L; ++k) {
-      x.push_back(0.15 + 0.4 * rng.uniform());
-      x.push_back(-0.15 - 0.4 * rng.uniform());
-    }
-    auto eval = [&](const std::vector<double>& v, std::vector<double>* grad) {
-      std::vector<double> bp(L), bm(L), gp(L, 0.0), gm(L, 0.0);
-      for (int k = 0; k < L; ++k) {
-        bp[k] = v[3 + 2 * k];
-        bm[k] = v[4 + 2 * k];
-      }
-      const auto r = loss::three_pose_pixel_loss<B>(v[0], v[1], v[2], m, L, np.data(), nn.data(), bp.data(), bm.data(), gp.data(), gm.data());
-      if (grad) {
-        *grad = {r.dl0, r.dlm, r.dl1};
-        for (int k = 0; k < L; ++k) {
-          grad->push_back(gp[k]);
-          grad->push_back(gm[k]);
-        }
-      }
-      return r.value;
-    };
-    // With one threshold pair for every slice the count-weighted thresholds are that pair, so each term is
-    // EventBounds on the counts summed over its slices, written out here by brute force.
-    {
-      const double b = x[3], c = x[4];
-      std::vector<double> same = x;
-      for (int k = 0; k < L; ++k) {
-        same[3 + 2 * k] = b;
-        same[4 + 2 * k] = c;
-      }
-      auto term = [&](double la, double lb, int from, int to) {
-        int p = 0, n = 0;
-        for (int k = from; k < to; ++k) p += np[k], n += nn[k];
-        return B::make(p, n).evaluate(la, lb, b, c)[0];
-      };
-      const double want = term(x[0], x[2], 0, L) + term(x[0], x[1], 0, m) + term(x[1], x[2], m, L);
-      CHECK(eval(same, nullptr) == doctest::Approx(want).epsilon(1e-12));
-    }
-    std::vector<double> g;
-    const double v = eval(x, &g);
-    if (v > 1e-3) {
-      ++checked_nonzero;
-      CAPTURE(trial);
-      CHECK(evtest::max_fd_error([&](const std::vector<double>& p) { return eval(p, nullptr); }, x, g) < 1e-5);
-    }
-  }
-  CHECK(checked_nonzero > 50);
-  std::vector<int> z(3, 0);
-  std::vector<double> bp(3, 0.3), bm(3, -0.3), gp(3), gm(3);
-  for (const int m : {0, 3})
-    CHECK_THROWS_WITH_AS(loss::three_pose_pixel_loss<B>(0.5, 0.5, 0.5, m, 3, z.data(), z.data(), bp.data(), bm.data(), gp.data(), gm.data()),
-                         doctest::Contains("strictly inside the window"), Error);
-}
-
-TEST_CASE("three poses: each pixel's inner boundary lies inside its window, every one occurs; the rest of the draw is two poses' to the bit") {
-  // Six slices of a 10×10 sensor with events at pixels 0..59.
-  events::SliceSet set;
-  for (int s = 0; s < 6; ++s) {
-    auto one = one_slice_10x10([&](int p) { return p < 60 && (p + s) % 3 != 0; });
-    one.slices[0].total = 40;  // so that noise is injected too (5 % of each window's count)
-    set.slices.push_back(one.slices[0]);
-    set.boundaries.push_back(s);
-  }
-  set.boundaries.push_back(6);
-  const events::CountPrefix pre(set);
-  using Two = loss::WindowInterval<3, loss::HalfSlackCounts>;
-  using Three = loss::WindowInterval<3, loss::HalfSlackCounts, events::UniformPixels, 3>;
-  static_assert(loss::poses_of<Two>() == 2 && loss::poses_of<Three>() == 3 && loss::poses_of<loss::SliceInterval<>>() == 2);
-  CHECK(Three::description() == Two::description() + ", 3 poses");
-  std::set<std::pair<std::size_t, std::uint32_t>> seen;  // (window length, inner boundary)
-  int one_slice = 0;
-  for (std::uint64_t seed = 1; seed <= 60; ++seed) {
-    Rng ra(seed), rb(seed);
-    loss::StepDraw a, b;
-    // Two slices per interval: windows of 1..6 slices.
-    loss::draw_step<Two>(set, {}, pre, 0.05, 20, ra, a, nullptr, 2);
-    loss::draw_step<Three>(set, {}, pre, 0.05, 20, rb, b, nullptr, 2);
-    CHECK(a.mid.empty());
-    CHECK(a.first == b.first);
-    CHECK(a.len == b.len);
-    CHECK(a.pixels == b.pixels);
-    CHECK(a.npos == b.npos);
-    CHECK(a.nneg == b.nneg);
-    REQUIRE(b.mid.size() == b.pixels.size());
-    for (const std::uint32_t m : b.mid) {
-      if (b.len == 1) {
-        CHECK(m == 0);
-        ++one_slice;
-      } else {
-        CHECK(m >= 1);
-        CHECK(m < b.len);
-        seen.insert({b.len, m});
-      }
-    }
-  }
-  CHECK(one_slice > 0);
-  CHECK(seen.size() == 15u);  // every inner boundary of every window length 2..6: 1 + 2 + 3 + 4 + 5
-}

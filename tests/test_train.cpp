@@ -538,11 +538,11 @@ TEST_CASE("checkpoint_variant: a file goes to the variant of its architecture, b
   };
   const auto old_fast = write(Dense(f.td.slices.size(), box, 7).serialize("fast", ""), "old.ckpt");
   const auto new_fast = write(Pruned(f.td.slices.size(), box, 7).serialize("fast-prune", ""), "new.ckpt");
-  using List = std::tuple<Variant<Pruned, "fast">, Variant<Dense, "fast-dense-grid">, Variant<Pruned, "fast-prune">>;
+  using List = std::tuple<Variant<Pruned, "fast">, Variant<Dense, "dense">, Variant<Pruned, "fast-prune">>;
   auto pick = [](const std::filesystem::path& p) {
     return [&]<class... V>(std::tuple<V...>*) { return checkpoint_variant<V...>(p); }(static_cast<List*>(nullptr));
   };
-  CHECK(pick(old_fast) == "fast-dense-grid");  // its name is a label; its grid decides
+  CHECK(pick(old_fast) == "dense");  // its name is a label; its grid decides
   CHECK(pick(new_fast) == "fast-prune");       // two names of one type: the file's own name
   // Without a variant of the old grid, the old file is refused with what it was written by.
   using OnlyNew = Variant<Pruned, "fast">;
@@ -956,13 +956,9 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(first["runs"][0]["pixels_per_step"] == 64);
   CHECK(first["runs"][0]["terminate_rays"] == cfg.terminate_rays);
   CHECK(first["runs"][0]["seed"] == cfg.seed);
-  CHECK(first["runs"][0]["tv"] == 0.0);  // the term's settings as the model has them (cfg leaves them unset)
+  CHECK(first["runs"][0]["tv"].is_null());  // a variant without the term, and cfg leaves it unset
   CHECK(train::settings_json(cfg)["tv"].is_null());
-  CHECK(train::settings_json(cfg)["tv_neighbours"].is_null());
-  CHECK(train::settings_json(cfg)["tv_share"].is_null());
   CHECK(first["runs"][0]["view_decay"] == 0.0);
-  CHECK(first["runs"][0]["tv_neighbours"] == "any");
-  CHECK(first["runs"][0]["tv_share"] == 1.0);
   CHECK(m.view_decay() == 0.0);
   CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
   // A resumed run appends, to the log and to the settings.
@@ -982,7 +978,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(both["runs"][1]["iterations"] == 100);
   CHECK(both["runs"][1]["terminate_rays"] == cfg.terminate_rays);
   CHECK(first["runs"][0]["ray_cut"] == train::Config{}.ray_cut);
-  CHECK(train::Config{}.ray_cut == 1e-2);  // the default since session 43
+  CHECK(train::Config{}.ray_cut == 1e-2);
   CHECK(both["runs"][1]["ray_cut"] == 2e-3);
   // A call resumed from an earlier step drops the entries that started at or after it; a settings file that
   // is not the record is refused, naming it, and left as it was.
@@ -1052,57 +1048,30 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.ray_cut = 0; }, "ray-termination transmittance must lie in (0, 1)");
   refused([](train::Config& c) { c.ray_cut = 1; }, "ray-termination transmittance must lie in (0, 1)");
   refused([](train::Config& c) { c.ray_cut = std::nan(""); }, "ray-termination transmittance must lie in (0, 1)");
-  refused([](train::Config& c) { c.tv_share = 0; }, "total-variation share must lie in (0, 1]");
-  refused([](train::Config& c) { c.tv_share = 1.5; }, "total-variation share must lie in (0, 1]");
-  refused([](train::Config& c) { c.tv_share = std::nan(""); }, "total-variation share must lie in (0, 1]");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
   CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", "meta"), doctest::Contains("threads must be between 0"), Error);
   CHECK(m.step() == 0);
-  // The total-variation weight: unset, the model keeps its own; set, the Config's replaces it.
+  // The total-variation weight: unset, the model keeps its own; set, the Config's replaces it; a variant
+  // without the term refuses a weight (it would do nothing) but takes 0.
+  using TinyTv = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise,
+                        loss::Plus<loss::SliceInterval<>, loss::TotalVariation<125>>>;
+  TinyTv t(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config two = cfg;
   two.iterations = 2;
-  m.set_tv(0.125);
-  train::run(m, f.td, two, fs::path(), "tiny", "meta");
-  CHECK(m.tv() == 0.125);
+  train::run(t, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(t.term<loss::TvTerm>()->weight == 0.125);
   two.tv = 0.0;
-  train::run(m, f.td, two, fs::path(), "tiny", "meta");
-  CHECK(m.tv() == 0.0);
-  // Neighbours other than the default need the term: without a weight they would silently do nothing.
-  two.tv_neighbours = loss::TvNeighbours::Vertical;
+  train::run(t, f.td, two, fs::path(), "tiny", "meta");
+  CHECK(t.term<loss::TvTerm>()->weight == 0.0);
+  two.tv = 0.25;
   const long at = m.step();
-  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", "meta"), doctest::Contains("'vertical' without the term"), Error);
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", "meta"), doctest::Contains("weight of 0.25 for a variant without the term"),
+                       Error);
   CHECK(m.step() == at);
-  two.tv = 0.25;
-  train::run(m, f.td, two, fs::path(), "tiny", "meta");
-  CHECK(m.tv_neighbours() == loss::TvNeighbours::Vertical);
-  CHECK(train::settings_json(two)["tv_neighbours"] == "vertical");
-  CHECK(m.tv_share() == 1.0);
-  // So does a share of the pixels.
   two.tv = 0.0;
-  two.tv_neighbours = loss::TvNeighbours::Any;
-  two.tv_share = 0.25;
-  const long at2 = m.step();
-  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", "meta"), doctest::Contains("share of 0.25 without the term"), Error);
-  CHECK(m.step() == at2);
-  two.tv = 0.25;
-  train::run(m, f.td, two, fs::path(), "tiny", "meta");
-  CHECK(m.tv_share() == 0.25);
-  CHECK(train::settings_json(two)["tv_share"] == 0.25);
-  // Unset, the neighbours and the share stay the model's own (its variant's, or what a setter gave it).
-  train::Config three = cfg;
-  three.iterations = m.step() + 1;
-  m.set_tv_neighbours(loss::TvNeighbours::Across);
-  m.set_tv_share(0.5);
-  train::run(m, f.td, three, fs::path(), "tiny", "meta");
-  CHECK(m.tv_neighbours() == loss::TvNeighbours::Across);
-  CHECK(m.tv_share() == 0.5);
-  CHECK(train::parse_tv_neighbours("horizontal", "who") == loss::TvNeighbours::Horizontal);
-  CHECK(train::parse_tv_neighbours("any", "who") == loss::TvNeighbours::Any);
-  CHECK(train::parse_tv_neighbours("across", "who") == loss::TvNeighbours::Across);
-  CHECK_THROWS_WITH_AS(train::parse_tv_neighbours("diagonal", "train --tv-neighbours"),
-                       doctest::Contains("train --tv-neighbours: unknown total-variation neighbours 'diagonal'"), Error);
+  CHECK_NOTHROW(train::run(m, f.td, two, fs::path(), "tiny", "meta"));
 }
 
 TEST_CASE("lazy Adam: a threshold of a slice no step touched keeps its value and its moments") {
@@ -1312,31 +1281,6 @@ TEST_CASE("train::box_name and parse_box: one spelling each way; anything else i
   CHECK(std::string(train::box_name(train::Config::BoxFit::Cameras)) == "cameras");
   CHECK_THROWS_WITH(train::parse_box("Frusta", "train --box"), doctest::Contains("train --box: box must be 'cameras' or 'frusta', got 'Frusta'"));
   CHECK_THROWS_WITH(train::parse_box("", "train"), doctest::Contains("got ''"));
-}
-
-TEST_CASE("ratio thresholds: only B+/|B-| is learned, the scale stays shared and fixed") {
-  Fixture f;
-  using M = EvNerf<TinyField, render::Stratified<16>, loss::RatioThresholds, loss::DefaultNoise, loss::WindowInterval<4>>;
-  M m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{2e-2, 0.9, 0.999, 1e-7, 0.1, 250000});
-  for (int s = 0; s < 40; ++s) m.train_step(f.td, 128, 3);
-  int moved = 0;
-  for (std::size_t i = 0; i < m.n_slices(); ++i) {
-    const double bp = m.threshold_pos(i), bm = m.threshold_neg(i);
-    CHECK(bp * -bm == doctest::Approx(0.09).epsilon(1e-5));
-    CHECK(bp / -bm <= 4.0 + 1e-5);
-    CHECK(bp / -bm >= 0.25 - 1e-5);
-    moved += std::abs(bp - 0.3) > 1e-4;
-  }
-  CHECK(moved > 0);
-  // The projection itself: a pair is moved onto the curve, its ratio kept, and clamped at the bounds.
-  float bp = 0.6f, bm = -0.3f;
-  loss::RatioThresholds::project(bp, bm);
-  CHECK(bp / -bm == doctest::Approx(2.0).epsilon(1e-5));
-  CHECK(bp * -bm == doctest::Approx(0.09).epsilon(1e-5));
-  bp = -0.1f;
-  bm = -0.2f;
-  loss::RatioThresholds::project(bp, bm);
-  CHECK(bp / -bm == doctest::Approx(0.25).epsilon(1e-5));
 }
 
 TEST_CASE("collapse detection: a forced collapse stops the run with what it saw; a healthy run is not stopped") {

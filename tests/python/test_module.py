@@ -74,31 +74,13 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m3.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="total-variation weight must be finite and non-negative"):
         evnerf.train(d, iterations=2, threads=1, tv=-1.0)
-    # So are its neighbours: vertical ones give another model than any; without the term (weight 0), or by
-    # an unknown name, they are refused.
-    m6 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="vertical")
-    m11 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="any")
-    assert not np.array_equal(m6.render(P)[0], m11.render(P)[0])
-    with pytest.raises(evnerf.Error, match="'vertical' without the term"):
-        evnerf.train(d, iterations=2, threads=1, tv=0.0, tv_neighbours="vertical")
-    # Across the image motion: planes' slider moves along x, so it is vertical's model to the bit.
-    m8 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="across")
-    assert np.array_equal(m8.render(P)[0], m6.render(P)[0])
-    with pytest.raises(evnerf.Error, match="unknown total-variation neighbours 'diagonal'"):
-        evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_neighbours="diagonal")
-    # And its share of the pixels: every pixel gives another model than fast's half; without a weight, or out
-    # of (0, 1], refused.
-    m7 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3, tv_neighbours="vertical", tv_share=1.0)
-    assert not np.array_equal(m7.render(P)[0], m6.render(P)[0])
-    with pytest.raises(evnerf.Error, match="share of 0.5 without the term"):
-        evnerf.train(d, iterations=2, threads=1, tv=0.0, tv_share=0.5)
-    # fast's own term is 0.1, across, half the pixels: given by hand, the same model; off, another.
-    m9 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.1, tv_neighbours="across", tv_share=0.5)
+    # fast's own weight given by hand is the same model; off, another; a variant without the term refuses one.
+    m9 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.1)
     assert np.array_equal(m9.render(P)[0], img)
     m10 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.0)
     assert not np.array_equal(m10.render(P)[0], img)
-    with pytest.raises(evnerf.Error, match=r"total-variation share must lie in \(0, 1\]"):
-        evnerf.train(d, iterations=2, threads=1, tv=0.3, tv_share=0.0)
+    with pytest.raises(evnerf.Error, match="weight of 0.3 for a variant without the term"):
+        evnerf.train(d, iterations=2, threads=1, tv=0.3, preset="paper")
     # So is the view-dependence decay.
     m5 = evnerf.train(d, iterations=20, threads=2, seed=3, view_decay=30.0)
     assert not np.array_equal(m5.render(P)[0], img)
