@@ -20,7 +20,7 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_va
 OUT=build-mpi/bench; rm -rf "$OUT"; mkdir -p "$OUT"
 "$EV" simulate planes --out "$OUT/rec" >/dev/null 2>&1
 run() {  # kind preset steps pair
-  local dir="$OUT/$1_$2_$4" common=(train "$OUT/rec" --preset "$2" --iters "$3" --seed 1 --quiet --checkpoint-every 0)
+  local dir="$OUT/$1_$2_$4" common=(train "$OUT/rec" --preset "$2" --iterations "$3" --seed 1 --quiet --checkpoint-every 0)
   case $1 in
     A) "$EV" "${common[@]}" --out "$dir" --shards 2 --threads 2 ;;
     B) mpirun --oversubscribe --bind-to none -np 2 "$EV" "${common[@]}" --out "$dir" --threads 1 --exchange auto ;;

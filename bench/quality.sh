@@ -28,7 +28,7 @@ row() {  # name recording-folder eval-args [train args…]
   local name=$1 folder=$2 evargs=$3
   shift 3
   mkdir -p "$OUT/$name"
-  "$EV" train "$folder" --preset "$PRESET" --iters "$ITERS" --threads "$THREADS" --out "$OUT/$name/run" --quiet "${TRAIN_EXTRA[@]}" "$@" > "$OUT/$name/train.log" 2>&1
+  "$EV" train "$folder" --preset "$PRESET" --iterations "$ITERS" --threads "$THREADS" --out "$OUT/$name/run" --quiet "${TRAIN_EXTRA[@]}" "$@" > "$OUT/$name/train.log" 2>&1
   "$EV" eval "$OUT/$name/run/model.ckpt" "$folder" --out "$OUT/$name/eval" $evargs | tee "$OUT/$name/eval.txt"
 }
 for r in "${ROWS[@]}"; do

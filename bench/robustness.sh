@@ -25,7 +25,7 @@ TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
 read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${PRESET:-}" ] && TRAIN_ARGS+=(--preset "$PRESET")
-[ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iters "$STEPS")
+[ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iterations "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
 echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr" > "$CSV"

@@ -22,14 +22,14 @@ for r in $(seq "$REPS"); do
   if [ -f "$PEER" ] && /usr/bin/python3 -c "import torch" 2>/dev/null; then
     /usr/bin/python3 "$PEER" --mode mlp --width 256 --n-samples 16384 $BEST >> "$OUT/peer.jsonl"
     /usr/bin/python3 "$PEER" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer.jsonl"
-    /usr/bin/python3 "$PEER" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer.jsonl"
-    /usr/bin/python3 "$PEER" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iters 2 --warmup 1 $BEST >> "$OUT/peer.jsonl"
+    /usr/bin/python3 "$PEER" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iterations 3 $BEST >> "$OUT/peer.jsonl"
+    /usr/bin/python3 "$PEER" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iterations 2 --warmup 1 $BEST >> "$OUT/peer.jsonl"
     # The same peer under PyTorch's bf16 autocast: the like-for-like reference for our Bf16 networks.
     AC=("${AUTOCAST_ENV[@]}" /usr/bin/python3 bench/peer_autocast.py "$PEER")
     "${AC[@]}" --mode mlp --width 256 --n-samples 16384 $BEST >> "$OUT/peer_bf16.jsonl"
     "${AC[@]}" --mode mlp --width 64 --n-samples 65536 $BEST >> "$OUT/peer_bf16.jsonl"
-    "${AC[@]}" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iters 3 $BEST >> "$OUT/peer_bf16.jsonl"
-    "${AC[@]}" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iters 2 --warmup 1 $BEST >> "$OUT/peer_bf16.jsonl"
+    "${AC[@]}" --mode step --width 64 --n-coarse 32 --n-fine 32 --batch-rays 1024 --chunk-rays 256 --iterations 3 $BEST >> "$OUT/peer_bf16.jsonl"
+    "${AC[@]}" --mode step --width 256 --n-coarse 64 --n-fine 128 --batch-rays 1024 --chunk-rays 32 --iterations 2 --warmup 1 $BEST >> "$OUT/peer_bf16.jsonl"
   fi
 done
 python3 bench/ratios.py "$OUT"

@@ -32,7 +32,7 @@ for sc in "${SCENES[@]}"; do
   "$EV" simulate "$sc" --out "$dir/scene" > /dev/null 2>&1
   total=0
   for ((s = EVERY; s <= STEPS; s += EVERY)); do
-    "$EV" train "$dir/scene" --preset "$PRESET" --iters "$s" --seed "$SEED" --threads "$THREADS" --out "$dir/run" --resume --quiet "${TRAIN_EXTRA[@]}" > "$dir/train.txt" 2>&1
+    "$EV" train "$dir/scene" --preset "$PRESET" --iterations "$s" --seed "$SEED" --threads "$THREADS" --out "$dir/run" --resume --quiet "${TRAIN_EXTRA[@]}" > "$dir/train.txt" 2>&1
     secs=$(sed -n 's/.* steps in \([0-9.]*\) s.*/\1/p' "$dir/train.txt")
     total=$(python3 -c "print($total + $secs)")
     "$EV" eval "$dir/run/model.ckpt" "$dir/scene" --out "$dir/eval_$s" > "$dir/eval_$s.txt" 2>&1

@@ -10,6 +10,6 @@ cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_TESTS=
 cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli
 EVNERF="$BUILD/examples/evnerf"
 "$EVNERF" simulate planes --out "$OUT/scene"
-"$EVNERF" train "$OUT/scene" --preset fast --iters "${ITERS:-6000}" --out "$OUT/run" "$@"
+"$EVNERF" train "$OUT/scene" --preset fast --iterations "${ITERS:-6000}" --out "$OUT/run" "$@"
 "$EVNERF" eval "$OUT/run/model.ckpt" "$OUT/scene" --out "$OUT/eval"
 echo "images and metrics: $OUT/eval"

@@ -13,7 +13,7 @@ work=$(mktemp -d "${TMPDIR:-/tmp}/evnerf_colour.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 "$EV" simulate object --bayer --out "$work/rec" --width 32 --height 24 > /dev/null 2>&1
-ARGS=(--iters 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
+ARGS=(--iterations 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse)
 "$EV" train "$work/rec" --out "$work/colour" --preset colour "${ARGS[@]}" > /dev/null 2>&1
 "$EV" train "$work/rec" --out "$work/grey" --preset fast "${ARGS[@]}" > /dev/null 2>&1
 "$EV" eval "$work/colour/model.ckpt" "$work/rec" --out "$work/eval_colour" > /dev/null 2>&1

@@ -5,7 +5,7 @@
 #   2. SIGINT: the run stops after the current step, writes a checkpoint, says so and exits with 130; resumed,
 #      it too ends byte-identical;
 #   3. an output folder that cannot be created: a clear error naming it, exit code 1, nothing written;
-#   4. a resume given another --box, --near and --far keeps the checkpoint's scene box, says so, ends
+#   4. a resume given another --near and --far keeps the checkpoint's scene box, says so, ends
 #      byte-identical, and settings.json records the box the run used.
 # Usage: tests/faults.sh EVNERF_BINARY
 set -euo pipefail
@@ -15,7 +15,7 @@ trap 'kill -9 $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 "$EV" simulate planes --out "$work/rec" --width 64 --height 48 > /dev/null 2>&1
-ARGS=(--iters 120 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet)
+ARGS=(--iterations 120 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/whole" "${ARGS[@]}" > /dev/null 2>&1
 
 # Waits until the checkpoint in $1 holds step ≥ $2 (read from its header: magic, version, name, parameter
@@ -75,14 +75,14 @@ set -e
 grep -q "$work/plain/run:0: cannot create the output folder" "$work/plain.txt" || fail "unwritable output: $(cat "$work/plain.txt")"
 
 # 4. Resumed with other box options: the checkpoint's box is kept and recorded.
-"$EV" train "$work/rec" --out "$work/boxed" --iters 60 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet > /dev/null 2>&1
-"$EV" train "$work/rec" --out "$work/boxed" "${ARGS[@]}" --resume --box frusta --near 0.5 --far 3 > "$work/boxed.txt" 2>&1 ||
+"$EV" train "$work/rec" --out "$work/boxed" --iterations 60 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet > /dev/null 2>&1
+"$EV" train "$work/rec" --out "$work/boxed" "${ARGS[@]}" --resume --near 0.5 --far 3 > "$work/boxed.txt" 2>&1 ||
   fail "resume with other box options: $(cat "$work/boxed.txt")"
-grep -q "note: the checkpoint's scene box is kept (cameras, near 0.3, far 7)" "$work/boxed.txt" || fail "resume with other box options: no note: $(cat "$work/boxed.txt")"
+grep -q "note: the checkpoint's scene box is kept (near 0.3, far 7)" "$work/boxed.txt" || fail "resume with other box options: no note: $(cat "$work/boxed.txt")"
 cmp "$work/whole/model.ckpt" "$work/boxed/model.ckpt" || fail "resumed with other box options, the checkpoint differs"
 python3 - "$work/boxed/settings.json" <<'PY' || fail "resume with other box options: settings.json does not record the kept box"
 import json, sys
 runs = json.load(open(sys.argv[1]))["runs"]
-assert [(r["from_step"], r["box"], r["near"], r["far"]) for r in runs] == [(0, "cameras", 0.3, 7.0), (60, "cameras", 0.3, 7.0)], runs
+assert [(r["from_step"], r["near"], r["far"]) for r in runs] == [(0, 0.3, 7.0), (60, 0.3, 7.0)], runs
 PY
 echo "faults: SIGKILL ×2 and SIGINT resumed byte-identical; unwritable output refused; a resume keeps its box"

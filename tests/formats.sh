@@ -34,7 +34,7 @@ b=$("$EV" inspect "$work/h5/rec.h5" --time-window 0.5 1.25 | tail -n +2)
 want=$(awk '$1 >= 0.5 && $1 < 1.25' "$work/rec/events.txt" | wc -l)
 got=$(wc -l < "$work/window/events.txt")
 [ "$want" -gt 0 ] && [ "$want" = "$got" ] || fail "--time-window kept $got events, the window holds $want"
-ARGS=(--iters 40 --pixels 512 --seed 2 --threads 2 --quiet)
+ARGS=(--iterations 40 --pixels 512 --seed 2 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/run_txt" "${ARGS[@]}" > /dev/null 2>&1
 "$EV" train "$work/h5/rec.h5" --out "$work/run_h5" "${ARGS[@]}" > /dev/null 2>&1
 # The checkpoints differ only in the recorded source path: compare the parameters (all but the tail).

@@ -19,7 +19,7 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_va
 MPIRUN=(mpirun --oversubscribe --bind-to none)
 
 "$EV" simulate planes --out "$work/rec" --width 48 --height 36 >/dev/null 2>&1
-ARGS=(--iters 30 --checkpoint-every 10 --pixels 512 --seed 5 --threads 1 --quiet)
+ARGS=(--iterations 30 --checkpoint-every 10 --pixels 512 --seed 5 --threads 1 --quiet)
 run2() { timeout 300 "${MPIRUN[@]}" -np 2 "$EV" train "$work/rec" "$@"; }
 
 # 1. Two processes equal one process with two shards, bit for bit; reruns and exchanges agree.
@@ -44,15 +44,15 @@ for ex in dense sparse; do
 done
 
 # 2. Resume under mpirun: 15 steps, then on to 30, equals the whole run.
-SHORT=(--iters 15 --checkpoint-every 10 --pixels 512 --seed 5 --threads 1 --quiet)
+SHORT=(--iterations 15 --checkpoint-every 10 --pixels 512 --seed 5 --threads 1 --quiet)
 run2 --out "$work/res" "${SHORT[@]}" >/dev/null 2>&1 || fail "the first half"
 run2 --out "$work/res" --resume "${ARGS[@]}" >"$work/res.txt" 2>&1 || { cat "$work/res.txt"; fail "the resumed half"; }
 grep -q "resuming fast at step 15" "$work/res.txt" || { cat "$work/res.txt"; fail "no resume line"; }
 cmp -s "$work/two/model.ckpt" "$work/res/model.ckpt" || fail "resumed under mpirun differs from the whole run"
 # The same checkpoint resumed by one process with its 2 shards goes on; with 1 shard it is refused.
-"$EV" train "$work/rec" --out "$work/res" --resume --shards 2 --iters 32 --pixels 512 --seed 5 --threads 1 --quiet >/dev/null 2>&1 ||
+"$EV" train "$work/rec" --out "$work/res" --resume --shards 2 --iterations 32 --pixels 512 --seed 5 --threads 1 --quiet >/dev/null 2>&1 ||
   fail "one process could not resume a 2-process checkpoint with --shards 2"
-if "$EV" train "$work/rec" --out "$work/res" --resume --iters 40 --quiet >"$work/refused.txt" 2>&1; then fail "a 2-shard checkpoint resumed with 1 shard"; fi
+if "$EV" train "$work/rec" --out "$work/res" --resume --iterations 40 --quiet >"$work/refused.txt" 2>&1; then fail "a 2-shard checkpoint resumed with 1 shard"; fi
 grep -q "trained with 2 shard(s) per step, this run has 1 (processes × shards): resume with --shards 2" "$work/refused.txt" ||
   { cat "$work/refused.txt"; fail "no clear error for a shard mismatch"; }
 # 2 processes, 4 shards each step (2 each): trains, logs 4 shards.
@@ -62,7 +62,7 @@ if run2 --out "$work/three" --shards 3 "${SHORT[@]}" >"$work/three.txt" 2>&1; th
 grep -q "must be a multiple of the processes (2)" "$work/three.txt" || { cat "$work/three.txt"; fail "3 shards on 2 processes: no clear error"; }
 
 # 3. A killed process ends the job, not a hang; the checkpoint stays whole.
-timeout 300 "${MPIRUN[@]}" -np 2 "$EV" train "$work/rec" --out "$work/dead" --iters 100000 --checkpoint-every 10 --pixels 512 --seed 5 \
+timeout 300 "${MPIRUN[@]}" -np 2 "$EV" train "$work/rec" --out "$work/dead" --iterations 100000 --checkpoint-every 10 --pixels 512 --seed 5 \
   --threads 1 --quiet >"$work/dead.txt" 2>&1 &
 job=$!
 for _ in $(seq 1 1200); do [ -f "$work/dead/model.ckpt" ] && break; sleep 0.05; done
@@ -77,10 +77,10 @@ wait $job || code=$?
 [ $code != 124 ] || fail "the job hung after a process was killed"
 [ $((SECONDS - start)) -lt 60 ] || fail "the job took $((SECONDS - start)) s to end after a process was killed"
 grep -q "exited on signal 9" "$work/dead.txt" || { cat "$work/dead.txt"; fail "mpirun did not say which process died"; }
-"$EV" train "$work/rec" --out "$work/dead" --resume --shards 2 --iters 1 --quiet >"$work/dead_resume.txt" 2>&1 ||
+"$EV" train "$work/rec" --out "$work/dead" --resume --shards 2 --iterations 1 --quiet >"$work/dead_resume.txt" 2>&1 ||
   { cat "$work/dead_resume.txt"; fail "the checkpoint left by the killed job does not load"; }
 # SIGTERM to mpirun (a batch system's stop) reaches every process: all stop at one step, rank 0 writes it.
-timeout 300 "${MPIRUN[@]}" -np 2 "$EV" train "$work/rec" --out "$work/term" --iters 100000 --checkpoint-every 10 --pixels 512 --seed 5 \
+timeout 300 "${MPIRUN[@]}" -np 2 "$EV" train "$work/rec" --out "$work/term" --iterations 100000 --checkpoint-every 10 --pixels 512 --seed 5 \
   --threads 1 --quiet >"$work/term.txt" 2>&1 &
 job=$!
 for _ in $(seq 1 1200); do [ -f "$work/term/model.ckpt" ] && break; sleep 0.05; done
@@ -89,7 +89,7 @@ pkill -TERM -P "$job" -x mpirun
 wait $job || true
 stopped=$(sed -n 's/^train: stopped by SIGTERM at step \([0-9]*\);.*/\1/p' "$work/term.txt")
 [ -n "$stopped" ] || { cat "$work/term.txt"; fail "SIGTERM: no stop message"; }
-"$EV" train "$work/rec" --out "$work/term" --resume --shards 2 --iters 1 --quiet >"$work/term_resume.txt" 2>&1 ||
+"$EV" train "$work/rec" --out "$work/term" --resume --shards 2 --iterations 1 --quiet >"$work/term_resume.txt" 2>&1 ||
   { cat "$work/term_resume.txt"; fail "the stopped run's checkpoint does not load"; }
 grep -q "resuming fast at step $stopped\$" "$work/term_resume.txt" || { cat "$work/term_resume.txt"; fail "the checkpoint is not of step $stopped"; }
 # Rank 0 alone fails (its output folder lies under a file); every process ends with the message.

@@ -8,7 +8,7 @@ EV=$1
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$EV" simulate planes --out "$work/rec" --width 48 --height 36 > /dev/null 2>&1
-ARGS=(--iters 60 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse --checkpoint-every 0)
+ARGS=(--iterations 60 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse --checkpoint-every 0)
 for v in fast-eventnerf fast-quiet; do
   "$EV" train "$work/rec" --out "$work/$v" --variant "$v" "${ARGS[@]}" > "$work/$v.txt" 2>&1
   "$EV" render "$work/$v/model.ckpt" --out "$work/$v/render" --novel 1 > /dev/null

@@ -38,7 +38,7 @@ b=$("$EV" inspect "$work/rec.bag" | sed -n '/^recording/,$p' | tail -n +3)
 $a
 bag
 $b"
-ARGS=(--iters 40 --pixels 512 --seed 2 --threads 2 --quiet)
+ARGS=(--iterations 40 --pixels 512 --seed 2 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/run_txt" "${ARGS[@]}" > /dev/null 2>&1
 "$EV" train "$work/rec.bag" --out "$work/run_bag" "${ARGS[@]}" > /dev/null 2>&1
 python3 "$HERE/compare_runs.py" params "$work/run_txt/model.ckpt" "$work/run_bag/model.ckpt" || fail "training on the bag gave other parameters"

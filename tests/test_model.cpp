@@ -470,45 +470,6 @@ TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; 
   CHECK(presets::Fast::loss_description() == presets::FastNoTv::loss_description());
 }
 
-TEST_CASE("view-dependence decay: 0 leaves the step bit-identical; otherwise the view weights alone shrink by 1 - lr * decay") {
-  const evtest::Fixture f;
-  using M = OccupancyModel<1>;
-  using F = M::field_type;
-  static_assert(F::view_end > F::view_begin && F::view_end <= F::n_params, "HashTiny has view weights (degree-2 harmonics)");
-  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5),
-      c(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
-  CHECK(a.view_decay() == 0.0);
-  b.set_view_decay(0.0);
-  c.set_view_decay(30.0);
-  for (int s = 0; s < 2; ++s) {  // the second step starts from states that differ (c's view weights)
-    const std::vector<double> before = c.params().values;
-    const double lr = c.optimizer().learning_rate();
-    a.train_step(f.td, 16, 3 + s, 4);
-    b.train_step(f.td, 16, 3 + s, 4);
-    CHECK(a.params().values == b.params().values);
-    // c's step without the decay: a copy of it before the step, stepped with decay 0.
-    M d = c;
-    d.set_view_decay(0.0);
-    d.train_step(f.td, 16, 3 + s, 4);
-    c.train_step(f.td, 16, 3 + s, 4);
-    std::size_t shrunk = 0;
-    for (std::size_t i = 0; i < c.params().size(); ++i) {
-      const bool view = i >= F::view_begin && i < F::view_end;
-      if (view) {
-        CHECK(c.params().values[i] == d.params().values[i] * (1.0 - lr * 30.0));
-        shrunk += c.params().values[i] != d.params().values[i] ? 1 : 0;
-      } else {
-        CHECK(c.params().values[i] == d.params().values[i]);
-      }
-    }
-    CHECK(shrunk > 0);
-    CHECK(c.params().values != before);
-  }
-  CHECK_THROWS_WITH_AS(a.set_view_decay(-1), doctest::Contains("view-dependence decay"), Error);
-  CHECK_THROWS_WITH_AS(a.set_view_decay(std::nan("")), doctest::Contains("view-dependence decay"), Error);
-  CHECK(M::field_type::view_weights_known);
-}
-
 TEST_CASE("examples' parts: inverse-depth samples, the triangle-wave encoding's input gradient, the shot-noise interval") {
   // Depths increase from near to far, denser near; bin centres without a generator.
   static_assert(render::Sampler<mylab::InverseDepth<16>>);

@@ -226,7 +226,7 @@ TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminanc
     CHECK(F::view_begin == F::view_end);  // no weight carries view dependence
   } else {
     CHECK(dlum > 1e-4);
-    // The view range (EvNerf::set_view_decay's weights): zeroed, the luminance no longer depends on the
+    // The view range (the weights through which the radiance depends on the direction): zeroed, the luminance no longer depends on the
     // direction; a weight just before it (band 0's, a bias) leaves it so, a weight inside it does not.
     static_assert(F::view_weights_known);
     CHECK(F::view_end - F::view_begin == std::size_t(Dir::out_dims - 1) * 8);
@@ -248,7 +248,7 @@ TEST_CASE_TEMPLATE("direction encoding: SphericalHarmonics<1> makes the luminanc
 
 namespace {
 // A colour network of a user's own that does not lay out its weights as nn::Mlp does (no layer_out): the
-// field still compiles, with no view weights named (EvNerf::set_view_decay refuses a decay for it).
+// field still compiles, with no view weights named.
 struct OpaqueColourNet {
   static constexpr int in_dims = 3 + 4, out_dims = 1;
   static constexpr std::size_t n_params = 10;

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <set>
+#include <variant>
 #include <thread>
 #include <tuple>
 
@@ -910,7 +911,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config cfg = f.cfg;
   cfg.iterations = 60;
-  cfg.pixels_per_step = 64;
+  cfg.pixels = 64;
   cfg.progress = false;
   cfg.threads = 1;
   const int before = thread_count();
@@ -953,20 +954,16 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   REQUIRE(first["runs"].size() == 1);
   CHECK(first["runs"][0]["from_step"] == 0);
   CHECK(first["runs"][0]["iterations"] == 60);
-  CHECK(first["runs"][0]["pixels_per_step"] == 64);
-  CHECK(first["runs"][0]["terminate_rays"] == cfg.terminate_rays);
+  CHECK(first["runs"][0]["pixels"] == 64);
   CHECK(first["runs"][0]["seed"] == cfg.seed);
   CHECK(first["runs"][0]["tv"].is_null());  // a variant without the term, and cfg leaves it unset
   CHECK(train::settings_json(cfg)["tv"].is_null());
-  CHECK(first["runs"][0]["view_decay"] == 0.0);
-  CHECK(m.view_decay() == 0.0);
   CHECK(first["runs"][0].size() == train::settings_json(cfg).size() + 1);
   // A resumed run appends, to the log and to the settings.
   cfg.iterations = 100;
-  cfg.terminate_rays = !cfg.terminate_rays;
-  cfg.ray_cut = 2e-3;
+  cfg.lr = 2e-3;
   train::run(m, f.td, cfg, out, "tiny", "meta");
-  CHECK(m.ray_cut() == 2e-3);  // the model trained with the Config's cut
+  CHECK(m.ray_cut() == train::kRayCut);  // training rays stop behind the library's cut
   std::ifstream in2(out / "log.jsonl");
   lines = 0;
   while (std::getline(in2, line)) ++lines;
@@ -976,10 +973,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   CHECK(both["runs"][0] == first["runs"][0]);
   CHECK(both["runs"][1]["from_step"] == 55);
   CHECK(both["runs"][1]["iterations"] == 100);
-  CHECK(both["runs"][1]["terminate_rays"] == cfg.terminate_rays);
-  CHECK(first["runs"][0]["ray_cut"] == train::Config{}.ray_cut);
-  CHECK(train::Config{}.ray_cut == 1e-2);
-  CHECK(both["runs"][1]["ray_cut"] == 2e-3);
+  CHECK(both["runs"][1]["lr"] == 2e-3);
   // A call resumed from an earlier step drops the entries that started at or after it; a settings file that
   // is not the record is refused, naming it, and left as it was.
   write_file_atomic(out / "settings.json", "{\"runs\": 3}");
@@ -1006,7 +1000,7 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   Fixture f;
   train::Config cfg = f.cfg;
   cfg.iterations = 20;
-  cfg.pixels_per_step = 64;
+  cfg.pixels = 64;
   cfg.progress = false;
   cfg.threads = 1;
   cfg.checkpoint_every = 5;
@@ -1034,24 +1028,18 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
       CHECK(std::string(e.what()).find(what) != std::string::npos);
     }
   };
-  refused([](train::Config& c) { c.far = c.near / 2; }, "far greater than near");
-  refused([](train::Config& c) { c.iterations = 0; }, "iterations must be positive");
-  refused([](train::Config& c) { c.pixels_per_step = 0; }, "pixels per step");
-  refused([](train::Config& c) { c.lr = -1; }, "learning rate must be positive");
-  refused([](train::Config& c) { c.subslices = 65; }, "subslices must be between 1 and 64");
-  refused([](train::Config& c) { c.distortion = -0.1; }, "distortion weight must be finite and non-negative");
-  refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion weight must be finite and non-negative");
-  refused([](train::Config& c) { c.tv = -0.1; }, "total-variation weight must be finite and non-negative");
-  refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "total-variation weight must be finite and non-negative");
-  refused([](train::Config& c) { c.average = 1.0; }, "parameter average's decay must be in [0, 1)");
-  refused([](train::Config& c) { c.average = std::nan(""); }, "parameter average's decay must be in [0, 1)");
-  refused([](train::Config& c) { c.ray_cut = 0; }, "ray-termination transmittance must lie in (0, 1)");
-  refused([](train::Config& c) { c.ray_cut = 1; }, "ray-termination transmittance must lie in (0, 1)");
-  refused([](train::Config& c) { c.ray_cut = std::nan(""); }, "ray-termination transmittance must lie in (0, 1)");
+  refused([](train::Config& c) { c.far = c.near / 2; }, "far must be greater than near");
+  refused([](train::Config& c) { c.iterations = 0; }, "iterations must be > 0, got 0");
+  refused([](train::Config& c) { c.pixels = 0; }, "pixels must be in [1, 4194304], got 0");
+  refused([](train::Config& c) { c.lr = -1; }, "lr must be > 0, got -1");
+  refused([](train::Config& c) { c.subslices = 65; }, "subslices must be in [1, 64], got 65");
+  refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion must be >= 0, got nan");
+  refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "tv must be >= 0, got inf");
+  refused([](train::Config& c) { c.average = 1.0; }, "average must be in [0, 1), got 1");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
-  CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", "meta"), doctest::Contains("threads must be between 0"), Error);
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", "meta"), doctest::Contains("threads must be in [0, 4096], got -1"), Error);
   CHECK(m.step() == 0);
   // The total-variation weight: unset, the model keeps its own; set, the Config's replaces it; a variant
   // without the term refuses a weight (it would do nothing) but takes 0.
@@ -1231,24 +1219,15 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   CHECK(whole.model().average().active());
   CHECK(whole.model().average().decay() == 0.998);
   CHECK(second.model().average().values() == whole.model().average().values());
-  // The default fit is the cameras'; on this recording the frusta's is much smaller.
-  CHECK(train::Config{}.box == train::Config::BoxFit::Cameras);
-  CHECK(cfg.box == train::Config::BoxFit::Cameras);
-  CHECK(whole.model().box().scale == train::scene_box(f.td, cfg).scale);
-  train::Config tight = cfg;
-  tight.box = train::Config::BoxFit::Frusta;
-  CHECK(train::scene_box(f.td, cfg).scale > 1.5 * train::scene_box(f.td, tight).scale);
-  // A checkpoint keeps its scene box: a call with another fit, near and far resumes it as it was, and its
-  // Config (what settings.json records) takes the checkpoint's fit, near and far over.
-  train::Config other = tight;
+  // A checkpoint keeps its scene box: a call with another near and far resumes it as it was, and its Config
+  // (what settings.json records) takes the checkpoint's near and far over.
+  train::Config other = cfg;
   other.near = 0.4;
   other.far = 3.0;
   other.iterations = 32;
   train::Trainer<Tiny> third(f.td, other, base / "split", "tiny", "meta");
-  CHECK(third.config().box == train::Config::BoxFit::Frusta);
   CHECK(third.model().box().far == 3.0);  // before the resume: the Config's box
   REQUIRE(third.resume());
-  CHECK(third.config().box == train::Config::BoxFit::Cameras);
   CHECK(third.config().near == 0.6);
   CHECK(third.config().far == 2.5);
   CHECK(third.model().box().scale == whole.model().box().scale);
@@ -1256,31 +1235,66 @@ TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resume
   third.run();
   const auto record = nlohmann::json::parse(read_file(base / "split" / "settings.json"));
   REQUIRE(record["runs"].size() == 3);
-  CHECK(record["runs"][2]["box"] == "cameras");
   CHECK(record["runs"][2]["near"] == 0.6);
   CHECK(record["runs"][2]["far"] == 2.5);
-  // And the other way: a run of the frusta's fit, resumed by a default call, stays the frusta's.
-  {
-    train::Trainer<Tiny> tight_run(f.td, [&] { auto c = tight; c.iterations = 4; return c; }(), base / "tight", "tiny", "meta");
-    tight_run.run();
-  }
-  train::Trainer<Tiny> later(f.td, [&] { auto c = cfg; c.iterations = 6; return c; }(), base / "tight", "tiny", "meta");
-  REQUIRE(later.resume());
-  CHECK(later.config().box == train::Config::BoxFit::Frusta);
-  CHECK(later.model().box().scale == train::scene_box(f.td, tight).scale);
-  later.run();
-  const auto tight_record = nlohmann::json::parse(read_file(base / "tight" / "settings.json"));
-  REQUIRE(tight_record["runs"].size() == 2);
-  CHECK(tight_record["runs"][1]["box"] == "frusta");
   fs::remove_all(base);
 }
 
-TEST_CASE("train::box_name and parse_box: one spelling each way; anything else is refused, naming the caller") {
-  for (auto b : {train::Config::BoxFit::Cameras, train::Config::BoxFit::Frusta}) CHECK(train::parse_box(train::box_name(b), "t") == b);
-  CHECK(std::string(train::box_name(train::Config::BoxFit::Frusta)) == "frusta");
-  CHECK(std::string(train::box_name(train::Config::BoxFit::Cameras)) == "cameras");
-  CHECK_THROWS_WITH(train::parse_box("Frusta", "train --box"), doctest::Contains("train --box: box must be 'cameras' or 'frusta', got 'Frusta'"));
-  CHECK_THROWS_WITH(train::parse_box("", "train"), doctest::Contains("got ''"));
+TEST_CASE("the settings table: every setting round-trips through settings.json and is refused outside its interval, by name") {
+  // Each row once: a value inside its interval (not its default, where there is room) read back equal from
+  // settings.json's object; each end of its interval passed by one refused with a message naming it.
+  std::set<std::string> names;
+  for (const auto& s : train::settings()) {
+    CAPTURE(s.name);
+    CHECK(names.insert(s.name).second);  // one name per setting
+    CHECK(std::string(s.help).size() > 10);
+    CHECK(s.flag() == "--" + [&] { std::string n = s.name; std::replace(n.begin(), n.end(), '_', '-'); return n; }());
+    train::Config c;
+    const auto j0 = train::settings_json(c);
+    REQUIRE(j0.contains(s.name));
+    nlohmann::json other = s.get(c);
+    if (s.numeric()) {
+      const double lo = std::isfinite(s.lo) ? s.lo : 0, hi = std::isfinite(s.hi) ? s.hi : lo + 100;
+      double v = s.integral() ? std::floor(lo + 1) : 0.5 * (lo + hi);
+      if (!s.allows(v)) v = std::isfinite(s.hi) ? s.hi - (s.hi_open ? 0.5 : 0) : lo + 1;
+      REQUIRE(s.allows(v));
+      other = s.integral() ? nlohmann::json(static_cast<long>(v)) : nlohmann::json(v);
+    } else if (other.is_boolean()) {
+      other = !other.get<bool>();
+    } else {
+      other = "sparse";
+    }
+    nlohmann::json j = j0;
+    j[s.name] = other;
+    const train::Config back = train::config_from_json(j, "test");
+    CHECK(s.get(back) == other);
+    CHECK(train::settings_json(back)[s.name] == other);
+    if (!s.numeric()) continue;
+    std::vector<double> outside;
+    if (std::isfinite(s.lo)) outside.push_back(s.lo_open ? s.lo : s.lo - 1);
+    if (std::isfinite(s.hi)) outside.push_back(s.hi_open ? s.hi : s.hi + 1);
+    if (!s.integral()) outside.push_back(std::nan(""));
+    for (double v : outside) {
+      if (std::holds_alternative<std::uint64_t train::Config::*>(s.member) && v < 0) {
+        nlohmann::json k = j0;
+        k[s.name] = static_cast<long>(v);
+        CHECK_THROWS_WITH_AS(train::config_from_json(k, "test"), doctest::Contains((std::string(s.name) + " must be an integer").c_str()), Error);
+        continue;
+      }
+      train::Config d;
+      std::visit(
+          [&](auto m) {
+            using V = std::decay_t<decltype(d.*m)>;
+            if constexpr (std::is_same_v<V, std::optional<double>>) d.*m = v;
+            else if constexpr (std::is_arithmetic_v<V> && !std::is_same_v<V, bool>) d.*m = static_cast<V>(v);
+          },
+          s.member);
+      CHECK_THROWS_WITH_AS(train::check(d), doctest::Contains(("train: " + std::string(s.name) + " must be " + s.range_text()).c_str()), Error);
+    }
+  }
+  CHECK_THROWS_WITH_AS(train::setting("iters", "train"), doctest::Contains("unknown setting 'iters' (known: iterations, pixels"), Error);
+  CHECK_THROWS_WITH_AS(train::config_from_json(nlohmann::json{{"pixels", "many"}}, "settings.json"),
+                       doctest::Contains("settings.json: pixels must be an integer, got \"many\""), Error);
 }
 
 TEST_CASE("collapse detection: a forced collapse stops the run with what it saw; a healthy run is not stopped") {
@@ -1356,7 +1370,7 @@ TEST_CASE("training data: subslices put evenly spaced boundaries between frames 
   for (const auto& s : f.td.slices.slices) events += s.total;
   for (const auto& s : td.slices.slices) fine_events += s.total;
   CHECK(fine_events == events);  // the same events, cut finer
-  cfg.holdout_every = 4;
+  cfg.holdout = 4;
   CHECK_THROWS_WITH(train::prepare(f.d, cfg), doctest::Contains("subslices and holdout cannot be combined"));
 }
 

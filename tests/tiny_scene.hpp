@@ -26,14 +26,14 @@ struct Fixture {
     d.frames.paths.resize(rec.frame_times.size());
     cfg.near = 0.5;
     cfg.far = 3.0;
-    cfg.pixels_per_step = 256;
+    cfg.pixels = 256;
     td = evnerf::train::prepare(d, cfg);
   }
   /// The fixture's Config for a quiet run of `iterations` steps at `pixels` pixels per step.
   evnerf::train::Config run_config(long iterations, int pixels) const {
     evnerf::train::Config c = cfg;
     c.iterations = iterations;
-    c.pixels_per_step = pixels;
+    c.pixels = pixels;
     c.progress = false;
     return c;
   }

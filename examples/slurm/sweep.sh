@@ -46,7 +46,7 @@ run_task() {
     "$EVNERF" simulate "$scene" --out "$tmp" --width "$WIDTH" --height "$HEIGHT" >/dev/null
     mv -T "$tmp" "$rec" 2>/dev/null || rm -rf "$tmp"
   fi
-  "$EVNERF" train "$rec" --preset "$preset" --seed "$seed" --iters "$ITERS" --threads "$THREADS" --out "$dir" --resume --quiet
+  "$EVNERF" train "$rec" --preset "$preset" --seed "$seed" --iterations "$ITERS" --threads "$THREADS" --out "$dir" --resume --quiet
   "$EVNERF" eval "$dir/model.ckpt" "$rec" --out "$dir/eval" >"$dir/eval.txt"
   cp "$dir/eval/metrics.json" "$dir/metrics.json.tmp" && mv "$dir/metrics.json.tmp" "$dir/metrics.json"
 }

@@ -239,15 +239,7 @@ class EvNerf {
     }
     if (!std::isfinite(st.loss)) return st;
     // The field's parameters all move; of the thresholds only the step's windows' slices' (lazy Adam).
-    const double lr = view_decay_ > 0 ? adam_.learning_rate() : 0.0;  // the rate this update uses
     adam_.update(params_.values, params_.grads, threshold_offset(), touched_);
-    if (view_decay_ > 0) {
-      // Decoupled decay (as AdamW's) of the view-dependence weights, at this step's learning rate.
-      const auto keep = static_cast<Scalar>(1.0 - lr * view_decay_);
-      for (int f = 0; f < n_fields; ++f)
-        for (std::size_t i = f * field_params + FieldT::view_begin; i < f * field_params + FieldT::view_end; ++i)
-          params_.values[i] *= keep;
-    }
     for (std::size_t t = 0; t + 1 < touched_.size(); t += 2) {
       Scalar& bp = params_.values[touched_[t]];
       Scalar& bm = params_.values[touched_[t + 1]];
@@ -527,20 +519,6 @@ class EvNerf {
   }
   /// The name of the objective's term k (0: the event term; log.jsonl writes `<name>_loss` for the others).
   static const char* term_name(int k) { return objective_type::term_name(k); }
-  /// A prior against view dependence the events do not ask for: after each Adam update the weights through
-  /// which the radiance depends on the view direction (FieldT::view_begin..view_end, of every network) shrink
-  /// by the factor 1 − lr · `decay` (a decoupled weight decay, as AdamW's). The event gradient holds up the
-  /// view dependence the events explain; the rest (under a pure translation a function of the direction is
-  /// an image-fixed pattern, which no event sees) decays, towards a diffuse field
-  /// with a time constant of 1/(lr · decay) steps. 0 (a new model's) leaves the step bit-identical. A
-  /// training setting like the learning rate: not checkpointed.
-  void set_view_decay(double decay) {
-    require(std::isfinite(decay) && decay >= 0, "the view-dependence decay must be finite and non-negative");
-    require(decay == 0 || FieldT::view_weights_known,
-            "the view-dependence decay needs a colour network whose first layer is laid out as nn::Mlp's (layer_out)");
-    view_decay_ = decay;
-  }
-  double view_decay() const { return view_decay_; }
  private:
   /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
   /// samples, backward samples and the two passes' event losses.
@@ -666,7 +644,6 @@ class EvNerf {
   std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
   std::string load_note_;       ///< what the last deserialize() could not check (see load_note())
   double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
-  double view_decay_ = 0;       ///< the view-dependence decay (set_view_decay)
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   objective_type objective_;    ///< the objective and its regularisers' settings (objective(), term<T>())

@@ -72,7 +72,7 @@ def test_round_trip_numpy_train_render_numpy(planes):
     # The total-variation weight is a keyword: it changes the model; a negative one is refused.
     m3 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.3)
     assert not np.array_equal(m3.render(P)[0], img)
-    with pytest.raises(evnerf.Error, match="total-variation weight must be finite and non-negative"):
+    with pytest.raises(evnerf.Error, match="train: tv must be >= 0, got -1"):
         evnerf.train(d, iterations=2, threads=1, tv=-1.0)
     # fast's own weight given by hand is the same model; off, another; a variant without the term refuses one.
     m9 = evnerf.train(d, iterations=20, threads=2, seed=3, tv=0.1)
@@ -81,16 +81,11 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m10.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="weight of 0.3 for a variant without the term"):
         evnerf.train(d, iterations=2, threads=1, tv=0.3, preset="paper")
-    # So is the view-dependence decay.
-    m5 = evnerf.train(d, iterations=20, threads=2, seed=3, view_decay=30.0)
-    assert not np.array_equal(m5.render(P)[0], img)
-    with pytest.raises(evnerf.Error, match="view-dependence decay must be finite and non-negative"):
-        evnerf.train(d, iterations=2, threads=1, view_decay=-1.0)
-    # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
+    # The parameter average is a keyword    # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
     # renders are those of the trained parameters; a decay of 1 is refused.
     m4 = evnerf.train(d, iterations=20, threads=2, seed=3, average=0.0)
     assert np.array_equal(m4.thresholds, m.thresholds) and not np.array_equal(m4.render(P)[0], img)
-    with pytest.raises(evnerf.Error, match=r"parameter average's decay must be in \[0, 1\)"):
+    with pytest.raises(evnerf.Error, match=r"train: average must be in \[0, 1\), got 1"):
         evnerf.train(d, iterations=2, threads=1, average=1.0)
 
 
@@ -165,20 +160,10 @@ def test_save_load_resume(planes, tmp_path):
     resumed = evnerf.train(planes, iterations=20, threads=1, out=tmp_path / "run", resume=True)
     straight = evnerf.train(planes, iterations=20, threads=1)
     assert resumed.step == 20 and np.array_equal(resumed.render(P)[0], straight.render(P)[0])
-    # settings.json records both calls: the library's defaults (rays that stop early), and where each began.
+    # settings.json records both calls: the library's defaults, and where each began.
     runs = json.loads((tmp_path / "run" / "settings.json").read_text())["runs"]
     assert [r["from_step"] for r in runs] == [0, 10] and [r["iterations"] for r in runs] == [10, 20]
-    assert all(r["terminate_rays"] is True and r["threads"] == 1 for r in runs)
-    evnerf.train(planes, iterations=2, threads=1, terminate_rays=False, out=tmp_path / "off")
-    assert json.loads((tmp_path / "off" / "settings.json").read_text())["runs"][0]["terminate_rays"] is False
-    assert all(r["ray_cut"] == 1e-2 for r in runs)
-    assert all(r["box"] == "cameras" for r in runs)
-    with pytest.raises(evnerf.Error, match="train: box must be 'cameras' or 'frusta', got 'tight'"):
-        evnerf.train(planes, iterations=2, threads=1, box="tight")
-    evnerf.train(planes, iterations=2, threads=1, ray_cut=1e-4, out=tmp_path / "cut")
-    assert json.loads((tmp_path / "cut" / "settings.json").read_text())["runs"][0]["ray_cut"] == 1e-4
-    with pytest.raises(evnerf.Error, match=r"ray-termination transmittance must lie in \(0, 1\)"):
-        evnerf.train(planes, iterations=2, threads=1, ray_cut=0.0)
+    assert all(r["threads"] == 1 and r["pixels"] == 1024 for r in runs)
     # Without out nothing is written.
     before = set(tmp_path.iterdir())
     evnerf.train(planes, iterations=2, threads=1)
@@ -303,11 +288,11 @@ def test_errors_from_files_and_settings(tmp_path, planes):
         evnerf.load_model(bad)
     with pytest.raises(evnerf.Error, match="unknown variant 'nope'"):
         evnerf.train(planes, preset="nope", iterations=1)
-    with pytest.raises(TypeError, match="unknown keyword 'iters'"):
+    with pytest.raises(TypeError, match="unknown setting 'iters'"):
         evnerf.train(planes, iters=1)
-    with pytest.raises(evnerf.Error, match="train: near must be positive and far greater than near"):
+    with pytest.raises(evnerf.Error, match="train: far must be greater than near"):
         evnerf.train(planes, iterations=1, near=2.0, far=1.0)
-    with pytest.raises(evnerf.Error, match="train: iterations must be positive"):
+    with pytest.raises(evnerf.Error, match="train: iterations must be > 0, got 0"):
         evnerf.train(planes, iterations=0)
     m = evnerf.train(planes, iterations=1, threads=1)
     with pytest.raises(evnerf.Error, match="pose: the upper-left 3x3 block is not a rotation"):
@@ -316,3 +301,32 @@ def test_errors_from_files_and_settings(tmp_path, planes):
         m.render(np.zeros(3))
     with pytest.raises(evnerf.Error, match="no poses"):
         evnerf.train(evnerf.Dataset(**base()), iterations=1)
+
+
+def test_every_setting_of_the_table(planes, tmp_path):
+    """Walks the settings table: each setting is a keyword (its default accepted and recorded under its name
+    in settings.json), and a value outside its interval is refused with a message naming it."""
+    rows = evnerf.settings()
+    assert [r["name"] for r in rows][:3] == ["iterations", "pixels", "seed"]
+    for r in rows:
+        name = r["name"]
+        value = 1 if name == "iterations" else r["default"]
+        if value is None:  # the variant's own (tv): give it one
+            value = 0.05
+        out = tmp_path / name
+        evnerf.train(planes, iterations=1, threads=1, out=out, **{name: value}) if name != "iterations" else \
+            evnerf.train(planes, threads=1, out=out, iterations=value)
+        recorded = json.loads((out / "settings.json").read_text())["runs"][0][name]
+        assert recorded == value or (name == "shards" and recorded == 1), (name, recorded, value)
+        if not r["numeric"]:
+            continue
+        bad = []
+        if r["lo"] is not None:
+            bad.append(r["lo"] if r["lo_open"] else r["lo"] - 1)
+        if r["hi"] is not None:
+            bad.append(r["hi"] if r["hi_open"] else r["hi"] + 1)
+        for b in bad:
+            b = int(b) if r["integer"] else float(b)
+            with pytest.raises((evnerf.Error, TypeError, OverflowError), match=name):
+                evnerf.train(planes, iterations=1, threads=1, **{name: b}) if name != "iterations" else \
+                    evnerf.train(planes, threads=1, iterations=b)

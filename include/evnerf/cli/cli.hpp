@@ -144,6 +144,48 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
 }
 
+/// The training settings (train::settings()) as flags of `sub`, each writing its member of `cfg`: a number
+/// is checked against its row's interval (a message naming the flag), a flag is a switch, the exchange one of
+/// its names. --help shows each with its default.
+inline void add_settings(CLI::App* sub, train::Config& cfg) {
+  for (const auto& s : train::settings()) {
+    const train::Setting* row = &s;
+    std::visit(
+        [&](auto m) {
+          auto& v = cfg.*m;
+          using V = std::decay_t<decltype(v)>;
+          if constexpr (std::is_same_v<V, bool>) {
+            sub->add_flag(s.flag(), v, s.help);
+          } else if constexpr (std::is_same_v<V, train::Exchange>) {
+            sub->add_option_function<std::string>(
+                   s.flag(), [&v, flag = s.flag()](const std::string& x) { v = train::parse_exchange(x, "train " + flag); }, s.help)
+                ->check(CLI::IsMember({"auto", "dense", "sparse"}))
+                ->default_str(train::exchange_name(v));
+          } else {
+            std::string range = row->range_text();
+            std::erase(range, ' ');
+            if (range.rfind("in", 0) == 0) range.erase(0, 2);
+            auto* o = sub->add_option(s.flag(), v, s.help);
+            if constexpr (!std::is_same_v<V, std::optional<double>>) o->capture_default_str();
+            o->check(CLI::Validator(
+                [row](std::string& x) -> std::string {
+                  double d = 0;
+                  std::size_t used = 0;
+                  try {
+                    d = std::stod(x, &used);
+                  } catch (const std::exception&) {
+                    return "";  // not a number: CLI11's conversion says so
+                  }
+                  if (used != x.size()) return "";
+                  return row->allows(d) ? "" : "must be " + row->range_text() + ", got " + x;
+                },
+                range));
+          }
+        },
+        s.member);
+  }
+}
+
 const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
                                "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
                                "min-max, none";
@@ -263,65 +305,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   add_recording(trainc, rec_help);
   trainc->add_option("--out", out, "output folder")->required();
   trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
-  trainc->add_option("--iters", cfg.iterations, "training steps in total")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--pixels", cfg.pixels_per_step, "pixels per step (each rendered at its window's two ends)")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1 << 22));
-  trainc->add_option("--seed", cfg.seed, "random seed")->capture_default_str();
-  trainc->add_option("--threads", cfg.threads, "threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 4096));
-  trainc->add_option("--near", cfg.near, "nearest sample depth (world units)")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--far", cfg.far, "farthest sample depth (world units)")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--lr", cfg.lr, "Adam learning rate")->capture_default_str()->check(CLI::PositiveNumber);
-  trainc->add_option("--lr-decay-steps", cfg.lr_decay_steps, "steps over which the learning rate decays by 10×")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  trainc->add_option("--distortion", cfg.distortion,
-                     "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  trainc->add_flag("--terminate-rays,!--no-terminate-rays", cfg.terminate_rays,
-                   "stop each training ray where its transmittance falls below --ray-cut (samplers with an occupancy "
-                   "grid): fewer samples evaluated per step, the far end of each ray left out of the composite and the "
-                   "gradient. On by default; --no-terminate-rays gives the bits of the default before session 40")
-      ->capture_default_str();
-  trainc->add_option("--ray-cut", cfg.ray_cut,
-                     "with --terminate-rays: the transmittance behind which a training ray stops and its samples get no "
-                     "gradient (larger: fewer samples per step, more of each ray's far end left out; 1e-4, the backward "
-                     "pass's own cut, gives the bits of sessions 40-42's default)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));  // 0 and 1 themselves: train's own check names them
-  trainc->add_option("--view-decay", cfg.view_decay,
-                     "decay the weights through which the radiance depends on the view direction by lr times this per "
-                     "step (a decoupled weight decay): view dependence the events do not hold up fades, as under a pure "
-                     "translation, where any function of the direction is an image-fixed pattern no event sees (0 = off)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  trainc->add_option("--average", cfg.average,
-                     "decay of the moving average of the parameters that the model renders with (exponential, with "
-                     "TensorFlow's warm-up; 0 = off)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 0.999999));
-  trainc->add_option("--tv", cfg.tv,
-                     "weight of the variant's total-variation term on neighbouring pixels' rendered log-luminance (0 = off; "
-                     "default: the variant's, fast: 0.1)")
-      ->check(CLI::NonNegativeNumber);
-  trainc->add_option("--checkpoint-every", cfg.checkpoint_every, "steps between checkpoints (0: only at the end)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  trainc->add_option("--subslices", cfg.subslices, "slices per frame interval (boundaries between frames, poses interpolated); a window objective's windows keep their span in time, 1..W frame intervals")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 64));
-  trainc->add_option("--holdout", cfg.holdout_every, "hold out every K-th slice boundary (novel views; 0 = none)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  trainc->add_flag("--clamp-poses", cfg.clamp_poses, "slice boundaries outside the poses take the nearest pose");
-  trainc->add_flag("--density-per-box", cfg.density_per_box, "density per unit of the normalised scene box, not per world unit");
-  trainc->add_flag("--allow-collapse", cfg.allow_collapse,
-                   "go on when a collapse check fires (renders almost constant, or the event loss not improving)");
-  std::string box_fit = train::box_name(cfg.box);
-  trainc->add_option("--box", box_fit, "scene box: cameras (the camera centres plus far in every direction) or frusta (tight around the views between near and far: cells 2-3 times finer; measured, not the default, bench/README.md session 44). A resumed run keeps its checkpoint's box, near and far")
-      ->check(CLI::IsMember({"cameras", "frusta"}))
-      ->capture_default_str();
+  add_settings(trainc, cfg);
   bool per_channel = false;
   trainc->add_flag("--per-channel", per_channel,
                    "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
@@ -332,18 +316,7 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                      "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
       ->check(CLI::IsMember({"first", "both"}))
       ->capture_default_str();
-  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists");
-  trainc->add_option("--shards", cfg.shards,
-                     "shards per step, each its own window and --pixels pixels, gradients averaged (0: one per MPI process); "
-                     "one process with --shards N computes what mpirun -np N computes")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 4096));
-  std::string exchange = "auto";
-  trainc->add_option("--exchange", exchange,
-                     "how processes sum gradients under mpirun: dense (the whole buffer), sparse (only blocks some process "
-                     "touched), auto (whichever is fewer bytes each step)")
-      ->check(CLI::IsMember({"auto", "dense", "sparse"}))
-      ->capture_default_str();
+  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near and far)");
   trainc->add_flag("--quiet", quiet, "no progress bar");
 
   // render
@@ -464,13 +437,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*trainc) {
       cfg.progress = !quiet;
-      cfg.exchange = exchange == "dense" ? train::Exchange::Dense : exchange == "sparse" ? train::Exchange::Sparse : train::Exchange::Auto;
       if (group) {
         cfg.group = group;
         // The processes on one machine share its cores: each takes its part unless --threads says.
         if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
       }
-      cfg.box = train::parse_box(box_fit, "train --box");
       require(cfg.far > cfg.near, "train: --far must be greater than --near");
       const auto d = io::load(folder, load_opt);
       // One run: a model trained on `td` into `dir`; returns the exit code.
@@ -482,9 +453,9 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
           if (!note.empty()) fmt::print(stderr, "warning: {}\n", note);
           fmt::print(stderr, "resuming {} at step {}\n", name, trainer.model().step());
           const auto& kept = trainer.config();  // the checkpoint's scene box, whatever the options say
-          if (kept.box != cfg.box || kept.near != cfg.near || kept.far != cfg.far)
-            fmt::print(stderr, "note: the checkpoint's scene box is kept ({}, near {}, far {}); --box, --near and --far apply to new runs\n",
-                       train::box_name(kept.box), kept.near, kept.far);
+          if (kept.near != cfg.near || kept.far != cfg.far)
+            fmt::print(stderr, "note: the checkpoint's scene box is kept (near {}, far {}); --near and --far apply to new runs\n", kept.near,
+                       kept.far);
         }
         if (lead)
           fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,

@@ -124,14 +124,14 @@ struct Field {
   /// columns that take the direction encoding's outputs, less those that are constant (DirEnc's
   /// `constant_outputs`, if it names any: SphericalHarmonics' band 0, whose weights act as biases). Offsets
   /// within the field's parameters, [view_begin, view_end); all zero, the radiance depends on the position
-  /// alone (EvNerf::set_view_decay decays them).
+  /// alone.
   static constexpr int dir_constant_outputs = [] {
     if constexpr (requires { DirEnc::constant_outputs; }) return static_cast<int>(DirEnc::constant_outputs);
     else return 0;
   }();
   /// Whether view_begin..view_end are known: the colour network lays out its first layer as nn::Mlp does
   /// (column-major weights first, `layer_out(0)` rows). A colour network of your own without it still
-  /// compiles; its view range is empty, and EvNerf::set_view_decay refuses a decay it could not apply.
+  /// compiles; its view range is empty.
   static constexpr bool view_weights_known = requires { ColorNet::layer_out(0); };
   static constexpr std::size_t view_rows = [] {
     if constexpr (view_weights_known) return static_cast<std::size_t>(ColorNet::layer_out(0));

@@ -277,41 +277,44 @@ inline Dataset make_dataset(py::handle x, py::handle y, py::handle t, py::handle
   return Dataset{d};
 }
 
-/// The training Config from keyword arguments (unknown keys are an error naming them).
+/// The training Config from keyword arguments: each a setting of train::settings() under its name (the
+/// command line's flag with underscores), or `progress`; an unknown key or a value of the wrong type is an
+/// error naming it.
 inline train::Config config_of(const py::kwargs& kw) {
   train::Config c;
   c.progress = false;
   for (auto [key, value] : kw) {
     const auto k = key.cast<std::string>();
-    if (k == "iterations") c.iterations = value.cast<long>();
-    else if (k == "pixels") c.pixels_per_step = value.cast<int>();
-    else if (k == "seed") c.seed = value.cast<std::uint64_t>();
-    else if (k == "threads") c.threads = value.cast<int>();
-    else if (k == "lr") c.lr = value.cast<double>();
-    else if (k == "lr_decay_steps") c.lr_decay_steps = value.cast<double>();
-    else if (k == "distortion") c.distortion = value.cast<double>();
-    else if (k == "average") c.average = value.cast<double>();
-    else if (k == "terminate_rays") c.terminate_rays = value.cast<bool>();
-    else if (k == "ray_cut") c.ray_cut = value.cast<double>();
-    else if (k == "tv") c.tv = value.cast<double>();
-    else if (k == "view_decay") c.view_decay = value.cast<double>();
-    else if (k == "near") c.near = value.cast<double>();
-    else if (k == "far") c.far = value.cast<double>();
-    else if (k == "checkpoint_every") c.checkpoint_every = value.cast<long>();
-    else if (k == "subslices") c.subslices = value.cast<int>();
-    else if (k == "holdout") c.holdout_every = value.cast<int>();
-    else if (k == "clamp_poses") c.clamp_poses = value.cast<bool>();
-    else if (k == "density_per_box") c.density_per_box = value.cast<bool>();
-    else if (k == "allow_collapse") c.allow_collapse = value.cast<bool>();
-    else if (k == "progress") c.progress = value.cast<bool>();
-    else if (k == "box") c.box = train::parse_box(value.cast<std::string>(), "train");
-    else
-      throw py::type_error("train: unknown keyword '" + k +
-                           "' (known: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, view_decay, near, far, "
-                           "checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box)");
+    if (k == "progress") {
+      c.progress = value.cast<bool>();
+      continue;
+    }
+    const train::Setting* found = nullptr;
+    try {
+      found = &train::setting(k, "train");
+    } catch (const Error& e) {
+      throw py::type_error(e.what());  // an unexpected keyword, as Python's own calls say
+    }
+    const auto& s = *found;
+    nlohmann::json j;
+    if (value.is_none()) j = nullptr;
+    else if (py::isinstance<py::bool_>(value)) j = value.cast<bool>();
+    else if (py::isinstance<py::int_>(value)) j = value.cast<long long>();
+    else if (py::isinstance<py::float_>(value)) j = value.cast<double>();
+    else if (py::isinstance<py::str>(value)) j = value.cast<std::string>();
+    else throw py::type_error("train: " + k + " must be a number, a bool or a string");
+    if (s.numeric() && j.is_boolean()) throw py::type_error("train: " + k + " must be a number, got a bool");
+    s.set(c, j, "train");
   }
   train::check(c);
   return c;
+}
+
+/// The names of the keyword settings, as train's docstring lists them.
+inline std::string setting_names() {
+  std::string names;
+  for (const auto& s : train::settings()) names += (names.empty() ? "" : ", ") + std::string(s.name);
+  return names + ", progress";
 }
 
 /// Every slice's thresholds (B+, B−), row-major N×2.
@@ -592,6 +595,19 @@ void define(py::module_& m) {
   });
 
   static std::string train_doc;
+  m.def(
+      "settings",
+      [] {
+        nlohmann::json rows = nlohmann::json::array();
+        const train::Config defaults;
+        for (const auto& s : train::settings())
+          rows.push_back({{"name", s.name}, {"default", s.get(defaults)}, {"allowed", s.numeric() ? s.range_text() : s.integral() ? "any" : "any of its kind"},
+                          {"integer", s.integral()}, {"numeric", s.numeric()}, {"lo", s.lo}, {"hi", s.hi}, {"lo_open", s.lo_open},
+                          {"hi_open", s.hi_open}, {"help", s.help}});
+        return json_to_python(rows);
+      },
+      "the training settings train() takes as keywords: name, default, allowed values, help (train::settings(), the same table as "
+      "the command line's flags)");
   m.def("load_model", &load_model<V...>, py::arg("path"), py::arg("channel_upsampling") = "volume",
         "a model.ckpt of any compiled-in variant, or channels.json of train --per-channel (channel_upsampling: 'volume' "
         "renders each channel's volume at every pixel, 'sites' renders its sites and interpolates)");
@@ -601,8 +617,8 @@ void define(py::module_& m) {
           std::string s;
           for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
           return s;
-        }() + ") on a dataset; returns the Model. Settings as keywords: iterations, pixels, seed, threads, lr, lr_decay_steps, distortion, average, terminate_rays, ray_cut, tv, view_decay, near, "
-              "far, checkpoint_every, subslices, holdout, clamp_poses, density_per_box, allow_collapse, progress, box. callback(step, loss, thresholds) "
+        }() + ") on a dataset; returns the Model. Settings as keywords (evnerf.settings() describes each): " + setting_names() +
+              ". callback(step, loss, thresholds) "
               "runs after every step; returning False stops the run. With out, settings.json, log.jsonl and model.ckpt are written there (resume "
               "continues from it); without, nothing is written.").c_str());
 

@@ -36,35 +36,6 @@ struct SceneBox {
   }
 };
 
-/// The smallest box (a cube, `margin` × the largest half extent) that holds every camera's frustum between
-/// near and far: the axis-aligned bounds of each pose's view rays through the image's corners and edge
-/// midpoints at depths near and far (a frustum is the convex hull of those points; the edge midpoints
-/// cover distortion that bulges the image's border). Tighter than from_cameras, so the hash grid's and the
-/// occupancy grid's cells are smaller in the world.
-inline SceneBox frustum_box(const geometry::Camera& cam, const std::vector<geometry::Pose>& poses, double near, double far,
-                            double margin = 1.02) {
-  SceneBox b;
-  b.near = near;
-  b.far = far;
-  const double W = cam.width(), H = cam.height();
-  const double us[3] = {0, 0.5 * W, W}, vs[3] = {0, 0.5 * H, H};
-  std::vector<Vec3> dirs;
-  for (double u : us)
-    for (double v : vs)
-      if (u != 0.5 * W || v != 0.5 * H) dirs.push_back(cam.ray(geometry::Pose{}, u, v).dir);
-  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
-  for (const auto& p : poses)
-    for (const auto& d : dirs)
-      for (double t : {near, far}) {
-        const Vec3 x = geometry::Camera::ray_along(p, d).origin + t * (p.q * d);
-        lo = lo.cwiseMin(x);
-        hi = hi.cwiseMax(x);
-      }
-  b.center = 0.5 * (lo + hi);
-  b.scale = 0.5 * (hi - lo).maxCoeff() * margin;
-  return b;
-}
-
 /// Undistorted camera-frame directions (x, y, 1) of every pixel centre, row-major: Camera::ray's direction
 /// at the identity pose, cached (geometry::Camera::ray_along turns one into a world ray).
 inline std::vector<Vec3f> pixel_directions(const geometry::Camera& cam) {

@@ -1,6 +1,7 @@
-// train/trainer.hpp — turning a recording into training data, the training loop (progress bar, JSON-lines
-// log, atomic checksummed checkpoints, exact resume, divergence stop) and evaluation against frames.
-// Depends on model.hpp, io/ and eval/.
+// train/trainer.hpp — turning a recording into training data (prepare), the training loop (run: progress bar,
+// JSON-lines log, settings.json, atomic checksummed checkpoints, exact resume, divergence and collapse
+// stops) and Trainer, a run as one object. The settings are train/settings.hpp's. Depends on model.hpp,
+// io/dataset.hpp and train/.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -14,111 +15,17 @@
 
 #include "../core/fileio.hpp"
 #include "../core/progress.hpp"
-#include "../eval/baselines.hpp"
-#include "../eval/metrics.hpp"
 #include "../io/dataset.hpp"
-#include "../io/image_io.hpp"
 #include "../loss/total_variation.hpp"
 #include "../model.hpp"
 #include "group.hpp"
+#include "settings.hpp"
 
 #include <nlohmann/json.hpp>
 
 namespace evnerf::train {
 
 namespace fs = std::filesystem;
-
-/// Runtime knobs that do not change the computation's shape. These are the defaults of the library, the
-/// command line and the examples alike (spec §9, but lr 5e-3: the hash-grid presets want it; pass 5e-4 for
-/// the paper's).
-struct Config {
-  long iterations = 6000;
-  int pixels_per_step = 1024;  ///< each rendered at its window's poses (the objective's: 2 or 3)
-  double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
-  double distortion = 0;       ///< weight of the distortion regulariser (EvNerf::set_distortion; 0 = off)
-  std::optional<double> tv;    ///< weight of the variant's total-variation term (loss::TvTerm; 0 = off; unset:
-                               ///< the variant's own). A variant without the term refuses a weight above 0.
-  double view_decay = 0;       ///< decoupled decay of the view-dependence weights (EvNerf::set_view_decay; 0 = off;
-                               ///< measured in bench/README.md, session 46, and not a default)
-  double average = 0.998;      ///< decay of the parameter average the model renders with (EvNerf::set_average,
-                               ///< nn::ParameterAverage; 0 = off, renders use the trained parameters)
-  bool terminate_rays = true;  ///< training rays stop behind transmittance ray_cut, where the sampler skips
-                               ///< (EvNerf::set_ray_termination): fewer samples per step (the default since
-                               ///< session 40; false gives the earlier default's bits)
-  double ray_cut = 1e-2;       ///< the transmittance behind which a training ray stops, with terminate_rays
-                               ///< (EvNerf::set_ray_termination): the default since session 43, 21-32 % less
-                               ///< time at the same quality (bench/README.md); 1e-4, the backward pass's own
-                               ///< cut, gives sessions 40-42's bits
-  std::uint64_t seed = 1;
-  int threads = 0;             ///< 0 = all
-  long checkpoint_every = 500;
-  double near = 0.3, far = 7.0;
-  int holdout_every = 0;       ///< hold out every k-th slice boundary (0 = none)
-  int subslices = 1;           ///< slices per frame interval: k − 1 more boundaries, evenly spaced in time, between
-                               ///< consecutive frames (poses interpolated); windows then start and end between
-                               ///< frames and span the same time (a window objective's W counts frame intervals)
-  bool clamp_poses = false;    ///< slice boundaries outside the poses take the nearest pose
-  bool density_per_box = false;  ///< density per unit of the normalised box instead of per world unit
-                                 ///< (render::SceneBox::density_length)
-  /// How the scene box is fitted: around the camera centres with room for `far` in every direction
-  /// (render::SceneBox::from_cameras), or tightly around the cameras' frusta (render::frustum_box: the hash
-  /// grid's and the occupancy grid's cells 2-3 times smaller in the world; measured against the default in
-  /// bench/README.md, sessions 8, 12, 24 and 44, and not adopted). A resumed run keeps its checkpoint's box.
-  enum class BoxFit { Cameras, Frusta } box = BoxFit::Cameras;
-  bool progress = true;
-  /// Collapse detection (see CollapseCheck): every `collapse_check_every` steps from step
-  /// `collapse_check_from` on (0 = never; both multiples of the log period, 50), the run looks at its renders
-  /// and its event loss; a collapsed run stops unsuccessfully unless `allow_collapse`.
-  long collapse_check_every = 250, collapse_check_from = 500;
-  bool allow_collapse = false;
-  /// Data-parallel steps. A step is `shards` shards (0: one per process of `group`, or 1 alone), each a
-  /// window and pixels_per_step pixels of its own, their gradients averaged: one process with shards = N
-  /// computes what N processes compute together. `group` (dist/mpi.hpp's MpiGroup, say; null = this
-  /// process alone) sums the processes' gradients each step, as `exchange` says; only rank 0 writes.
-  int shards = 0;
-  Exchange exchange = Exchange::Auto;
-  Group* group = nullptr;
-  /// The shards per step this Config gives.
-  int shard_count() const { return shards > 0 ? shards : group ? group->size() : 1; }
-  /// `group` when it has several processes (one process alone needs no sums), else null.
-  Group* processes() const { return group && group->size() > 1 ? group : nullptr; }
-};
-
-/// A scene-box fit's name as the command line, the Python module and settings.json spell it.
-inline const char* box_name(Config::BoxFit b) { return b == Config::BoxFit::Frusta ? "frusta" : "cameras"; }
-/// The fit `name` spells; an Error naming `who` and the known names when it spells none.
-inline Config::BoxFit parse_box(std::string_view name, const std::string& who) {
-  for (auto b : {Config::BoxFit::Cameras, Config::BoxFit::Frusta})
-    if (name == box_name(b)) return b;
-  throw Error(who + ": box must be 'cameras' or 'frusta', got '" + std::string(name) + "'");
-}
-
-/// Refuses settings no run can use, naming the setting (the command line's flags check the same ranges;
-/// programs and the Python module set a Config directly). train::run calls it.
-inline void check(const Config& c) {
-  auto need = [](bool ok, const std::string& what) {
-    if (!ok) throw Error("train: " + what);
-  };
-  need(c.iterations > 0, "iterations must be positive, got " + std::to_string(c.iterations));
-  need(c.pixels_per_step >= 1 && c.pixels_per_step <= (1 << 22), "pixels per step must be between 1 and 4194304, got " + std::to_string(c.pixels_per_step));
-  need(c.threads >= 0 && c.threads <= 4096, "threads must be between 0 (all) and 4096, got " + std::to_string(c.threads));
-  need(c.lr > 0 && std::isfinite(c.lr), "the learning rate must be positive, got " + short_number(c.lr));
-  need(c.lr_decay > 0 && c.lr_decay_steps > 0, "the learning-rate decay and its steps must be positive");
-  need(c.distortion >= 0 && std::isfinite(c.distortion), "the distortion weight must be finite and non-negative, got " + short_number(c.distortion));
-  need(c.average >= 0 && c.average < 1, "the parameter average's decay must be in [0, 1), got " + short_number(c.average));
-  need(c.ray_cut > 0 && c.ray_cut < 1, "the ray-termination transmittance must lie in (0, 1), got " + short_number(c.ray_cut));
-  need(c.view_decay >= 0 && std::isfinite(c.view_decay), "the view-dependence decay must be finite and non-negative, got " + short_number(c.view_decay));
-  need(!c.tv || (*c.tv >= 0 && std::isfinite(*c.tv)), "the total-variation weight must be finite and non-negative, got " + short_number(c.tv.value_or(0)));
-  need(c.near > 0 && std::isfinite(c.far) && c.far > c.near, "near must be positive and far greater than near, got " +
-                                                                 short_number(c.near) + " and " + short_number(c.far));
-  need(c.checkpoint_every >= 0, "the checkpoint period must not be negative");
-  need(c.holdout_every >= 0, "holdout must not be negative");
-  need(c.subslices >= 1 && c.subslices <= 64, "subslices must be between 1 and 64, got " + std::to_string(c.subslices));
-  need(c.shards >= 0 && c.shards <= 4096, "shards must be between 0 (one per process) and 4096, got " + std::to_string(c.shards));
-  if (c.group)
-    need(c.shard_count() % c.group->size() == 0, "the shards per step (" + std::to_string(c.shard_count()) +
-                                                     ") must be a multiple of the processes (" + std::to_string(c.group->size()) + ")");
-}
 
 /// The shards per step a checkpoint's metadata records (train::run adds the line when there are several;
 /// older and one-shard checkpoints have none: 1).
@@ -197,7 +104,7 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
     frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
   }
   require(cfg.subslices >= 1 && cfg.subslices <= 64, "train: subslices must be between 1 and 64");
-  require(cfg.subslices == 1 || cfg.holdout_every == 0, "train: subslices and holdout cannot be combined (holdout counts frame boundaries)");
+  require(cfg.subslices == 1 || cfg.holdout == 0, "train: subslices and holdout cannot be combined (holdout counts frame boundaries)");
   if (cfg.subslices > 1) {
     std::vector<double> fine;
     std::vector<std::size_t> ids;
@@ -223,8 +130,8 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   require(d.sites.empty() || d.sites.size() == static_cast<std::size_t>(d.camera.width()) * d.camera.height(),
           d.folder.string() + ": the pixel sites do not match the camera");
   td.sites = events::PixelSites(d.sites);
-  if (cfg.holdout_every > 0)
-    for (std::size_t k = cfg.holdout_every; k + 1 < b.size(); k += cfg.holdout_every) {
+  if (cfg.holdout > 0)
+    for (std::size_t k = cfg.holdout; k + 1 < b.size(); k += cfg.holdout) {
       td.slice_enabled[k - 1] = false;  // both slices touching boundary k
       td.slice_enabled[k] = false;
     }
@@ -244,8 +151,7 @@ inline nn::AdamConfig adam_config(const Config& cfg) {
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
   for (auto& p : td.boundary_poses) c.push_back(p.t);
-  auto box = cfg.box == Config::BoxFit::Frusta ? render::frustum_box(td.camera, td.boundary_poses, cfg.near, cfg.far)
-                                               : render::SceneBox::from_cameras(c, cfg.near, cfg.far);
+  auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
   if (cfg.density_per_box) box.density_length = box.scale;
   return box;
 }
@@ -327,40 +233,6 @@ struct StepReport {
   double seconds = 0;
 };
 
-/// Every setting of `c` as JSON, as `out/settings.json` records it (the process group as its size; null for
-/// a total-variation weight `c` leaves to the variant; train::run records the model's).
-inline nlohmann::json settings_json(const Config& c) {
-  nlohmann::json j;
-  j["iterations"] = c.iterations;
-  j["pixels_per_step"] = c.pixels_per_step;
-  j["lr"] = c.lr;
-  j["lr_decay"] = c.lr_decay;
-  j["lr_decay_steps"] = c.lr_decay_steps;
-  j["distortion"] = c.distortion;
-  j["tv"] = c.tv ? nlohmann::json(*c.tv) : nlohmann::json(nullptr);  // null: the variant's own (or none)
-  j["view_decay"] = c.view_decay;
-  j["average"] = c.average;
-  j["terminate_rays"] = c.terminate_rays;
-  j["ray_cut"] = c.ray_cut;
-  j["seed"] = c.seed;
-  j["threads"] = c.threads;
-  j["checkpoint_every"] = c.checkpoint_every;
-  j["near"] = c.near;
-  j["far"] = c.far;
-  j["holdout_every"] = c.holdout_every;
-  j["subslices"] = c.subslices;
-  j["clamp_poses"] = c.clamp_poses;
-  j["density_per_box"] = c.density_per_box;
-  j["box"] = box_name(c.box);
-  j["collapse_check_every"] = c.collapse_check_every;
-  j["collapse_check_from"] = c.collapse_check_from;
-  j["allow_collapse"] = c.allow_collapse;
-  j["shards"] = c.shard_count();
-  j["processes"] = c.group ? c.group->size() : 1;
-  j["exchange"] = c.exchange == Exchange::Dense ? "dense" : c.exchange == Exchange::Sparse ? "sparse" : "auto";
-  return j;
-}
-
 /// Writes `out/settings.json`, what trained the run in `out`: {"variant": name, "runs": [...]}, one entry per
 /// call of train::run (settings_json and "from_step", the step it started from). A fresh run starts the list
 /// afresh; a resumed one keeps the entries that started before its checkpoint's step (a call that died
@@ -385,6 +257,10 @@ inline void record_settings(const fs::path& out, const Config& c, const std::str
 
 /// Steps between two lines of log.jsonl (each line holds the means over them).
 inline constexpr long kLogEvery = 50;
+/// The transmittance behind which a training ray stops where the sampler skips samples
+/// (EvNerf::set_ray_termination): a step evaluates 21–32 % fewer samples than at the backward pass's own
+/// cut of 1e-4, at the same quality.
+inline constexpr double kRayCut = 1e-2;
 
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl`
@@ -420,9 +296,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   }
   const ScopedThreadCount threads(cfg.threads);
   model.set_distortion(cfg.distortion);
-  model.set_ray_termination(cfg.terminate_rays, cfg.ray_cut);
+  model.set_ray_termination(true, kRayCut);
   if (cfg.tv && tv_term) tv_term->set_weight(*cfg.tv);
-  model.set_view_decay(cfg.view_decay);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
   // The settings first: a record it cannot read refuses the call before the log is touched. The term's
   // weight as the model now has it, its variant's where cfg leaves it unset: what trains the run.
@@ -479,8 +354,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     return true;
   };
   while (model.step() < cfg.iterations) {
-    const auto st = shard_count == 1 ? model.train_step(td, cfg.pixels_per_step, cfg.seed)
-                                     : model.train_step(td, cfg.pixels_per_step, cfg.seed, 0, shards, exchange);
+    const auto st = shard_count == 1 ? model.train_step(td, cfg.pixels, cfg.seed) : model.train_step(td, cfg.pixels, cfg.seed, 0, shards, exchange);
     if (!std::isfinite(st.loss)) {
       diverged("loss " + short_number(st.loss));
       break;
@@ -645,21 +519,13 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
-  /// A resumed model keeps its checkpoint's scene box (near, far and the fit it was trained with, which may
-  /// be an earlier default's), whatever this call's Config says; the Config takes them over, so that
-  /// settings.json records what the run uses.
+  /// A resumed model keeps its checkpoint's scene box (near, far and its density unit), whatever this call's
+  /// Config says; the Config takes them over, so that settings.json records what the run uses.
   void follow_box() {
     const auto& b = model_.box();
     cfg_.near = b.near;
     cfg_.far = b.far;
     cfg_.density_per_box = b.density_length != 1.0;
-    for (auto fit : {Config::BoxFit::Frusta, Config::BoxFit::Cameras}) {  // a box of neither (other poses): as given
-      Config c = cfg_;
-      c.box = fit;
-      const auto s = scene_box(td_, c);
-      const double tol = 1e-9 * std::max(1.0, b.scale);
-      if ((s.center - b.center).cwiseAbs().maxCoeff() <= tol && std::abs(s.scale - b.scale) <= tol) cfg_.box = fit;
-    }
   }
 
   const TrainingData& td_;
