@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <set>
 
 #include "common.hpp"
 
@@ -256,6 +257,45 @@ TEST_CASE("dataset: a folder loads, the event cache is used on the second load a
   CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir / "missing", opt); }), "not a folder");
   fs::remove(dir / "calib.txt");
   CHECK_CONTAINS(error_of([&] { io::load_ijrr(dir, opt); }), "calib.txt:0: cannot open file");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("the format table: one name each, --format's list; every writer's output is detected as its format and reads back equal") {
+  std::set<std::string> names;
+  for (const auto& f : io::formats()) {
+    CAPTURE(f.name);
+    CHECK(names.insert(f.name).second);
+    CHECK(std::string(f.description).size() > 10);
+    CHECK((f.load != nullptr) == (f.detect != nullptr));           // a reader is found by its content
+    CHECK((f.load != nullptr) == (std::string(f.unavailable).empty()));  // or the build says why not
+  }
+  CHECK(io::format_names().size() == names.size());
+  CHECK(io::format_list() == "ijrr, eventnerf, robust-e-nerf, hdf5, rosbag");
+  const auto dir = temp_dir("formats");
+  fs::create_directories(dir / "rec");
+  write(dir / "rec" / "events.txt", "0.10 1 2 1\n0.11 3 4 0\n0.12 5 6 1\n");
+  write(dir / "rec" / "calib.txt", "100 100 16 12\n");
+  write(dir / "rec" / "sensor.txt", "32 24\n");
+  write(dir / "rec" / "groundtruth.txt", "0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n");
+  io::LoadOptions opt;
+  opt.use_cache = false;
+  const auto d = io::load(dir / "rec", opt);
+  CHECK(std::string(io::detect_format(dir / "rec").name) == "ijrr");
+  int written = 0;
+  for (const auto& f : io::formats()) {
+    if (!f.write) continue;
+    CAPTURE(f.name);
+    const fs::path out = dir / (std::string("out_") + f.name + (f.extensions.empty() ? "" : f.extensions.front()));
+    CHECK(io::convert(out, d) == f.name);
+    CHECK(std::string(io::detect_format(out).name) == f.name);
+    const auto back = io::load(out, opt);
+    CHECK(back.events.t == d.events.t);
+    CHECK(back.events.x == d.events.x);
+    CHECK(back.events.polarity == d.events.polarity);
+    ++written;
+  }
+  CHECK(written >= 1);
+  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
   fs::remove_all(dir);
 }
 

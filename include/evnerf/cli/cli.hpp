@@ -228,17 +228,19 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
                     "through ms_to_idx, only the window)")
         ->expected(2);
     sub->add_option("--format", load_opt.format,
-                    "the reader, where the content does not decide it (a folder holding two layouts): ijrr, eventnerf, robust-e-nerf, hdf5, rosbag")
-        ->check(CLI::IsMember(io::load_formats()));
+                    "the reader, where the content does not decide it (a folder holding two layouts): " + io::format_list())
+        ->check(CLI::IsMember(io::format_names()));
     sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
     sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
     sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
     sub->add_option("--poses-topic", load_opt.poses_topic,
                     "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
   };
-  const std::string rec_help =
-      "recording: an IJRR-layout folder, an EventNeRF scene or Robust e-NeRF sequence folder, an event HDF5 file or a ROS bag (calib.txt, groundtruth.txt beside a "
-      "file when it lacks them)";
+  const std::string rec_help = [] {
+    std::string h = "recording: ";
+    for (const auto& f : io::formats()) h += std::string(f.description) + "; ";
+    return h + "calib.txt and groundtruth.txt beside a file that lacks them";
+  }();
 
   // inspect
   auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
@@ -246,8 +248,16 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
 
   // convert
   fs::path convert_out;
-  auto* convert = app.add_subcommand("convert", "write a recording in another format: an IJRR-layout folder, HDF5 (event_utils/HQF layout) "
-                                                "when the output ends in .h5 or .hdf5, a ROS bag when it ends in .bag");
+  auto* convert = app.add_subcommand("convert", [] {
+    std::string h = "write a recording in another format, chosen by the output's name:";
+    for (const auto& f : io::formats())
+      if (!f.extensions.empty()) {
+        h += std::string(" ") + f.name + " (";
+        for (std::size_t k = 0; k < f.extensions.size(); ++k) h += (k ? ", " : "") + f.extensions[k];
+        h += "),";
+      }
+    return h + " else an IJRR-layout folder";
+  }());
   add_recording(convert, "recording to read (any format evnerf reads)");
   convert->add_option("output", convert_out,
                       "output folder (IJRR layout), file.h5 (calib.txt, groundtruth.txt written beside it) or file.bag (ROS bag, DAVIS topics)")
@@ -366,14 +376,11 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   }
   try {
     if (*inspect) {
-#ifdef EVNERF_HAVE_ROSBAG
-      if (fs::is_regular_file(folder) && io::is_rosbag(folder)) {
-        fmt::print("ROS bag topics (messages, type):\n");
-        for (const auto& t : io::rosbag_topics(folder)) fmt::print("  {:<32} {:>9}  {}\n", t.topic, t.messages, t.type);
-      }
-#endif
+      const io::Format& format = io::detect_format(folder, load_opt.format);
+      if (format.inspect) std::fputs(format.inspect(folder).c_str(), stdout);
       auto d = io::load(folder, load_opt);
       fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
+      fmt::print("format        {}\n", format.name);
       if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
       if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
       std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
@@ -381,22 +388,9 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
     }
     if (*convert) {
       const auto d = io::load(folder, load_opt);
-      const std::string ext = convert_out.extension().string();
-      if (ext == ".h5" || ext == ".hdf5") {
-#ifdef EVNERF_HAVE_HDF5
-        io::write_hdf5_recording(convert_out, d);
-#else
-        throw Error(convert_out.string(), 0, "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)");
-#endif
-      } else if (ext == ".bag") {
-#ifdef EVNERF_HAVE_ROSBAG
-        io::write_rosbag_recording(convert_out, d, bag_compression);
-#else
-        throw Error(convert_out.string(), 0, "this build of evnerf has no ROS bag support (install libbz2-dev and liblz4-dev and rebuild)");
-#endif
-      } else {
-        io::write_ijrr(convert_out, d);
-      }
+      io::WriteOptions wo;
+      wo.compression = bag_compression;
+      io::convert(convert_out, d, wo);
       fmt::print("wrote {} events, {} frames, {} poses → {}\n", d.events.size(), d.frames.size(), d.trajectory.size(), convert_out.string());
       return 0;
     }

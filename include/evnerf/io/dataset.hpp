@@ -1,23 +1,20 @@
-// io/dataset.hpp — one recording (camera, events, poses, optional frames and depth) loaded from an IJRR-
-// layout folder, as written by the real dataset and by evnerf's simulator. Depends on core/, geometry/,
-// events/ and io/ only.
+// io/dataset.hpp — the formats evnerf reads and writes, as one table (formats()): an IJRR-layout folder,
+// an EventNeRF scene, a Robust e-NeRF sequence, an event HDF5 file, a ROS bag. io::load picks the reader
+// from the content (or LoadOptions::format), io::convert the writer from the output's name; --format,
+// inspect, convert and the error texts that list formats come from the table. A new format is one header
+// (its reader, `<name>_format()` returning its Format) and one line in formats(). Depends on io/.
 #pragma once
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include <stb_image.h>
-
-#include "../geometry/bayer.hpp"
-#include "colmap.hpp"
 #include "eventnerf.hpp"
+#include "recording.hpp"
 #include "robust_e_nerf.hpp"
-#include "ijrr.hpp"
-#include "image_io.hpp"
-#include "npy.hpp"
 #ifdef EVNERF_HAVE_HDF5
 #include "hdf5.hpp"
 #endif
@@ -26,223 +23,6 @@
 #endif
 
 namespace evnerf::io {
-
-struct LoadOptions {
-  int width = 0, height = 0;  ///< sensor size; 0 = from sensor.txt, else the first frame, else 240×180
-  bool use_cache = true;      ///< cache the parsed events.txt as .npy for the next load
-  std::filesystem::path cache_root = default_cache_root();
-  /// Calibration and poses in the IJRR text formats, used instead of the recording's own. Empty: the
-  /// recording's (an IJRR folder's files; a bag's camera info and pose topic), else, for a recording in
-  /// one file (HDF5, bag), calib.txt (required) and groundtruth.txt (optional) in its folder.
-  std::filesystem::path calib, poses;
-  /// ROS bags: the topics to read (empty: the one topic of each role; "none": skip frames, camera info or
-  /// poses). See io/rosbag.hpp.
-  std::string events_topic, images_topic, camera_info_topic, poses_topic;
-  /// Read an HDF5 file in a child process first, so that a crash of the HDF5 library on a corrupt file is
-  /// an Error (io::read_hdf5_checked; costs a second read of the file).
-  bool hdf5_check_in_child = true;
-  /// Only the events with t_begin ≤ t < t_end (seconds, on the loaded clock: a bag's relative to its
-  /// time_origin). Every reader drops the others after reading; the HDF5 reader of the DSEC layout reads
-  /// only the window's events, found through ms_to_idx.
-  double t_begin = -INFINITY, t_end = INFINITY;
-  /// The reader, where the content does not decide it (a folder holding two layouts): "ijrr", "eventnerf",
-  /// "robust-e-nerf", "hdf5", "rosbag"; empty = from the content.
-  std::string format;
-};
-
-/// The names LoadOptions::format takes.
-inline const std::vector<std::string>& load_formats() {
-  static const std::vector<std::string> f{"ijrr", "eventnerf", "robust-e-nerf", "hdf5", "rosbag"};
-  return f;
-}
-
-struct Dataset {
-  std::filesystem::path folder;
-  geometry::Camera camera;
-  events::EventStream events;
-  geometry::Trajectory trajectory;  ///< empty when the folder has no groundtruth.txt
-  Frames frames;                    ///< empty when the folder has no images.txt
-  std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
-  std::vector<std::filesystem::path> linear; ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
-  double linear_log_offset = 0;              ///< the sensor's dark end, log(I + offset), with `linear`
-  /// The recording's own clock at t = 0, in seconds: 0 for IJRR folders and HDF5 files (their times are
-  /// kept); a bag's times are relative to the whole second of its first message read (ROS time).
-  std::int64_t time_origin = 0;
-  /// The colour filter the events come through ("rggb", ...), where the recording says; "" otherwise.
-  std::string bayer_pattern;
-  /// Per pixel of the camera, 1 where the events come from (channel_dataset's green at the full sensor: the
-  /// green sites of the mosaic); empty: every pixel. Training draws its pixels among these only.
-  std::vector<std::uint8_t> sites;
-  bool from_cache = false;
-};
-
-/// The colour filter of a recording's events: the one it names, else RGGB (the Color-DAVIS346's, and the
-/// simulator's with --bayer); a name no pattern has is an error naming the recording.
-inline geometry::BayerPattern bayer_of(const Dataset& d) {
-  geometry::BayerPattern p;
-  if (!d.bayer_pattern.empty() && !geometry::BayerPattern::parse(d.bayer_pattern, p))
-    throw Error(d.folder.string() + ": unknown Bayer pattern '" + d.bayer_pattern + "' (known: rggb, bggr, grbg, gbrg)");
-  return p;
-}
-
-/// Which of green's two sites per 2×2 block a per-channel green model trains on.
-enum class GreenSites {
-  First,  ///< the first one only: a quarter-resolution sensor like red's and blue's (the paper's geometry)
-  Both    ///< both: the full sensor, trained at the green sites only (Dataset::sites); twice the events
-};
-inline GreenSites parse_green_sites(const std::string& s) {
-  if (s == "first") return GreenSites::First;
-  if (s == "both") return GreenSites::Both;
-  throw Error("green sites '" + s + "': expected first or both");
-}
-inline const char* green_sites_name(GreenSites g) { return g == GreenSites::Both ? "both" : "first"; }
-
-/// The paper's colour geometry: the events of one channel's sites (geometry::site_of) as a grey recording
-/// of a quarter-resolution sensor (geometry::site_camera), event (2x'+ox, 2y'+oy) at (x', y'). With
-/// GreenSites::Both, green instead keeps the full sensor and the events of both its sites, and
-/// Dataset::sites marks them. Poses and frames stay the recording's (the frames' times still cut the
-/// slices; they are not at the new sensor's size, so evaluate against the full recording); depth and linear
-/// truth are dropped.
-inline Dataset channel_dataset(const Dataset& d, const geometry::BayerPattern& p, int channel, GreenSites green = GreenSites::First) {
-  Dataset c;
-  c.folder = d.folder;
-  c.trajectory = d.trajectory;
-  c.frames = d.frames;
-  c.time_origin = d.time_origin;
-  if (channel == 1 && green == GreenSites::Both) {
-    c.camera = d.camera;
-    c.events.width = d.events.width;
-    c.events.height = d.events.height;
-    const int W = d.camera.width(), H = d.camera.height();
-    c.sites.assign(static_cast<std::size_t>(W) * H, 0);
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) c.sites[static_cast<std::size_t>(y) * W + x] = p.at(x, y) == 1 ? 1 : 0;
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < d.events.size(); ++i) n += p.at(d.events.x[i], d.events.y[i]) == 1;
-    c.events.reserve(n);
-    for (std::size_t i = 0; i < d.events.size(); ++i)
-      if (p.at(d.events.x[i], d.events.y[i]) == 1) c.events.push_back(d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i]);
-    return c;
-  }
-  const auto s = geometry::site_of(p, channel);
-  c.camera = geometry::site_camera(d.camera, s);
-  c.events.width = c.camera.width();
-  c.events.height = c.camera.height();
-  std::size_t n = 0;
-  for (std::size_t i = 0; i < d.events.size(); ++i) n += (d.events.x[i] & 1) == s.ox && (d.events.y[i] & 1) == s.oy;
-  c.events.reserve(n);
-  for (std::size_t i = 0; i < d.events.size(); ++i)
-    if ((d.events.x[i] & 1) == s.ox && (d.events.y[i] & 1) == s.oy)
-      c.events.push_back(d.events.t[i], d.events.x[i] / 2, d.events.y[i] / 2, d.events.polarity[i]);
-  return c;
-}
-
-/// The most pixels a sensor may have (8192 × 8192): per-pixel counts per slice are allocated from it.
-inline constexpr long long kMaxSensorPixels = 1LL << 26;
-
-/// Refuses a sensor of more than kMaxSensorPixels pixels or a side outside 1 … 65535 (before anything is
-/// allocated per pixel); `where` names what announced the size.
-inline void check_sensor_size(long long w, long long h, const std::string& where, std::size_t line = 0) {
-  if (w <= 0 || h <= 0 || w > 65535 || h > 65535)
-    throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " out of range (1 to 65535 per side)");
-  if (w * h > kMaxSensorPixels)
-    throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " has more than " +
-                                 std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
-}
-
-/// The poses a user names (LoadOptions::poses): a pose text file (`t px py pz qx qy qz qw`, camera to world;
-/// its times moved by `shift` seconds), or a COLMAP text model (its folder, or its images.txt). COLMAP's
-/// images have no times: each gets the time of the recording's frame whose file name (or path ending) is
-/// the image's NAME, so COLMAP run on the recording's frames gives a trajectory through the frames' times.
-/// Images that match no frame are left out (and counted in the error when none match).
-inline geometry::Trajectory read_pose_source(const std::filesystem::path& p, const Frames& frames, double shift = 0) {
-  namespace fs = std::filesystem;
-  const bool colmap = fs::is_directory(p) || p.filename() == "images.txt";
-  if (!colmap) {
-    const auto tr = read_poses_txt(p);
-    if (shift == 0) return tr;
-    std::vector<double> t = tr.times();
-    for (double& v : t) v -= shift;
-    return geometry::Trajectory(std::move(t), tr.poses(), p.string());
-  }
-  const fs::path images = fs::is_directory(p) ? p / "images.txt" : p;
-  if (!fs::exists(images)) throw Error(images.string(), 0, "missing (a COLMAP text model's images.txt)");
-  const auto ims = parse_colmap_images(read_file(images), images.string());
-  if (frames.paths.empty())
-    throw Error(images.string(), 0, "COLMAP poses are matched to the recording's frame files by name, and this recording has no frame files");
-  std::vector<std::pair<double, geometry::Pose>> timed;
-  for (const auto& im : ims) {
-    int found = -1;
-    for (std::size_t f = 0; f < frames.paths.size(); ++f) {
-      const std::string path = frames.paths[f].generic_string();
-      const bool match = path == im.name || (path.size() > im.name.size() && path.compare(path.size() - im.name.size(), im.name.size(), im.name) == 0 &&
-                                             path[path.size() - im.name.size() - 1] == '/');
-      if (!match) continue;
-      if (found >= 0) throw Error(images.string(), 0, "image '" + im.name.substr(0, 60) + "' matches two frames");
-      found = static_cast<int>(f);
-    }
-    if (found >= 0) timed.emplace_back(frames.t[static_cast<std::size_t>(found)], im.c2w);
-  }
-  if (timed.size() < 2)
-    throw Error(images.string(), 0, std::to_string(timed.size()) + " of its " + std::to_string(ims.size()) +
-                                        " images match a frame of the recording by file name (at least 2 needed)");
-  std::vector<std::size_t> order(timed.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return timed[a].first < timed[b].first; });
-  std::vector<double> t;
-  std::vector<geometry::Pose> poses;
-  for (auto i : order) {
-    if (!t.empty() && timed[i].first == t.back()) throw Error(images.string(), 0, "two images map to frames of the same time");
-    t.push_back(timed[i].first);
-    poses.push_back(timed[i].second);
-  }
-  return geometry::Trajectory(std::move(t), std::move(poses), images.string() + " (COLMAP, at the frames' times)");
-}
-
-/// The calibration a user names (LoadOptions::calib): calib.txt's format, or COLMAP's cameras.txt (one
-/// camera, of the sensor's size).
-inline geometry::Camera read_calib_source(const std::filesystem::path& p, int w, int h) {
-  if (p.filename() != "cameras.txt") return read_calib_txt(p, w, h);
-  const auto cams = parse_colmap_cameras(read_file(p), p.string());
-  if (cams.size() != 1) throw Error(p.string(), 0, "holds " + std::to_string(cams.size()) + " cameras; one is read");
-  const auto& c = cams.begin()->second;
-  if (c.width() != w || c.height() != h)
-    throw Error(p.string(), 0, "camera of " + std::to_string(c.width()) + "x" + std::to_string(c.height()) + " for a " + std::to_string(w) + "x" +
-                                   std::to_string(h) + " sensor");
-  return c;
-}
-
-/// Parses sensor.txt: "width height".
-inline std::pair<int, int> parse_sensor_size(std::string_view text, const std::string& file) {
-  LineScanner s(text, file);
-  if (!s.next_line()) throw Error(file, 0, "empty sensor.txt (expected 'width height')");
-  const long long sw = s.integer("width"), sh = s.integer("height");
-  s.expect_end();
-  check_sensor_size(sw, sh, file, s.line_number());
-  if (s.next_line()) s.fail("unexpected second line in sensor.txt");
-  return {static_cast<int>(sw), static_cast<int>(sh)};
-}
-
-/// Sensor size: explicit, else `sensor.txt` ("width height"), else the first frame's size, else DAVIS240C.
-inline std::pair<int, int> sensor_size(const std::filesystem::path& folder, const Frames& frames, int w, int h) {
-  if (w > 0 && h > 0) {
-    check_sensor_size(w, h, folder.string() + " (the sensor size given)");
-    return {w, h};
-  }
-  if (std::filesystem::exists(folder / "sensor.txt")) {
-    const auto path = folder / "sensor.txt";
-    const std::string text = read_file(path);
-    return parse_sensor_size(text, path.string());
-  }
-  if (frames.size() > 0) {
-    int fw = 0, fh = 0, c = 0;
-    if (stbi_info(frames.paths[0].c_str(), &fw, &fh, &c)) {
-      check_sensor_size(fw, fh, frames.paths[0].string() + " (the first frame, which gives the sensor size)");
-      return {fw, fh};
-    }
-  }
-  return {240, 180};
-}
 
 /// Loads an IJRR-layout folder. events.txt and calib.txt are required; groundtruth.txt, images.txt and
 /// depth/ are optional. Every parse error names file and line.
@@ -312,21 +92,6 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");
   }
   return d;
-}
-
-/// Frame i of a recording, from memory or from its PNG file.
-inline Image frame_image(const Frames& f, std::size_t i) {
-  require(i < f.size(), "frame_image: frame " + std::to_string(i) + " of " + std::to_string(f.size()));
-  return f.images.empty() ? read_png(f.paths[i]) : f.images[i];
-}
-
-/// The calibration as calib.txt holds it (fx fy cx cy k1 k2 p1 p2 k3).
-inline std::string calib_text(const geometry::Camera& c) {
-  const auto& k = c.distortion();
-  char buf[320];
-  std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", c.fx(), c.fy(), c.cx(), c.cy(), k[0], k[1],
-                k[2], k[3], k[4]);
-  return buf;
 }
 
 /// Writes a recording as an IJRR-layout folder: events.txt (9 decimals of seconds), calib.txt, sensor.txt,
@@ -513,60 +278,121 @@ inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const Loa
   return d;
 }
 
-/// Loads a recording whatever its format (all its events; io::load applies LoadOptions' time window): an IJRR-layout folder, an EventNeRF scene folder, a Robust e-NeRF
-/// sequence folder, an event HDF5 file or a ROS bag (where built with HDF5, libbz2 and liblz4). The reader is picked from the content, not the name.
-/// A folder that holds more than one layout is refused unless `opt.format` names the one to read.
-inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+#ifdef EVNERF_HAVE_ROSBAG
+/// inspect's lines for a bag: its topics with their message counts and types.
+inline std::string rosbag_summary(const std::filesystem::path& path) {
+  std::string out = "ROS bag topics (messages, type):\n";
+  for (const auto& t : rosbag_topics(path)) {
+    char line[512];
+    std::snprintf(line, sizeof line, "  %-32s %9llu  %s\n", t.topic.c_str(), static_cast<unsigned long long>(t.messages), t.type.c_str());
+    out += line;
+  }
+  return out;
+}
+#endif
+
+/// The formats, in the order detection tries them (the folder layouts first; a folder that holds none of
+/// them is read as IJRR's, whose reader names what is missing).
+inline const std::vector<Format>& formats() {
   namespace fs = std::filesystem;
-  const std::string& f = opt.format;
-  if (!f.empty()) {
-    const auto& known = load_formats();
-    if (std::find(known.begin(), known.end(), f) == known.end())
-      throw Error(path.string(), 0, "unknown format '" + f + "' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
-    const bool folder_format = f == "ijrr" || f == "eventnerf" || f == "robust-e-nerf";
-    if (folder_format != fs::is_directory(path))
-      throw Error(path.string(), 0, "format '" + f + "' is " + (folder_format ? "a folder" : "a file") + ", and this is " +
-                                        (fs::exists(path) ? (folder_format ? "a file" : "a folder") : "missing"));
-    if (f == "ijrr") return load_ijrr(path, opt);
-    if (f == "eventnerf") return load_eventnerf(path, opt);
-    if (f == "robust-e-nerf") return load_robust_e_nerf(path, opt);
+  static const std::vector<Format> table = {
+      {"ijrr", true, "an IJRR-layout folder (events.txt, calib.txt, groundtruth.txt, images.txt: the Event Camera Dataset's, the simulator's)",
+       [](const fs::path& p) { return fs::exists(p / "events.txt"); }, &load_ijrr,
+       [](const fs::path& p, const Dataset& d, const WriteOptions&) { write_ijrr(p, d); }},
+      {"eventnerf", true, "an EventNeRF scene folder (train/events/*.npz, train/pose, train/intrinsics)", &is_eventnerf, &load_eventnerf},
+      {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)", &is_robust_e_nerf,
+       &load_robust_e_nerf},
 #ifdef EVNERF_HAVE_HDF5
-    if (f == "hdf5") return load_hdf5(path, opt);
+      {"hdf5", false, "an event HDF5 file (event_utils/HQF or DSEC layout)", &is_hdf5, &load_hdf5,
+       [](const fs::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); }, {".h5", ".hdf5"}},
+#else
+      {"hdf5", false, "an event HDF5 file (event_utils/HQF or DSEC layout)", nullptr, nullptr, nullptr, {".h5", ".hdf5"}, nullptr,
+       "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)"},
 #endif
 #ifdef EVNERF_HAVE_ROSBAG
-    if (f == "rosbag") return load_rosbag(path, opt);
+      {"rosbag", false, "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)", &is_rosbag, &load_rosbag,
+       [](const fs::path& p, const Dataset& d, const WriteOptions& o) { write_rosbag_recording(p, d, o.compression); }, {".bag"},
+       &rosbag_summary},
+#else
+      {"rosbag", false, "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)", nullptr, nullptr, nullptr, {".bag"},
+       nullptr, "this build of evnerf has no ROS bag support (install libbz2-dev and liblz4-dev and rebuild)"},
 #endif
-    throw Error(path.string(), 0, "this build of evnerf does not read format '" + f + "'");
+  };
+  return table;
+}
+
+/// The formats' names, as --format takes them.
+inline std::vector<std::string> format_names() {
+  std::vector<std::string> n;
+  for (const auto& f : formats()) n.push_back(f.name);
+  return n;
+}
+/// The names joined by ", ".
+inline std::string format_list() {
+  std::string s;
+  for (const auto& f : formats()) s += (s.empty() ? "" : ", ") + std::string(f.name);
+  return s;
+}
+/// The format called `name`; an Error naming `where` and every format when there is none.
+inline const Format& format_named(const std::string& name, const std::filesystem::path& where) {
+  for (const auto& f : formats())
+    if (name == f.name) return f;
+  throw Error(where.string(), 0, "unknown format '" + name + "' (known: " + format_list() + ")");
+}
+/// The format of the recording at `path` (LoadOptions::format, else its content); an Error naming the path
+/// when it is none of them, a folder holds several layouts, or this build cannot read it.
+inline const Format& detect_format(const std::filesystem::path& path, const std::string& format = {}) {
+  namespace fs = std::filesystem;
+  if (!format.empty()) {
+    const Format& f = format_named(format, path);
+    if (f.folder != fs::is_directory(path))
+      throw Error(path.string(), 0, "format '" + format + "' is " + (f.folder ? "a folder" : "a file") + ", and this is " +
+                                        (fs::exists(path) ? (f.folder ? "a file" : "a folder") : "missing"));
+    if (!f.load) throw Error(path.string(), 0, std::string("format '") + f.name + "': " + f.unavailable);
+    return f;
+  }
+  std::string kinds, missing;
+  for (const auto& f : formats()) {
+    kinds += (kinds.empty() ? "" : "; ") + std::string(f.description);
+    if (!f.load) missing += std::string(" ") + f.unavailable + ".";
   }
   if (fs::is_directory(path)) {
-    std::vector<std::string> found;
-    if (fs::exists(path / "events.txt")) found.push_back("ijrr");
-    if (is_eventnerf(path)) found.push_back("eventnerf");
-    if (is_robust_e_nerf(path)) found.push_back("robust-e-nerf");
+    std::vector<const Format*> found;
+    for (const auto& f : formats())
+      if (f.folder && f.detect && f.load && f.detect(path)) found.push_back(&f);
     if (found.size() > 1) {
       std::string list;
-      for (const auto& k : found) list += (list.empty() ? "" : ", ") + k;
+      for (const auto* f : found) list += (list.empty() ? "" : ", ") + std::string(f->name);
       throw Error(path.string(), 0, "the folder holds several layouts (" + list + "): choose one with --format");
     }
-    if (!found.empty() && found[0] == "robust-e-nerf") return load_robust_e_nerf(path, opt);
-    if (!found.empty() && found[0] == "eventnerf") return load_eventnerf(path, opt);
-    return load_ijrr(path, opt);
+    return found.empty() ? formats().front() : *found.front();
   }
-  if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected an IJRR-layout folder, an event HDF5 file or a ROS bag)");
-#ifdef EVNERF_HAVE_HDF5
-  if (is_hdf5(path)) return load_hdf5(path, opt);
-#endif
-#ifdef EVNERF_HAVE_ROSBAG
-  if (is_rosbag(path)) return load_rosbag(path, opt);
-#endif
-  std::string missing;
-#ifndef EVNERF_HAVE_HDF5
-  missing += " This build reads no HDF5 (install libhdf5-dev and rebuild).";
-#endif
-#ifndef EVNERF_HAVE_ROSBAG
-  missing += " This build reads no ROS bags (install libbz2-dev and liblz4-dev and rebuild).";
-#endif
-  throw Error(path.string(), 0, "not a recording evnerf reads (an IJRR-layout folder, an event HDF5 file or a ROS bag 2.0)." + missing);
+  if (!fs::exists(path)) throw Error(path.string(), 0, "no such recording (expected " + kinds + ")");
+  for (const auto& f : formats())
+    if (!f.folder && f.detect && f.load && f.detect(path)) return f;
+  throw Error(path.string(), 0, "not a recording evnerf reads (" + kinds + ")." + missing);
+}
+
+/// Loads a recording whatever its format (all its events; io::load applies LoadOptions' time window): the
+/// reader is picked from the content, not the name (detect_format).
+inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) { return detect_format(path, opt.format).load(path, opt); }
+
+/// Writes a recording in the format `out`'s name chooses: the file format whose extension it ends in,
+/// else (a folder) the IJRR layout. Returns the format's name.
+inline std::string convert(const std::filesystem::path& out, const Dataset& d, const WriteOptions& opt = {}) {
+  const std::string ext = out.extension().string();
+  for (const auto& f : formats())
+    if (std::find(f.extensions.begin(), f.extensions.end(), ext) != f.extensions.end()) {
+      if (!f.write) throw Error(out.string(), 0, std::string("format '") + f.name + "': " + (*f.unavailable ? f.unavailable : "no writer"));
+      f.write(out, d, opt);
+      return f.name;
+    }
+  for (const auto& f : formats())
+    if (f.folder && f.write) {
+      f.write(out, d, opt);
+      return f.name;
+    }
+  throw Error(out.string(), 0, "no format writes this");
 }
 
 /// load_whole, then only the events of the time window LoadOptions names (an error when none are left).
