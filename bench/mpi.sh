@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Data-parallel training on this machine, and a model of N nodes (bench/README.md, "MPI").
 # For Fast and Paper, pair after pair (the order flipping every pair), the same two-shard step is run as
-#   A: one process, 2 threads, --shards 2           (the reference, in the same session)
+#   A: one process, 2 threads, --shards 2           (the reference, in the same run)
 #   B: mpirun -np 2, 1 thread each, exchange auto    (sparse where fewer bytes)
 #   C: mpirun -np 2, 1 thread each, exchange dense
 # and bench/mpi.py prints the ratios of their step times (medians of the pair ratios), the bytes and seconds

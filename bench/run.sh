@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds bench/, runs it and the PyTorch peer (best configuration, see ../shared/peers/README.md) in the
-# same session, alternating, and prints the ratios from medians. Usage: bench/run.sh [repetitions]
+# same run, alternating, and prints the ratios from medians. Usage: bench/run.sh [repetitions]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${1:-3}

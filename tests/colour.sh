@@ -38,9 +38,8 @@ if "$EV" eval "$work/pc2/wrong.json" "$work/rec" --out "$work/eval_wrong" > "$wo
 grep -q "its camera is not the G sites of the sensor" "$work/err" || fail "wrong green_sites: $(cat "$work/err")"
 if "$EV" render "$work/pc/channels.json" --out "$work/render_bad" --channel-upsampling nearest > "$work/err" 2>&1; then fail "--channel-upsampling nearest was taken"; fi
 [ -f "$work/render_pc/novel_0000.png" ] && [ -f "$work/render_pc/boundary_0001_depth.npy" ] || fail "render of channels.json"
-# Every view's intensity is also written as float32 .npy, whatever its range (before session 52 only where
-# the luminance passed 1, so never for a sigmoid radiance): one beside each intensity PNG of eval's renders
-# and of render's views.
+# Every view's intensity is also written as float32 .npy, whatever its range (a sigmoid radiance's too): one
+# beside each intensity PNG of eval's renders and of render's views.
 for d in "$work/eval_colour/renders" "$work/eval_grey/renders" "$work/eval_sigmoid/renders" "$work/render_pc"; do
   for png in "$d"/*.png; do
     case "$png" in *_depth.png) continue ;; esac

@@ -464,8 +464,8 @@ TEST_CASE("gemm: the kernel computes each element as a scalar fused multiply-add
 }
 
 TEST_CASE("gemm: a Fast training step's product shapes are fused multiply-add chains too, to the bit") {
-  // The shapes (m, n, k, strides, accumulation, epilogue) that a Fast step on `object` runs, logged in
-  // session 37: forward products over a tile's 2048 samples or fewer after occupancy skipping, weight
+  // The shapes (m, n, k, strides, accumulation, epilogue) that a Fast step on `object` runs, as logged from
+  // one: forward products over a tile's 2048 samples or fewer after occupancy skipping, weight
   // gradients with k = the samples and B read transposed, input gradients into part of a wider buffer
   // (m 15 of ld 31). The grid of the test above stops at n 45 and k 150 with padded strides; these run the
   // long panels and the exact strides the kernels see in training.

@@ -523,8 +523,8 @@ TEST_CASE("occupancy skipping: renders like full sampling, stays deterministic, 
                     doctest::Contains("sampler occupancy 16 grid 16 every 4 after 8'; this model is"));
 }
 
-// Fast's sampler changed in session 20 (occupied alpha 1 % → 30 %): a file written as "fast" by the old
-// model must go to the variant that still has the old grid, and a file of the new model to its own name.
+// Two variants of one field whose occupancy grids differ (occupied alpha 1 % and 30 %): a file written as
+// "fast" by the first must go to the variant that has its grid, and a file of the second to its own name.
 TEST_CASE("checkpoint_variant: a file goes to the variant of its architecture, by name among equals") {
   using Dense = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8>>;
   using Pruned = EvNerf<TinyField, render::OccupancySkipping<16, 16, 4, 8, 300>>;

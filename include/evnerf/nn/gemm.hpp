@@ -6,7 +6,7 @@
 //
 // Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
 // call and reaches about 58 % of the FP32 FMA peak on one core of this project's machine; the kernel below
-// reaches 95–100 % on the same shapes (bench/README.md).
+// reaches 95–100 % on the same shapes (bench/run.sh measures both).
 //
 // On AVX2 + FMA without AVX-512 (AMD Zen 2/3, Intel before Skylake-SP) an 8-lane kernel runs instead. Both
 // kernels compute every element of C the same way: its old value (or zero), then one fused multiply-add per
@@ -265,7 +265,7 @@ struct ActivationGrad {
 namespace detail {
 
 /// The chunk of k an accumulating product takes at a time (a 16-row panel's chunk of A is 4 KB; 64 measured
-/// best of 64–512 on Zen 3 for the weight gradients of 64-wide layers over 1024 samples).
+/// best of 64–512 on an AVX2 CPU for the weight gradients of 64-wide layers over 1024 samples).
 inline constexpr int k_chunk8 = 64;
 
 /// Lanes 0..r-1 of a mask (r in 0..8).

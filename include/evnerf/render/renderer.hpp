@@ -147,9 +147,9 @@ class Renderer {
     return n;
   }
 
-  /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays). On a Zen 3 with 240
-  /// columns, 1, 2 and 4 rows render equally fast and 8 or 16 rows slower (the batch's per-sample arrays
-  /// leave the cache; bench/README.md, session 36). A ray's result does not depend on its batch (tested).
+  /// Rows of the image that render() evaluates in one batch (kRenderRows · width rays). At 240 columns, 1, 2
+  /// and 4 rows render equally fast and 8 or 16 rows slower (the batch's per-sample arrays leave the cache).
+  /// A ray's result does not depend on its batch (tested).
   static constexpr int kRenderRows = 4;
 
   /// Renders the full image at `pose` (the fine pass where there is one); `pixel_dirs` are
