@@ -6,8 +6,8 @@
 // bench/run.sh runs this and the PyTorch peer and prints the ratios.
 #include <benchmark/benchmark.h>
 #include <evnerf/evnerf.hpp>
-#include <evnerf/presets.hpp>
-#include <evnerf/nn/reference.hpp>
+#include <evnerf/model/presets.hpp>
+#include <evnerf/nn/detail/reference.hpp>
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
 

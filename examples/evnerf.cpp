@@ -1,5 +1,5 @@
 // evnerf — the command-line tool (inspect, simulate, baselines, train, render, eval, convert) over the
-// built-in variants (presets.hpp). The whole tool is evnerf::cli::main (include/evnerf/cli/cli.hpp); a
+// built-in variants (model/presets.hpp). The whole tool is evnerf::cli::main (include/evnerf/cli/cli.hpp); a
 // program with your own variants is the same few lines (examples/custom_variant.cpp). Built with
 // EVNERF_MPI=ON, `mpirun -np N evnerf train …` trains data-parallel (dist/mpi.hpp); run on its own it starts
 // no MPI runtime.

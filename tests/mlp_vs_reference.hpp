@@ -3,7 +3,7 @@
 // test_nn.cpp and portable.cpp (which has no doctest).
 #pragma once
 #include <evnerf/nn/mlp.hpp>
-#include <evnerf/nn/reference.hpp>
+#include <evnerf/nn/detail/reference.hpp>
 
 #include <algorithm>
 #include <cmath>

@@ -1,9 +1,9 @@
 #include <evnerf/nn/activation.hpp>
-#include <evnerf/nn/bf16.hpp>
+#include <evnerf/nn/detail/bf16.hpp>
 #include <evnerf/nn/encoding.hpp>
 #include <evnerf/nn/mlp.hpp>
 #include <evnerf/nn/params.hpp>
-#include <evnerf/nn/reference.hpp>
+#include <evnerf/nn/detail/reference.hpp>
 
 #include <cstring>
 #include <limits>

@@ -14,7 +14,7 @@
 
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
-#include <evnerf/variants.hpp>
+#include <evnerf/model/variants.hpp>
 
 #include "common.hpp"
 #include "tiny_scene.hpp"

@@ -28,10 +28,10 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
-#include "../evaluate.hpp"
+#include "../eval/evaluate.hpp"
 #include "../evnerf.hpp"
 #include "../sim/simulate.hpp"
-#include "../variants.hpp"
+#include "../model/variants.hpp"
 
 namespace evnerf::cli {
 

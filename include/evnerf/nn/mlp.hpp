@@ -16,8 +16,8 @@
 #include "../core/error.hpp"
 #include "../core/rng.hpp"
 #include "activation.hpp"
-#include "bf16.hpp"
-#include "gemm.hpp"
+#include "detail/bf16.hpp"
+#include "detail/gemm.hpp"
 
 namespace evnerf::nn {
 
@@ -30,7 +30,7 @@ using CMatMap = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic
 /// of `Out` units with `OutAct`. With Skip = s ≥ 0 the encoded input is concatenated again to the output
 /// of hidden layer s, so hidden layer s+1 sees Width + In inputs (the NeRF trunk uses Depth 8, Skip 4).
 /// Samples are columns of column-major matrices (features × samples). Parameters are one flat array:
-/// per layer, W (out × in, column-major) then b (out). `Prec` (Fp32 or Bf16, nn/bf16.hpp) sets how the
+/// per layer, W (out × in, column-major) then b (out). `Prec` (Fp32 or Bf16, nn/detail/bf16.hpp) sets how the
 /// float matrix products round their operands; double always computes in double.
 template <int In, int Width, int Depth, int Out, class HiddenAct = ReLU, class OutAct = Identity, int Skip = -1,
           class Prec = Fp32>

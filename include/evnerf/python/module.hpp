@@ -33,10 +33,10 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
-#include "../evaluate.hpp"
+#include "../eval/evaluate.hpp"
 #include "../evnerf.hpp"
 #include "../sim/simulate.hpp"
-#include "../variants.hpp"
+#include "../model/variants.hpp"
 
 namespace evnerf::python {
 

@@ -1,6 +1,6 @@
 // train/trainer.hpp — turning a recording into training data (prepare), the training loop (run: progress bar,
 // JSON-lines log, settings.json, atomic checksummed checkpoints, exact resume, divergence and collapse
-// stops) and Trainer, a run as one object. The settings are train/settings.hpp's. Depends on model.hpp,
+// stops) and Trainer, a run as one object. The settings are train/settings.hpp's. Depends on model/model.hpp,
 // io/dataset.hpp and train/.
 #pragma once
 #include <algorithm>
@@ -17,7 +17,7 @@
 #include "../core/progress.hpp"
 #include "../io/dataset.hpp"
 #include "../loss/total_variation.hpp"
-#include "../model.hpp"
+#include "../model/model.hpp"
 #include "group.hpp"
 #include "settings.hpp"
 

@@ -1,4 +1,4 @@
-// variants.hpp — a list of model types under the names programs know them by: the variants a command line
+// model/variants.hpp — a list of model types under the names programs know them by: the variants a command line
 // (cli/cli.hpp) or a Python module (python/module.hpp) is built with, the dispatch from a name to its type,
 // and the pick of the variant that can load a checkpoint. Depends on io/checkpoint.hpp (and, through its
 // templates, on the model types it is given).
@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <string>
 
-#include "core/error.hpp"
-#include "io/checkpoint.hpp"
+#include "../core/error.hpp"
+#include "../io/checkpoint.hpp"
 
 namespace evnerf {
 

@@ -1,9 +1,9 @@
-// presets.hpp — the named variants: the paper's model (Paper), the fast hash-grid model (Fast), their
+// model/presets.hpp — the named variants: the paper's model (Paper), the fast hash-grid model (Fast), their
 // ablations, the colour model and the mixed-precision twins. Each is a type; a variant of your own is
-// another alias of EvNerf in your own code (examples/custom_variant.cpp). Depends on model.hpp and
+// another alias of EvNerf in your own code (examples/custom_variant.cpp). Depends on model/model.hpp and
 // loss/total_variation.hpp.
 #pragma once
-#include "loss/total_variation.hpp"
+#include "../loss/total_variation.hpp"
 #include "model.hpp"
 
 namespace evnerf {
@@ -13,7 +13,7 @@ using namespace nn;
 
 /// The paper's field: Frequency 10/4, 8×256 ReLU trunk with the skip before layer 5, a linear head giving
 /// density and a 256-wide feature, a 128-wide view layer, `C` luminance outputs. `Prec` is the networks'
-/// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/bf16.hpp).
+/// product precision (nn::Fp32, or nn::Bf16: bf16 factors with FP32 accumulation, nn/detail/bf16.hpp).
 template <int C = 1, int W = 256, class Prec = Fp32>
 using PaperField = field::FieldOf<Frequency<10>, Frequency<4>, MlpShape{.width = W, .hidden_layers = 8, .skip = 4}, W,
                                   MlpShape{.width = W / 2, .hidden_layers = 1}, C, ReLU, Prec>;

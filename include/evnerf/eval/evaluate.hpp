@@ -1,4 +1,4 @@
-// evaluate.hpp — a trained model against a recording's frames, as `evnerf eval` and `evnerf baselines` do it
+// eval/evaluate.hpp — a trained model against a recording's frames, as `evnerf eval` and `evnerf baselines` do it
 // and as a program or the Python module does it without writing files: the frames inside the trained time,
 // the truth (frames, or the simulator's linear HDR truth), the baselines, scores under every alignment with
 // metrics.json's structure, and the loading of any checkpoint (a model.ckpt of any variant of a list, or the
@@ -18,14 +18,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "eval/baselines.hpp"
-#include "eval/metrics.hpp"
-#include "eval/report.hpp"
-#include "geometry/bayer.hpp"
-#include "io/dataset.hpp"
-#include "render/renderer.hpp"
-#include "train/trainer.hpp"
-#include "variants.hpp"
+#include "baselines.hpp"
+#include "metrics.hpp"
+#include "report.hpp"
+#include "../geometry/bayer.hpp"
+#include "../io/dataset.hpp"
+#include "../render/renderer.hpp"
+#include "../train/trainer.hpp"
+#include "../model/variants.hpp"
 
 namespace evnerf::evaluation {
 

@@ -1,4 +1,4 @@
-// nn/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
+// nn/detail/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
 // in place through strides (no packing), so a layer's weights, their transpose or a tile's gradients go
 // straight into the kernel. On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
 // which the gradient checks use) Eigen does the work. Also the 16×16-block transpose that gives the
@@ -25,7 +25,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "activation.hpp"
+#include "../activation.hpp"
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif

@@ -1,34 +1,34 @@
-// model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
+// model/model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
 // composition of its parts. The renderer (render/renderer.hpp: rays → samples → field → compositing, and
 // the sampler's state) turns rays into luminance; the objective (loss/objective.hpp) says which rays a tile
 // renders and scores them. This class draws a step's window of slices, its pixels and noise, renders each
 // tile's rays, hands the values to the objective, runs the renderer's backward per tile of pixels with
 // per-thread gradients reduced in a fixed order, applies Adam, and reads and writes checkpoints
-// (io/checkpoint.hpp). The named variants are in presets.hpp.
+// (io/checkpoint.hpp). The named variants are in model/presets.hpp.
 #pragma once
 #include <array>
 #include <string>
 #include <type_traits>
 #include <vector>
 
-#include "core/error.hpp"
-#include "core/fileio.hpp"
-#include "core/parallel.hpp"
-#include "core/rng.hpp"
-#include "core/types.hpp"
-#include "events/slicing.hpp"
-#include "field/field.hpp"
-#include "geometry/bayer.hpp"
-#include "geometry/camera.hpp"
-#include "geometry/pose.hpp"
-#include "io/checkpoint.hpp"
-#include "loss/event_loss.hpp"
-#include "loss/objective.hpp"
-#include "nn/params.hpp"
-#include "render/occupancy.hpp"
-#include "render/renderer.hpp"
-#include "render/sampler.hpp"
-#include "render/scene.hpp"
+#include "../core/error.hpp"
+#include "../core/fileio.hpp"
+#include "../core/parallel.hpp"
+#include "../core/rng.hpp"
+#include "../core/types.hpp"
+#include "../events/slicing.hpp"
+#include "../field/field.hpp"
+#include "../geometry/bayer.hpp"
+#include "../geometry/camera.hpp"
+#include "../geometry/pose.hpp"
+#include "../io/checkpoint.hpp"
+#include "../loss/event_loss.hpp"
+#include "../loss/objective.hpp"
+#include "../nn/params.hpp"
+#include "../render/occupancy.hpp"
+#include "../render/renderer.hpp"
+#include "../render/sampler.hpp"
+#include "../render/scene.hpp"
 
 namespace evnerf {
 

@@ -1,7 +1,7 @@
-// nn/bf16.hpp — mixed-precision matrix products for the fused MLP: operands rounded to bfloat16 and packed
+// nn/detail/bf16.hpp — mixed-precision matrix products for the fused MLP: operands rounded to bfloat16 and packed
 // in pairs along the reduction dimension, products accumulated in FP32 (AVX-512 BF16's vdpbf16ps does 32
 // such multiply-adds per instruction, twice the FP32 FMA's 16). Parameters, gradients, activations and every
-// sum stay FP32; only the two factors of each product are rounded. Depends on nn/gemm.hpp only.
+// sum stay FP32; only the two factors of each product are rounded. Depends on nn/detail/gemm.hpp only.
 //
 // Packed layout: a "pair" is one 32-bit word holding two bf16 values, element k in the low half and k+1 in
 // the high half (an odd K gets a zero high half on its last pair). A is packed so that the pairs of 16

@@ -1,11 +1,11 @@
-// nn/reference.hpp — a plain, unfused MLP (Eigen, layer by layer, whole batch per layer, double
+// nn/detail/reference.hpp — a plain, unfused MLP (Eigen, layer by layer, whole batch per layer, double
 // accumulation) used to test the fused Mlp and as the bench's reference twin. Not for training.
 // Depends on nn/mlp.hpp only.
 #pragma once
 #include <Eigen/Core>
 #include <vector>
 
-#include "mlp.hpp"
+#include "../mlp.hpp"
 
 namespace evnerf::nn {
 
