@@ -20,15 +20,15 @@ for i in 0 5 20; do
   cmp "$work/rec/images/frame_0000000$i.png" "$work/back/images/frame_0000000$i.png" 2>/dev/null ||
     [ ! -f "$work/rec/images/frame_0000000$i.png" ] || fail "frame $i differs after the round trip"
 done
-a=$("$EV" inspect "$work/rec" | tail -n +2)
-b=$("$EV" inspect "$work/h5/rec.h5" | tail -n +2)
+a=$("$EV" inspect "$work/rec" | tail -n +2 | grep -v "^format ")
+b=$("$EV" inspect "$work/h5/rec.h5" | tail -n +2 | grep -v "^format ")
 [ "$a" = "$b" ] || fail "inspect differs: folder
 $a
 HDF5
 $b"
 # --time-window: the same events from the folder and from the HDF5 file, exactly those of the window.
-a=$("$EV" inspect "$work/rec" --time-window 0.5 1.25 | tail -n +2)
-b=$("$EV" inspect "$work/h5/rec.h5" --time-window 0.5 1.25 | tail -n +2)
+a=$("$EV" inspect "$work/rec" --time-window 0.5 1.25 | tail -n +2 | grep -v "^format ")
+b=$("$EV" inspect "$work/h5/rec.h5" --time-window 0.5 1.25 | tail -n +2 | grep -v "^format ")
 [ "$a" = "$b" ] || fail "inspect --time-window differs between the folder and the HDF5 file"
 "$EV" convert "$work/h5/rec.h5" "$work/window" --time-window 0.5 1.25 > /dev/null
 want=$(awk '$1 >= 0.5 && $1 < 1.25' "$work/rec/events.txt" | wc -l)

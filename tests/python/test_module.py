@@ -314,8 +314,8 @@ def test_every_setting_of_the_table(planes, tmp_path):
         if value is None:  # the variant's own (tv): give it one
             value = 0.05
         out = tmp_path / name
-        evnerf.train(planes, iterations=1, threads=1, out=out, **{name: value}) if name != "iterations" else \
-            evnerf.train(planes, threads=1, out=out, iterations=value)
+        kwargs = {"iterations": 1, "threads": 1, name: value}
+        evnerf.train(planes, out=out, **kwargs)
         recorded = json.loads((out / "settings.json").read_text())["runs"][0][name]
         assert recorded == value or (name == "shards" and recorded == 1), (name, recorded, value)
         if not r["numeric"]:
@@ -328,5 +328,4 @@ def test_every_setting_of_the_table(planes, tmp_path):
         for b in bad:
             b = int(b) if r["integer"] else float(b)
             with pytest.raises((evnerf.Error, TypeError, OverflowError), match=name):
-                evnerf.train(planes, iterations=1, threads=1, **{name: b}) if name != "iterations" else \
-                    evnerf.train(planes, threads=1, iterations=b)
+                evnerf.train(planes, **{"iterations": 1, "threads": 1, name: b})

@@ -330,7 +330,7 @@ inline std::vector<std::string> format_names() {
 /// The names joined by ", ".
 inline std::string format_list() {
   std::string s;
-  for (const auto& f : formats()) s += (s.empty() ? "" : ", ") + std::string(f.name);
+  for (const auto& f : formats()) s.append(s.empty() ? "" : ", ").append(f.name);
   return s;
 }
 /// The format called `name`; an Error naming `where` and every format when there is none.
@@ -353,7 +353,7 @@ inline const Format& detect_format(const std::filesystem::path& path, const std:
   }
   std::string kinds, missing;
   for (const auto& f : formats()) {
-    kinds += (kinds.empty() ? "" : "; ") + std::string(f.description);
+    kinds.append(kinds.empty() ? "" : "; ").append(f.description);
     if (!f.load) missing += std::string(" ") + f.unavailable + ".";
   }
   if (fs::is_directory(path)) {
@@ -362,7 +362,7 @@ inline const Format& detect_format(const std::filesystem::path& path, const std:
       if (f.folder && f.detect && f.load && f.detect(path)) found.push_back(&f);
     if (found.size() > 1) {
       std::string list;
-      for (const auto* f : found) list += (list.empty() ? "" : ", ") + std::string(f->name);
+      for (const auto* f : found) list.append(list.empty() ? "" : ", ").append(f->name);
       throw Error(path.string(), 0, "the folder holds several layouts (" + list + "): choose one with --format");
     }
     return found.empty() ? formats().front() : *found.front();

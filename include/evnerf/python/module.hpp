@@ -313,7 +313,7 @@ inline train::Config config_of(const py::kwargs& kw) {
 /// The names of the keyword settings, as train's docstring lists them.
 inline std::string setting_names() {
   std::string names;
-  for (const auto& s : train::settings()) names += (names.empty() ? "" : ", ") + std::string(s.name);
+  for (const auto& s : train::settings()) names.append(names.empty() ? "" : ", ").append(s.name);
   return names + ", progress";
 }
 

@@ -195,7 +195,7 @@ inline const Setting& setting(std::string_view name, const std::string& who) {
   for (const auto& s : settings())
     if (name == s.name) return s;
   std::string known;
-  for (const auto& s : settings()) known += (known.empty() ? "" : ", ") + std::string(s.name);
+  for (const auto& s : settings()) known.append(known.empty() ? "" : ", ").append(s.name);
   throw Error(who + ": unknown setting '" + std::string(name) + "' (known: " + known + ")");
 }
 
