@@ -291,6 +291,10 @@ inline std::string rosbag_summary(const std::filesystem::path& path) {
 }
 #endif
 
+/// What the two formats that need a library are (their entries with and without it).
+inline constexpr const char* kHdf5Description = "an event HDF5 file (event_utils/HQF or DSEC layout)";
+inline constexpr const char* kRosbagDescription = "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)";
+
 /// The formats, in the order detection tries them (the folder layouts first; a folder that holds none of
 /// them is read as IJRR's, whose reader names what is missing).
 inline const std::vector<Format>& formats() {
@@ -303,18 +307,18 @@ inline const std::vector<Format>& formats() {
       {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)", &is_robust_e_nerf,
        &load_robust_e_nerf},
 #ifdef EVNERF_HAVE_HDF5
-      {"hdf5", false, "an event HDF5 file (event_utils/HQF or DSEC layout)", &is_hdf5, &load_hdf5,
+      {"hdf5", false, kHdf5Description, &is_hdf5, &load_hdf5,
        [](const fs::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); }, {".h5", ".hdf5"}},
 #else
-      {"hdf5", false, "an event HDF5 file (event_utils/HQF or DSEC layout)", nullptr, nullptr, nullptr, {".h5", ".hdf5"}, nullptr,
+      {"hdf5", false, kHdf5Description, nullptr, nullptr, nullptr, {".h5", ".hdf5"}, nullptr,
        "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)"},
 #endif
 #ifdef EVNERF_HAVE_ROSBAG
-      {"rosbag", false, "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)", &is_rosbag, &load_rosbag,
+      {"rosbag", false, kRosbagDescription, &is_rosbag, &load_rosbag,
        [](const fs::path& p, const Dataset& d, const WriteOptions& o) { write_rosbag_recording(p, d, o.compression); }, {".bag"},
        &rosbag_summary},
 #else
-      {"rosbag", false, "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)", nullptr, nullptr, nullptr, {".bag"},
+      {"rosbag", false, kRosbagDescription, nullptr, nullptr, nullptr, {".bag"},
        nullptr, "this build of evnerf has no ROS bag support (install libbz2-dev and liblz4-dev and rebuild)"},
 #endif
   };

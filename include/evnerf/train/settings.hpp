@@ -141,7 +141,7 @@ struct Setting {
             if (!j.is_number()) throw wrong("a number");
             v = j.get<double>();
           } else {
-            if (!j.is_number_integer() || (std::is_unsigned_v<V> && j.is_number_integer() && !j.is_number_unsigned() && j.get<long long>() < 0))
+            if (!j.is_number_integer() || (std::is_unsigned_v<V> && !j.is_number_unsigned() && j.get<long long>() < 0))
               throw wrong("an integer");
             v = j.get<V>();
           }
