@@ -68,3 +68,6 @@ for r in rows:
           f"{r['hpf_psnr']} / {r['hpf_ssim']} | {'yes' if r['collapse_fired'] == '1' else 'no'} | {'yes' if r['pass'] == '1' else 'no'} |")
 print(f"passed {sum(r['pass'] == '1' for r in rows)} of {len(rows)}; collapse fired on {sum(r['collapse_fired'] == '1' for r in rows)}")
 PY
+# The current table is kept in the repository (RESULTS, default bench/results; empty: not copied).
+RESULTS=${RESULTS-bench/results}
+if [ -n "$RESULTS" ]; then mkdir -p "$RESULTS" && cp "$CSV" "$RESULTS/" && echo "copied to $RESULTS/robustness.csv"; fi

@@ -71,3 +71,6 @@ fig.tight_layout()
 fig.savefig(sys.argv[2], dpi=110)
 print("wrote", sys.argv[2])
 PY
+# The current curve is kept in the repository (RESULTS, default bench/results; empty: not copied).
+RESULTS=${RESULTS-bench/results}
+if [ -n "$RESULTS" ]; then mkdir -p "$RESULTS" && cp "$CSV" "$OUT/time_to_quality.png" "$RESULTS/" && echo "copied to $RESULTS/"; fi
