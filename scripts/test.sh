@@ -6,12 +6,14 @@ cd "$(dirname "$0")/.."
 # python3-rosbag and friends write the ROS bag of the cli.rosbag test (an independent writer).
 # pybind11-dev, python3-dev, numpy, pytest, matplotlib and venv: the Python module, its tests and its example.
 # libopenmpi-dev and openmpi-bin: the tool's data-parallel training (mpirun), tested by mpi.train.
-scripts/deps.sh python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil \
+# ccache: a compile repeated with the same source and flags (the Python module that python.pip builds
+# through `pip install .`, a rebuild after a checkout) comes from its cache.
+scripts/deps.sh ccache python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil \
   pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib python3-venv libopenmpi-dev openmpi-bin
 BUILD=${BUILD:-build}
 # The Python module is built for Debian's interpreter (/usr/bin/python3), whose numpy and pytest the tests use.
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_TESTS=ON -DEVNERF_BUILD_EXAMPLES=ON \
-  -DEVNERF_PYTHON=ON -DPython_EXECUTABLE=/usr/bin/python3 -DEVNERF_MPI=ON \
+  -DEVNERF_PYTHON=ON -DPython_EXECUTABLE=/usr/bin/python3 -DEVNERF_MPI=ON -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
   -DCMAKE_INSTALL_PREFIX="$PWD/$BUILD/install" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)"
 # Install, then build a separate project against the installed package with find_package(evnerf).

@@ -15,7 +15,7 @@ trap 'kill -9 $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 "$EV" simulate planes --out "$work/rec" --width 64 --height 48 > /dev/null 2>&1
-ARGS=(--iterations 120 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet)
+ARGS=(--iterations 60 --checkpoint-every 10 --pixels 1024 --seed 3 --threads 2 --quiet)
 "$EV" train "$work/rec" --out "$work/whole" "${ARGS[@]}" > /dev/null 2>&1
 
 # Waits until the checkpoint in $1 holds step ≥ $2 (read from its header: magic, version, name, parameter
@@ -38,12 +38,12 @@ steps_logged() { python3 -c "import json; print(' '.join(str(json.loads(l)['step
 # 1. SIGKILL twice, resuming after each.
 "$EV" train "$work/rec" --out "$work/killed" "${ARGS[@]}" > /dev/null 2>&1 &
 pid=$!
-wait_for_checkpoint "$work/killed" 40
+wait_for_checkpoint "$work/killed" 20
 kill -9 $pid
 wait $pid 2>/dev/null && fail "the killed run exited normally"
 "$EV" train "$work/rec" --out "$work/killed" "${ARGS[@]}" --resume > /dev/null 2>&1 &
 pid=$!
-wait_for_checkpoint "$work/killed" 80
+wait_for_checkpoint "$work/killed" 40
 kill -9 $pid
 wait $pid 2>/dev/null || true
 "$EV" train "$work/rec" --out "$work/killed" "${ARGS[@]}" --resume > "$work/killed.txt" 2>&1 || fail "resume after SIGKILL: $(cat "$work/killed.txt")"
@@ -54,7 +54,7 @@ ls "$work/killed" | grep -q '\.tmp\.' && echo "note: a killed write left a tempo
 # 2. SIGINT: a checkpoint, a message, exit code 130; resumed, the same end.
 "$EV" train "$work/rec" --out "$work/interrupted" "${ARGS[@]}" > "$work/int.txt" 2>&1 &
 pid=$!
-wait_for_checkpoint "$work/interrupted" 20
+wait_for_checkpoint "$work/interrupted" 10
 kill -INT $pid
 set +e
 wait $pid
@@ -75,7 +75,7 @@ set -e
 grep -q "$work/plain/run:0: cannot create the output folder" "$work/plain.txt" || fail "unwritable output: $(cat "$work/plain.txt")"
 
 # 4. Resumed with other box options: the checkpoint's box is kept and recorded.
-"$EV" train "$work/rec" --out "$work/boxed" --iterations 60 --checkpoint-every 20 --pixels 1024 --seed 3 --threads 2 --quiet > /dev/null 2>&1
+"$EV" train "$work/rec" --out "$work/boxed" --iterations 30 --checkpoint-every 10 --pixels 1024 --seed 3 --threads 2 --quiet > /dev/null 2>&1
 "$EV" train "$work/rec" --out "$work/boxed" "${ARGS[@]}" --resume --near 0.5 --far 3 > "$work/boxed.txt" 2>&1 ||
   fail "resume with other box options: $(cat "$work/boxed.txt")"
 grep -q "note: the checkpoint's scene box is kept (near 0.3, far 7)" "$work/boxed.txt" || fail "resume with other box options: no note: $(cat "$work/boxed.txt")"
@@ -83,6 +83,6 @@ cmp "$work/whole/model.ckpt" "$work/boxed/model.ckpt" || fail "resumed with othe
 python3 - "$work/boxed/settings.json" <<'PY' || fail "resume with other box options: settings.json does not record the kept box"
 import json, sys
 runs = json.load(open(sys.argv[1]))["runs"]
-assert [(r["from_step"], r["near"], r["far"]) for r in runs] == [(0, 0.3, 7.0), (60, 0.3, 7.0)], runs
+assert [(r["from_step"], r["near"], r["far"]) for r in runs] == [(0, 0.3, 7.0), (30, 0.3, 7.0)], runs
 PY
 echo "faults: SIGKILL ×2 and SIGINT resumed byte-identical; unwritable output refused; a resume keeps its box"

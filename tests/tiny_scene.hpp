@@ -29,6 +29,8 @@ struct Fixture {
     cfg.pixels = 256;
     td = evnerf::train::prepare(d, cfg);
   }
+  /// What a checkpoint of a run on the fixture records (train::describe), the recording named "tiny".
+  evnerf::io::CheckpointRun run() const { return evnerf::train::describe(td, "tiny"); }
   /// The fixture's Config for a quiet run of `iterations` steps at `pixels` pixels per step.
   evnerf::train::Config run_config(long iterations, int pixels) const {
     evnerf::train::Config c = cfg;

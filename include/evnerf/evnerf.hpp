@@ -4,6 +4,7 @@
 // and MPI (dist/mpi.hpp) are not included: each needs its own dependency. Include the family headers
 // directly to keep compile times down.
 #pragma once
+#include "core/compiled.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "core/parallel.hpp"
@@ -44,16 +45,18 @@
 #include "render/renderer.hpp"
 #include "render/sampler.hpp"
 #include "render/scene.hpp"
-#include "model/model.hpp"
+#include "model/model.hpp"  // with model/step.hpp, model/optimiser.hpp, model/checkpoint.hpp
 #include "model/presets.hpp"
 #include "model/variants.hpp"
 #include "train/group.hpp"
 #include "train/settings.hpp"
+#include "train/data.hpp"
 #include "train/trainer.hpp"
 #include "eval/baselines.hpp"
 #include "eval/metrics.hpp"
 #include "eval/report.hpp"
 #include "eval/evaluate.hpp"
+#include "eval/load.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulator.hpp"
 #include "sim/random_scene.hpp"

@@ -105,9 +105,18 @@ int main(int argc, char** argv) {
   for (std::uint64_t seed = 1; seed <= 6; ++seed) put("scene", "random" + std::to_string(seed), sim::random_scene_text(seed));
   {
     evfuzz::FuzzModel model(3, render::SceneBox{}, 7);
-    for (const char* kind : {"", "_average"}) {  // without and with the parameter average (format version 6)
+    // The run of a 3-slice recording on a 32 x 24 sensor: its camera and four boundaries.
+    io::CheckpointRun run;
+    run.recording = "fuzz";
+    run.camera = geometry::Camera(32, 24, 30, 30, 16, 12);
+    for (int i = 0; i < 4; ++i) {
+      run.times.push_back(0.1 * i);
+      run.poses.push_back(geometry::Pose{});
+      run.poses.back().t = Vec3(0.01 * i, 0, 0);
+    }
+    for (const char* kind : {"", "_average"}) {  // without and with the parameter average
       if (*kind) model.set_average(0.99);
-      const std::string ck = model.serialize("fuzz", "camera 32 24 30 30 16 12\n");
+      const std::string ck = model.serialize("fuzz", run);
       put("checkpoint", std::string("raw") + kind, std::string(1, '\0') + ck);
       put("checkpoint", std::string("checksummed") + kind, std::string(1, '\1') + ck.substr(0, ck.size() - 8));
     }

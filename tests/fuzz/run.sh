@@ -32,11 +32,13 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$ROOT/tests/fuzz/lsan.supp:print_suppressions=0}
 export OMP_NUM_THREADS=1
-status=0
-for h in "${HARNESSES[@]}"; do
-  dir="$OUT/$h"
+# One harness: its run, and its one line in $OUT/<h>/summary.txt.
+fuzz_one() {
+  local h=$1
+  local dir="$OUT/$h"
   mkdir -p "$dir/corpus" "$SEEDS/$h"
-  dict=()
+  local dict=() limit regressions memory asan max_len rc runs secs corpus
+  rm -f "$dir/summary.txt"
   case $h in
     scene | colmap | npy | png | rosbag | layouts) dict=(-dict="$ROOT/tests/fuzz/$h.dict") ;;
   esac
@@ -82,11 +84,28 @@ for h in "${HARNESSES[@]}"; do
   secs=$(grep -a -m1 '^stat::average_exec_per_sec' "$dir/log.txt" | awk '{print $2}' || true)
   corpus=$(ls "$dir/corpus" | wc -l)
   if [ $rc -ne 0 ]; then
-    status=1
-    echo "fuzz_$h: FAILED (exit $rc) after ${runs:-?} executions; see $dir/log.txt and $dir/crash-* etc."
-    grep -m3 -E "ERROR|SUMMARY|invariant|error message" "$dir/log.txt" || true
+    { echo "fuzz_$h: FAILED (exit $rc) after ${runs:-?} executions; see $dir/log.txt and $dir/crash-* etc."
+      grep -m3 -E "ERROR|SUMMARY|invariant|error message" "$dir/log.txt" || true; } > "$dir/summary.txt"
   else
-    echo "fuzz_$h: ${runs:-?} executions (${secs:-?}/s), corpus $corpus inputs, no crash, leak, hang or oversized allocation"
+    echo "fuzz_$h: ${runs:-?} executions (${secs:-?}/s), corpus $corpus inputs, no crash, leak, hang or oversized allocation" > "$dir/summary.txt"
+  fi
+}
+# The harnesses run side by side, one per core (JOBS, default nproc; each is single-threaded), each for
+# its SECONDS; their lines are printed in order once all have ended.
+JOBS=${JOBS:-$(nproc)}
+for h in "${HARNESSES[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do wait -n || true; done
+  fuzz_one "$h" &
+done
+wait
+status=0
+for h in "${HARNESSES[@]}"; do
+  if [ -f "$OUT/$h/summary.txt" ]; then
+    cat "$OUT/$h/summary.txt"
+    grep -q "^fuzz_$h: FAILED" "$OUT/$h/summary.txt" && status=1
+  else
+    echo "fuzz_$h: FAILED (the run left no summary)"
+    status=1
   fi
 done
 exit $status

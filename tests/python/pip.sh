@@ -8,7 +8,12 @@ SRC="$(cd "$(dirname "$0")/../.." && pwd)"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$PY" -m venv --system-site-packages "$work/venv"
-"$work/venv/bin/pip" install --no-build-isolation --no-index --no-cache-dir -q "$SRC"
+# Where the build of the tests compiled through ccache (scripts/test.sh), pip's build goes through it too:
+# the same source and flags, so the module's object comes from the cache and the test measures the
+# packaging (setup.py's CMake build, the copy, the import) rather than a second compile.
+launcher=()
+command -v ccache >/dev/null && launcher=(env "EVNERF_CMAKE_ARGS=-DCMAKE_CXX_COMPILER_LAUNCHER=ccache")
+"${launcher[@]}" "$work/venv/bin/pip" install --no-build-isolation --no-index --no-cache-dir -q "$SRC"
 cd "$work"
 "$work/venv/bin/python" - <<'PY'
 import evnerf, numpy as np

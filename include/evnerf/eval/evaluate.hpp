@@ -1,9 +1,9 @@
 // eval/evaluate.hpp — a trained model against a recording's frames, as `evnerf eval` and `evnerf baselines` do it
 // and as a program or the Python module does it without writing files: the frames inside the trained time,
 // the truth (frames, or the simulator's linear HDR truth), the baselines, scores under every alignment with
-// metrics.json's structure, and the loading of any checkpoint (a model.ckpt of any variant of a list, or the
-// channels.json of train --per-channel) as something that renders at a pose. Depends on everything but the
-// command line.
+// metrics.json's structure, and a trained model as something that renders at a pose (a Renderable: one
+// model.ckpt opened by eval/load.hpp, or the channels.json of train --per-channel). Depends on io/, eval/,
+// render/scene.hpp and train/data.hpp, not on the model's parts.
 #pragma once
 #include <algorithm>
 #include <array>
@@ -23,9 +23,8 @@
 #include "report.hpp"
 #include "../geometry/bayer.hpp"
 #include "../io/dataset.hpp"
-#include "../render/renderer.hpp"
-#include "../train/trainer.hpp"
-#include "../model/variants.hpp"
+#include "../render/scene.hpp"
+#include "../train/data.hpp"
 
 namespace evnerf::evaluation {
 
@@ -197,32 +196,15 @@ inline ChannelUpsampling parse_channel_upsampling(const std::string& s) {
   throw Error("channel upsampling '" + s + "': expected volume or sites");
 }
 
-/// One checkpoint, by the variant of V... that can load it.
-template <class... V>
-Renderable load_model(const fs::path& ckpt) {
-  Renderable r;
-  with_variant<V...>(checkpoint_variant<V...>(ckpt), [&]<class Model>(const std::string& name) {
-    auto model = std::make_shared<Model>();
-    r.desc = train::parse_description(train::load_checkpoint(ckpt, *model, ""), ckpt.string());
-    r.name = name;
-    r.near = model->box().near;
-    r.far = model->box().far;
-    auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));
-    r.render = [model, dirs, cam = r.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
-    r.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
-      return model->render(cam, render::pixel_directions(cam), pose);
-    };
-    return 0;
-  });
-  return r;
-}
+/// Opens one model.ckpt: load_model<V...> of a program's variants.
+using ModelOpener = Renderable (*)(const fs::path& ckpt);
 
-/// A model.ckpt, or the channels.json of train --per-channel: each channel's model reaches the full sensor
-/// as `up` says (its volume rendered at every pixel, or its sites rendered and upsampled), and the three make
-/// one RGB image (depth and opacity: the green model's). Boundary times: those all three channels share.
-template <class... V>
-Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelUpsampling::Volume) {
-  if (ckpt.extension() != ".json") return load_model<V...>(ckpt);
+/// A model.ckpt (opened by `open`), or the channels.json of train --per-channel: each channel's model
+/// reaches the full sensor as `up` says (its volume rendered at every pixel, or its sites rendered and
+/// upsampled), and the three make one RGB image (depth and opacity: the green model's). Boundary times:
+/// those all three channels share.
+inline Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up, ModelOpener open) {
+  if (ckpt.extension() != ".json") return open(ckpt);
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(read_file(ckpt));
@@ -252,7 +234,7 @@ Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up = ChannelU
   std::array<geometry::Site, 3> sites;
   double lo = -1e300, hi = 1e300;
   for (int k = 0; k < 3; ++k) {
-    ch[k] = load_model<V...>(files[k]);
+    ch[k] = open(files[k]);
     sites[k] = geometry::site_of(pattern, k);
     const bool full = k == 1 && green == io::GreenSites::Both;  // green trained at the full sensor
     const auto expect = full ? cam : geometry::site_camera(cam, sites[k]);

@@ -1,30 +1,36 @@
-// io/checkpoint.hpp — the checkpoint format's one parser. A checkpoint is
+// io/checkpoint.hpp — the checkpoint format and its one parser. A checkpoint is
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
-//   f64×6 box (centre, scale, near, far) | f64 density length (v ≥ 3) | str loss (v ≥ 4) |
-//   str architecture (v ≥ 5) |
+//   f64×6 box (centre, scale, near, far) | f64 density length | str loss | str architecture |
 //   f32 parameters | f32 Adam m | f32 Adam v |
-//   u64 average count (0 or the parameter count) + f64 its decay + f32 average (v ≥ 6) |
-//   str occupancy grid (v ≥ 2) | str caller's metadata | u64 FNV-1a of everything before it
-// (u64/i64/f64 little-endian as stored by this machine; str = u64 length + bytes). Versions: 2 added the
-// occupancy grid, 3 the density length, 4 the loss, 5 the architecture (the model's types: encodings,
-// networks, sampler; the variant's name is then only a label), 6 the parameter average the model renders
-// with (nn::ParameterAverage; count 0 when it keeps none). write_checkpoint writes it (EvNerf::serialize
-// fills it in); EvNerf::deserialize and the command line (which variant wrote this file?) read it through
-// this header. Depends on core/ only.
+//   u64 average count (0 or the parameter count) + f64 its decay + f32 average |
+//   str sampler state (the occupancy grid) |
+//   the run: str recording | u64 shards per step | i64 width, height + f64 fx, fy, cx, cy, k1, k2, p1, p2, k3 |
+//            u64 boundaries + per boundary f64 t, px, py, pz, qx, qy, qz, qw |
+//   u64 FNV-1a of everything before it
+// (u64/i64/f64 little-endian as stored by this machine; str = u64 length + bytes). One version is read: the
+// one written. The architecture (the model's types: encodings, networks, sampler) and the loss decide which
+// model loads a file; the variant's name is a label. The run (CheckpointRun) is what `render` and `eval`
+// need without the recording, and what a resume must match. EvNerf::serialize writes the format,
+// EvNerf::deserialize and the command line (which variant wrote this file?) read it through this header.
+// Depends on core/ and geometry/.
 #pragma once
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "../core/error.hpp"
 #include "../core/fileio.hpp"
+#include "../geometry/camera.hpp"
+#include "../geometry/pose.hpp"
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 6;
+inline constexpr std::uint64_t kCheckpointVersion = 7;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -43,8 +49,17 @@ class CheckpointReader {
     std::memcpy(p, b_.data() + pos_, n);
     pos_ += n;
   }
+  void skip(std::size_t n) {
+    if (n > b_.size() - 8 || pos_ > b_.size() - 8 - n) fail("truncated");
+    pos_ += n;
+  }
   std::uint64_t u64() {
     std::uint64_t v = 0;
+    get(&v, 8);
+    return v;
+  }
+  double f64() {
+    double v = 0;
     get(&v, 8);
     return v;
   }
@@ -67,51 +82,103 @@ class CheckpointReader {
 
 /// Everything before the parameters.
 struct CheckpointHeader {
-  std::uint64_t version = 0;
+  std::uint64_t version = kCheckpointVersion;
   std::string name;  ///< the variant's name as the writer gave it
   std::uint64_t n_params = 0, n_slices = 0;
   std::int64_t step = 0;
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
-  double density_length = 1.0;         ///< versions 1 and 2 measured density per world unit
-  std::string loss;                    ///< empty before version 4
-  std::string architecture;            ///< empty before version 5
+  double density_length = 1.0;
+  std::string loss;
+  std::string architecture;
+};
+
+/// What a checkpoint records of the run that trained it: the recording's path, the shards per step (a
+/// resume must use as many), the sensor, and the slice boundaries' times and poses. A model saved outside
+/// a training run records none (a 0 x 0 camera, no boundaries); render and eval refuse such a file.
+struct CheckpointRun {
+  std::string recording;
+  std::uint64_t shards = 1;
+  geometry::Camera camera;
+  std::vector<double> times;
+  std::vector<geometry::Pose> poses;  ///< camera to world at each time
 };
 
 /// Reads the header; the reader is left at the parameters.
 inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
   CheckpointHeader h;
   h.version = r.u64();
-  if (h.version < 1 || h.version > kCheckpointVersion) r.fail("unsupported version " + std::to_string(h.version));
+  if (h.version != kCheckpointVersion)
+    r.fail("format version " + std::to_string(h.version) + "; this build reads version " + std::to_string(kCheckpointVersion) +
+           " only (retrain, or load it with the build that wrote it)");
   h.name = r.str();
   h.n_params = r.u64();
   h.n_slices = r.u64();
   r.get(&h.step, 8);
   r.get(h.box, sizeof h.box);
-  if (h.version >= 3) {
-    r.get(&h.density_length, 8);
-    if (!(h.density_length > 0) || !std::isfinite(h.density_length)) r.fail("density length is not a positive number");
-  }
-  if (h.version >= 4) h.loss = r.str();
-  if (h.version >= 5) h.architecture = r.str();
+  h.density_length = r.f64();
+  if (!(h.density_length > 0) || !std::isfinite(h.density_length)) r.fail("density length is not a positive number");
+  h.loss = r.str();
+  h.architecture = r.str();
   return h;
 }
 
-/// What a checkpoint holds besides its header: the parameters with Adam's two moments (n floats each),
-/// the parameter average (n floats, or null for none) and its decay, the sampler's state and the caller's
-/// metadata.
+/// Reads the run; the reader is left at the checksum.
+inline CheckpointRun read_checkpoint_run(CheckpointReader& r) {
+  CheckpointRun run;
+  run.recording = r.str();
+  run.shards = r.u64();
+  if (run.shards < 1 || run.shards > 4096) r.fail("the run's shards per step (" + std::to_string(run.shards) + ") are not in 1..4096");
+  std::int64_t wh[2];
+  r.get(wh, sizeof wh);
+  double c[9];
+  r.get(c, sizeof c);
+  if (wh[0] == 0 && wh[1] == 0) {  // a model saved outside a training run: no sensor, no boundaries
+    for (double v : c)
+      if (v != 0) r.fail("the run has no sensor but camera intrinsics");
+    if (r.u64() != 0) r.fail("the run has no sensor but slice boundaries");
+    return run;
+  }
+  if (wh[0] < 1 || wh[1] < 1 || wh[0] > 65536 || wh[1] > 65536)
+    r.fail("the run's sensor is " + std::to_string(wh[0]) + " x " + std::to_string(wh[1]) + " pixels");
+  for (double v : c)
+    if (!std::isfinite(v)) r.fail("the run's camera has a non-finite intrinsic");
+  if (!(c[0] > 0 && c[1] > 0)) r.fail("the run's camera has a focal length that is not positive");
+  run.camera = geometry::Camera(static_cast<int>(wh[0]), static_cast<int>(wh[1]), c[0], c[1], c[2], c[3], {c[4], c[5], c[6], c[7], c[8]});
+  const std::uint64_t n = r.u64();
+  if (n > r.remaining() / 64) r.fail("the run's " + std::to_string(n) + " boundaries need more bytes than remain");
+  run.times.resize(n);
+  run.poses.resize(n);
+  for (std::uint64_t i = 0; i < n; ++i) {
+    double v[8];
+    r.get(v, sizeof v);
+    for (double x : v)
+      if (!std::isfinite(x)) r.fail("boundary " + std::to_string(i) + " of the run has a non-finite time or pose");
+    const Quat q(v[7], v[4], v[5], v[6]);
+    if (!(q.norm() > 1e-12)) r.fail("boundary " + std::to_string(i) + " of the run has a zero rotation quaternion");
+    if (i > 0 && !(v[0] > run.times[i - 1])) r.fail("the run's boundary times do not increase at boundary " + std::to_string(i));
+    run.times[i] = v[0];
+    run.poses[i].t = Vec3(v[1], v[2], v[3]);
+    run.poses[i].q = q.normalized();
+  }
+  return run;
+}
+
+/// What a checkpoint holds besides its header and run: the parameters with Adam's two moments (n floats
+/// each), the parameter average (n floats, or null for none) and its decay, and the sampler's state.
 struct CheckpointBody {
   const float *params = nullptr, *adam_m = nullptr, *adam_v = nullptr;
   std::size_t n = 0;
   const float* average = nullptr;
   double average_decay = 0;
-  std::string sampler_state, extra;
+  std::string sampler_state;
 };
 
-/// The bytes of a checkpoint of the current version (header.version and n_params are set from here).
-inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointBody& body) {
+/// The bytes of a checkpoint (header.version and n_params are set from here).
+inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointBody& body, const CheckpointRun& run) {
   std::string b;
   auto put = [&](const void* p, std::size_t n) { b.append(static_cast<const char*>(p), n); };
   auto put_u64 = [&](std::uint64_t v) { put(&v, 8); };
+  auto put_f64 = [&](double v) { put(&v, 8); };
   auto put_str = [&](const std::string& s) {
     put_u64(s.size());
     put(s.data(), s.size());
@@ -123,18 +190,30 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put_u64(h.n_slices);
   put(&h.step, 8);
   put(h.box, sizeof h.box);
-  put(&h.density_length, 8);
+  put_f64(h.density_length);
   put_str(h.loss);
   put_str(h.architecture);
   put(body.params, body.n * 4);
   put(body.adam_m, body.n * 4);
   put(body.adam_v, body.n * 4);
   put_u64(body.average ? body.n : 0);
-  const double decay = body.average ? body.average_decay : 0.0;
-  put(&decay, 8);
+  put_f64(body.average ? body.average_decay : 0.0);
   if (body.average) put(body.average, body.n * 4);
   put_str(body.sampler_state);
-  put_str(body.extra);
+  require(run.times.size() == run.poses.size(), "write_checkpoint: the run has " + std::to_string(run.times.size()) + " times and " +
+                                                    std::to_string(run.poses.size()) + " poses");
+  put_str(run.recording);
+  put_u64(run.shards);
+  const std::int64_t wh[2] = {run.camera.width(), run.camera.height()};
+  put(wh, sizeof wh);
+  const auto& c = run.camera;  // a default camera (0 x 0: no run) writes zeros
+  for (double v : {c.fx(), c.fy(), c.cx(), c.cy()}) put_f64(wh[0] > 0 ? v : 0.0);
+  for (double v : c.distortion()) put_f64(wh[0] > 0 ? v : 0.0);
+  put_u64(run.times.size());
+  for (std::size_t i = 0; i < run.times.size(); ++i) {
+    const auto& p = run.poses[i];
+    for (double v : {run.times[i], p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w()}) put_f64(v);
+  }
   put_u64(fnv1a64(b));
   return b;
 }

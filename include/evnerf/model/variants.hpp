@@ -40,23 +40,22 @@ int with_variant(const std::string& name, Fn&& fn) {
   return result;
 }
 
-/// The variant that can load a checkpoint: of those whose architecture (version 5 on), loss (version 4
-/// on) and parameter count match the file, the one named in the file, else the first (a file written
-/// under another name, or by another program with the same model).
+/// The variant that can load a checkpoint: of those whose architecture, loss and parameter count match the
+/// file, the one named in the file, else the first (a file written under another name, or by another
+/// program with the same model).
 template <class... V>
 std::string checkpoint_variant(const std::filesystem::path& path) {
   const auto h = io::peek_checkpoint(path);
   auto fits = [&]<class Model>() {
-    const bool params = h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices;
-    return params && (h.version < 4 || h.loss == Model::loss_description()) &&
-           (h.version < 5 || h.architecture == Model::architecture());
+    return h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices && h.loss == Model::loss_description() &&
+           h.architecture == Model::architecture();
   };
   std::string pick;
   ((pick.empty() && h.name == V::name && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
   ((pick.empty() && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
   if (pick.empty())
     throw Error(path.string(), 0, "written by variant '" + h.name + "' with the loss '" + h.loss + "'" +
-                                      (h.architecture.empty() ? "" : " and the architecture '" + h.architecture + "'") +
+                                      " and the architecture '" + h.architecture + "'" +
                                       ", which no variant of this program matches");
   return pick;
 }

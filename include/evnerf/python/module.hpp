@@ -34,6 +34,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include "../eval/evaluate.hpp"
+#include "../eval/load.hpp"
 #include "../evnerf.hpp"
 #include "../sim/simulate.hpp"
 #include "../model/variants.hpp"
@@ -330,12 +331,12 @@ std::vector<double> thresholds_of(const M& model) {
 
 /// A Model around one model object of type M (shared with the closures).
 template <class M>
-Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Described desc, std::shared_ptr<const std::string> meta) {
+Model wrap(std::shared_ptr<M> model, const std::string& variant, std::shared_ptr<const io::CheckpointRun> run) {
   Model m;
   m.variant = variant;
   m.channels = M::channels;
   m.renderable.name = variant;
-  m.renderable.desc = std::move(desc);
+  m.renderable.desc = *run;
   m.renderable.near = model->box().near;
   m.renderable.far = model->box().far;
   auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(m.renderable.desc.camera));
@@ -345,7 +346,7 @@ Model wrap(std::shared_ptr<M> model, const std::string& variant, train::Describe
   };
   m.thresholds = [model] { return thresholds_of(*model); };
   m.step = [model] { return model->step(); };
-  m.save = [model, variant, meta](const fs::path& p) { train::save_checkpoint(p, *model, variant, *meta); };
+  m.save = [model, variant, run](const fs::path& p) { train::save_checkpoint(p, *model, variant, *run); };
   return m;
 }
 
@@ -361,8 +362,11 @@ Model load_model(const fs::path& path, const std::string& channel_upsampling) {
   Model out;
   with_variant<V...>(checkpoint_variant<V...>(path), [&]<class M>(const std::string& name) {
     auto model = std::make_shared<M>();
-    const auto meta = std::make_shared<const std::string>(train::load_checkpoint(path, *model, ""));
-    out = wrap(model, name, train::parse_description(*meta, path.string()), meta);
+    const auto run = std::make_shared<const io::CheckpointRun>(train::load_checkpoint(path, *model));
+    if (run->times.empty())
+      throw Error(path.string(), 0, "the checkpoint records no training run (no camera, no slice boundaries): a model needs one that "
+                                    "train wrote");
+    out = wrap(model, name, run);
     return 0;
   });
   return out;
@@ -381,12 +385,13 @@ Model train_model(const Dataset& ds, const std::string& preset, py::object callb
       std::unique_ptr<train::Trainer<M>> trainer;
     };
     auto run = std::make_shared<Run>();
-    const auto meta = std::make_shared<std::string>();
+    const auto described = std::make_shared<io::CheckpointRun>();
     {
       py::gil_scoped_release nogil;
       run->td = train::prepare(*ds.d, cfg);
-      *meta = train::describe(run->td, ds.d->folder.string());
-      run->trainer = std::make_unique<train::Trainer<M>>(run->td, cfg, dir, name, *meta);
+      *described = train::describe(run->td, ds.d->folder.string());
+      described->shards = static_cast<std::uint64_t>(cfg.shard_count());
+      run->trainer = std::make_unique<train::Trainer<M>>(run->td, cfg, dir, name, *described);
     }
     if (resume) run->trainer->resume();
     std::exception_ptr raised;
@@ -414,7 +419,7 @@ Model train_model(const Dataset& ds, const std::string& preset, py::object callb
       throw Error("train: the run collapsed (" + r.checks.back().describe() + "); pass allow_collapse=True to go on");
     // The model outlives the trainer (and its reference to the training data) in `run`.
     std::shared_ptr<M> shared(run, &model);
-    result = wrap(shared, name, train::parse_description(*meta, "train"), meta);
+    result = wrap(shared, name, described);
     py::list checks;
     for (const auto& c : r.checks)
       checks.append(py::dict(py::arg("step") = c.step, py::arg("log_spread") = c.log_spread, py::arg("collapsed") = c.collapsed()));

@@ -22,11 +22,6 @@
 
 namespace evnerf::render {
 
-/// One rendered image: luminance (C channels), depth along the optical axis, opacity.
-struct Rendering {
-  Image luminance, depth, opacity;
-};
-
 template <class FieldT, Sampler SamplerT, class T = float>
 class Renderer {
  public:

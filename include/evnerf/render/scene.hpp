@@ -36,6 +36,11 @@ struct SceneBox {
   }
 };
 
+/// One rendered image: luminance (C channels), depth along the optical axis, opacity.
+struct Rendering {
+  Image luminance, depth, opacity;
+};
+
 /// Undistorted camera-frame directions (x, y, 1) of every pixel centre, row-major: Camera::ray's direction
 /// at the identity pose, cached (geometry::Camera::ray_along turns one into a world ray).
 inline std::vector<Vec3f> pixel_directions(const geometry::Camera& cam) {
@@ -47,3 +52,7 @@ inline std::vector<Vec3f> pixel_directions(const geometry::Camera& cam) {
 }
 
 }  // namespace evnerf::render
+
+namespace evnerf {
+using render::Rendering;
+}  // namespace evnerf

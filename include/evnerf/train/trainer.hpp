@@ -18,6 +18,7 @@
 #include "../io/dataset.hpp"
 #include "../loss/total_variation.hpp"
 #include "../model/model.hpp"
+#include "data.hpp"
 #include "group.hpp"
 #include "settings.hpp"
 
@@ -26,13 +27,6 @@
 namespace evnerf::train {
 
 namespace fs = std::filesystem;
-
-/// The shards per step a checkpoint's metadata records (train::run adds the line when there are several;
-/// older and one-shard checkpoints have none: 1).
-inline int recorded_shards(const std::string& meta) {
-  const auto at = meta.rfind("\nshards ");
-  return at == std::string::npos ? 1 : std::max(1, std::atoi(meta.c_str() + at + 8));
-}
 
 /// What a collapse check saw. A run has collapsed when its renders are almost constant (the spread of
 /// log luminance over the pixels of a few low-resolution views below kMinLogSpread) or when its event loss
@@ -78,141 +72,20 @@ double render_log_spread(const Model& model, const TrainingData& td) {
   return std::sqrt(std::max(0.0, ss / count - mean * mean));
 }
 
-/// Slice boundaries (frame times inside the events' span whose poses exist, else uniform at ~24 Hz),
-/// slice counts, boundary poses and the camera's pixel directions.
-inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector<std::size_t>* frame_of_boundary = nullptr) {
-  require(!d.trajectory.empty(), d.folder.string() + ": no poses (groundtruth.txt) — poses are required for training");
-  const auto policy = cfg.clamp_poses ? geometry::OutOfRange::Clamp : geometry::OutOfRange::Error;
-  std::vector<double> b;
-  std::vector<std::size_t> frame_ids;
-  const double t0 = d.events.t_begin(), t1 = d.events.t_end();
-  for (std::size_t i = 0; i < d.frames.size(); ++i) {
-    const double t = d.frames.t[i];
-    if (t < t0 - 1e-9 && !cfg.clamp_poses) continue;
-    if (t > t1 + 1e-9) continue;
-    if (!cfg.clamp_poses && !d.trajectory.covers(t)) continue;
-    b.push_back(t);
-    frame_ids.push_back(i);
-  }
-  if (b.size() < 2) {
-    const double lo = std::max(t0, d.trajectory.front()), hi = std::min(t1, d.trajectory.back());
-    if (!(hi > lo))
-      throw Error(d.folder.string() + ": the poses (" + short_number(d.trajectory.front()) + " .. " +
-                  short_number(d.trajectory.back()) + " s) do not cover the events (" + short_number(t0) + " .. " +
-                  short_number(t1) + " s)");
-    b = events::uniform_boundaries(lo, hi, std::max<std::size_t>(2, static_cast<std::size_t>((hi - lo) * 24)));
-    frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
-  }
-  require(cfg.subslices >= 1 && cfg.subslices <= 64, "train: subslices must be between 1 and 64");
-  require(cfg.subslices == 1 || cfg.holdout == 0, "train: subslices and holdout cannot be combined (holdout counts frame boundaries)");
-  if (cfg.subslices > 1) {
-    std::vector<double> fine;
-    std::vector<std::size_t> ids;
-    for (std::size_t i = 0; i + 1 < b.size(); ++i)
-      for (int k = 0; k < cfg.subslices; ++k) {
-        fine.push_back(b[i] + (b[i + 1] - b[i]) * k / cfg.subslices);
-        ids.push_back(k == 0 ? frame_ids[i] : static_cast<std::size_t>(-1));
-      }
-    fine.push_back(b.back());
-    ids.push_back(frame_ids.back());
-    b = std::move(fine);
-    frame_ids = std::move(ids);
-  }
-  TrainingData td;
-  td.camera = d.camera;
-  td.slices = events::slice_events(d.events, b);
-  for (double t : b) td.boundary_poses.push_back(d.trajectory.pose_at(t, policy));
-  td.pixel_dirs = render::pixel_directions(d.camera);
-  td.slice_enabled.assign(td.slices.size(), true);
-  td.prefix = events::CountPrefix(td.slices);
-  td.slices_per_interval = cfg.subslices;
-  td.bayer = io::bayer_of(d);
-  require(d.sites.empty() || d.sites.size() == static_cast<std::size_t>(d.camera.width()) * d.camera.height(),
-          d.folder.string() + ": the pixel sites do not match the camera");
-  td.sites = events::PixelSites(d.sites);
-  if (cfg.holdout > 0)
-    for (std::size_t k = cfg.holdout; k + 1 < b.size(); k += cfg.holdout) {
-      td.slice_enabled[k - 1] = false;  // both slices touching boundary k
-      td.slice_enabled[k] = false;
-    }
-  if (frame_of_boundary) *frame_of_boundary = frame_ids;
-  return td;
-}
-
-/// Adam's settings from a Config (learning rate and its decay).
-inline nn::AdamConfig adam_config(const Config& cfg) {
-  nn::AdamConfig ac;
-  ac.lr = cfg.lr;
-  ac.decay = cfg.lr_decay;
-  ac.decay_steps = cfg.lr_decay_steps;
-  return ac;
-}
-/// Scene box from the boundary poses and near/far.
-inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
-  std::vector<Vec3> c;
-  for (auto& p : td.boundary_poses) c.push_back(p.t);
-  auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
-  if (cfg.density_per_box) box.density_length = box.scale;
-  return box;
-}
-
 /// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
   return Model(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
 }
 
-/// What a checkpoint carries besides the model: the camera and the boundary poses, so `render` and
-/// `eval` need no recording.
-inline std::string describe(const TrainingData& td, const std::string& folder) {
-  std::ostringstream o;
-  o.precision(17);
-  const auto& c = td.camera;
-  o << folder << "\n" << c.width() << " " << c.height() << " " << c.fx() << " " << c.fy() << " " << c.cx() << " " << c.cy();
-  for (double k : c.distortion()) o << " " << k;
-  o << "\n" << td.boundary_poses.size() << "\n";
-  for (std::size_t i = 0; i < td.boundary_poses.size(); ++i) {
-    const auto& p = td.boundary_poses[i];
-    o << td.slices.boundaries[i] << " " << p.t.x() << " " << p.t.y() << " " << p.t.z() << " " << p.q.x() << " " << p.q.y()
-      << " " << p.q.z() << " " << p.q.w() << "\n";
-  }
-  return o.str();
-}
-struct Described {
-  std::string folder;
-  geometry::Camera camera;
-  std::vector<double> times;
-  std::vector<geometry::Pose> poses;
-};
-inline Described parse_description(const std::string& s, const std::string& file) {
-  std::istringstream in(s);
-  Described d;
-  int w, h;
-  double fx, fy, cx, cy;
-  std::array<double, 5> k{};
-  std::size_t n = 0;
-  if (!std::getline(in, d.folder) || !(in >> w >> h >> fx >> fy >> cx >> cy >> k[0] >> k[1] >> k[2] >> k[3] >> k[4] >> n))
-    throw Error(file, 0, "corrupt checkpoint metadata");
-  d.camera = geometry::Camera(w, h, fx, fy, cx, cy, k);
-  for (std::size_t i = 0; i < n; ++i) {
-    double t, px, py, pz, qx, qy, qz, qw;
-    if (!(in >> t >> px >> py >> pz >> qx >> qy >> qz >> qw)) throw Error(file, 0, "corrupt checkpoint metadata (poses)");
-    geometry::Pose p;
-    p.t = Vec3(px, py, pz);
-    p.q = Quat(qw, qx, qy, qz).normalized();
-    d.times.push_back(t);
-    d.poses.push_back(p);
-  }
-  return d;
-}
-
 template <class Model>
-void save_checkpoint(const fs::path& path, const Model& m, const std::string& name, const std::string& meta) {
-  write_file_atomic(path, m.serialize(name, meta));
+void save_checkpoint(const fs::path& path, const Model& m, const std::string& name, const io::CheckpointRun& run) {
+  write_file_atomic(path, m.serialize(name, run));
 }
+/// Loads `m` from the checkpoint at `path`; returns its record of the run.
 template <class Model>
-std::string load_checkpoint(const fs::path& path, Model& m, const std::string& name) {
-  return m.deserialize(read_file(path), name, path.string());
+io::CheckpointRun load_checkpoint(const fs::path& path, Model& m) {
+  return m.deserialize(read_file(path), path.string());
 }
 
 struct RunResult {
@@ -273,7 +146,7 @@ inline constexpr double kRayCut = 1e-2;
 /// stop the run (a checkpoint is written first). The caller's thread count is restored on return.
 template <class Model, class OnStep = bool (*)(const StepReport&)>
 RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs::path& out, const std::string& name,
-              const std::string& meta, OnStep&& on_step = nullptr) {
+              const io::CheckpointRun& described, OnStep&& on_step = nullptr) {
   check(cfg);
   auto* tv_term = model.template term<loss::TvTerm>();
   // A weight for a term the variant does not have would be silently ignored: refuse it.
@@ -287,8 +160,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   const StepShards shards{shard_count, rank, group ? group->size() : 1};
   GradientExchange exchange(group, cfg.exchange);
   const bool files = !out.empty() && rank == 0;  // rank 0 writes; the others only train
-  const std::string saved_meta =
-      shard_count > 1 ? meta + (meta.empty() || meta.back() == '\n' ? "" : "\n") + "shards " + std::to_string(shard_count) + "\n" : meta;
+  io::CheckpointRun saved_run = described;  // what each checkpoint records of this run
+  saved_run.shards = static_cast<std::uint64_t>(shard_count);
   if (files) {
     std::error_code ec;
     fs::create_directories(out, ec);
@@ -350,7 +223,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                short_number(static_cast<double>(*bad)));
       return false;
     }
-    if (files) save_checkpoint(ckpt, model, name, saved_meta);
+    if (files) save_checkpoint(ckpt, model, name, saved_run);
     return true;
   };
   while (model.step() < cfg.iterations) {
@@ -481,29 +354,28 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
 template <class Model>
 class Trainer {
  public:
-  Trainer(const TrainingData& td, Config cfg, fs::path out, std::string name, std::string meta)
-      : td_(td), cfg_(cfg), out_(std::move(out)), name_(std::move(name)), meta_(std::move(meta)),
+  Trainer(const TrainingData& td, Config cfg, fs::path out, std::string name, io::CheckpointRun run)
+      : td_(td), cfg_(cfg), out_(std::move(out)), name_(std::move(name)), run_(std::move(run)),
         model_(make_model<Model>(td, cfg_)) {}
 
   /// Continues from out/model.ckpt when there is one (same architecture and loss; the Config's learning
-  /// rate applies from here on). Returns whether it did; `note` gets what the file could not tell (an old
-  /// format's missing loss), or stays empty.
+  /// rate applies from here on). Returns whether it did.
   /// In a group, rank 0 reads the file and every process gets its bytes (no shared file system needed).
   /// A checkpoint of another shard count is refused: its run would go on drawing other rays.
-  bool resume(std::string* note = nullptr) {
+  bool resume() {
     Group* g = cfg_.processes();
     const fs::path file = out_ / "model.ckpt";
     std::string bytes;  // "" when there is no checkpoint, else "c" and the file's bytes (an empty file is damaged)
     if ((!g || g->rank() == 0) && !out_.empty() && fs::exists(file)) bytes = "c" + read_file(file);
     if (g) g->broadcast(bytes);
     if (bytes.empty()) return false;
-    const std::string meta = model_.deserialize(bytes.substr(1), name_, file.string());
-    if (recorded_shards(meta) != cfg_.shard_count())
+    const io::CheckpointRun run = model_.deserialize(bytes.substr(1), file.string());
+    const auto shards = static_cast<std::uint64_t>(cfg_.shard_count());
+    if (run.shards != shards)
       throw Error(file.string(), 0,
-                  "the checkpoint was trained with " + std::to_string(recorded_shards(meta)) + " shard(s) per step, this run has " +
-                      std::to_string(cfg_.shard_count()) + " (processes × shards): resume with --shards " +
-                      std::to_string(recorded_shards(meta)) + " (any number of processes that divides it)");
-    if (note) *note = model_.load_note();
+                  "the checkpoint was trained with " + std::to_string(run.shards) + " shard(s) per step, this run has " +
+                      std::to_string(shards) + " (processes × shards): resume with --shards " + std::to_string(run.shards) +
+                      " (any number of processes that divides it)");
     model_.optimizer().set_config(adam_config(cfg_));
     follow_box();
     return true;
@@ -511,7 +383,7 @@ class Trainer {
   /// Trains up to cfg.iterations steps in total (see train::run); `on_step` may stop early.
   template <class OnStep = bool (*)(const StepReport&)>
   RunResult run(OnStep&& on_step = nullptr) {
-    return train::run(model_, td_, cfg_, out_, name_, meta_, std::forward<OnStep>(on_step));
+    return train::run(model_, td_, cfg_, out_, name_, run_, std::forward<OnStep>(on_step));
   }
   Model& model() { return model_; }
   const Model& model() const { return model_; }
@@ -531,7 +403,8 @@ class Trainer {
   const TrainingData& td_;
   Config cfg_;
   fs::path out_;
-  std::string name_, meta_;
+  std::string name_;
+  io::CheckpointRun run_;
   Model model_;
 };
 

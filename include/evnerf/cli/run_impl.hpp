@@ -1,0 +1,467 @@
+// cli/run_impl.hpp — the definition of cli::run (cli/run.hpp): every verb's flags and what it does, for
+// any table of variants. Included by cli/run.hpp, or compiled once by a program that defines
+// EVNERF_SEPARATE_COMPILATION (core/compiled.hpp). Built on CLI11 (flags, --help, number validation),
+// nlohmann::json (metrics) and fmt (messages). Depends on everything but the model types.
+#pragma once
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include "../eval/evaluate.hpp"
+#include "../io/dataset.hpp"
+#include "../io/inspect.hpp"
+#include "../render/novel.hpp"
+#include "../sim/simulate.hpp"
+#include "run.hpp"
+
+namespace evnerf::cli {
+
+namespace fs = std::filesystem;
+
+namespace detail {
+
+inline void print_table(const eval::AlignedScores& a, const std::vector<std::size_t>& subset = {}) {
+  fmt::print("{:<22} {:>10} {:>10} {:>10}   (alignment: {})\n", "method", "MSE", "PSNR", "SSIM", eval::to_string(a.alignment));
+  for (std::size_t m = 0; m < a.names.size(); ++m) {
+    std::vector<eval::Scores> s;
+    if (subset.empty()) {
+      s = a.per_frame[m];
+    } else {
+      for (auto q : subset) s.push_back(a.per_frame[m][q]);
+    }
+    const auto mean = eval::mean(s);
+    fmt::print("{:<22} {:>10.5f} {:>10.3f} {:>10.4f}\n", a.names[m], mean.mse, mean.psnr, mean.ssim);
+  }
+}
+
+using namespace evaluation;
+
+/// Prints the scores of evaluation::score_all: the primary table, the others, and in colour the grey one.
+inline void print_scores(const Scored& s, const Truth& truth) {
+  if (truth.hdr)
+    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(truth.hdr->offset));
+  print_table(s.primary);
+  if (s.json.contains("error_scales")) {
+    const auto& es = s.json.at("error_scales");
+    fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
+               "each row's, column's mean error):\n",
+               short_number(es.at("sigma_px").get<double>()));
+    // A method's figure in dB ("inf" for no error, "-" where an older file lacks it).
+    auto db = [&es](const std::string& name, const char* key) {
+      const auto& v = es.at("methods").at(name);
+      if (!v.contains(key)) return std::string("-");
+      const auto& x = v.at(key);
+      return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
+    };
+    for (const auto& name : s.primary.names)
+      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name,
+                 db(name, "coarse_psnr"), db(name, "fine_psnr"), db(name, "row_psnr"), db(name, "column_psnr"));
+    fmt::print("PSNR with log offsets per image row, per column and both fitted to the truth over the sequence (what a "
+               "straight motion never shows the events; a diagnosis, never a score):\n");
+    for (const auto& name : s.primary.names)
+      fmt::print("{:<22} rows {:>8}   columns {:>8}   both {:>8}\n", name, db(name, "oracle_rows_psnr"),
+                 db(name, "oracle_columns_psnr"), db(name, "oracle_both_psnr"));
+  }
+  for (const auto& o : s.others) print_table(o);
+  if (s.grey) {
+    fmt::print("in grey (luminance of every method and of the truth):\n");
+    print_table(*s.grey);
+  }
+}
+
+/// Intensity and depth of one view: the intensity as linear float32 (`<stem>.npy`, H × W or H × W × C) and
+/// as a PNG, on [0, 1] as it is or, where the luminance passes 1 (a field of unbounded radiance), its log put
+/// on [0, 1]; the depth as float32 (`<stem>_depth.npy`) and a colour-mapped PNG. The .npy is written for
+/// every view, so a script reading renders/*.npy finds one beside each PNG.
+inline void write_rendering(const fs::path& out, const std::string& stem, const Rendering& r, float dlo, float dhi) {
+  const auto& l = r.luminance;
+  std::vector<std::size_t> shape{static_cast<std::size_t>(l.height), static_cast<std::size_t>(l.width)};
+  if (l.channels > 1) shape.push_back(static_cast<std::size_t>(l.channels));
+  io::save_npy(out / (stem + ".npy"), l.data.data(), shape);
+  if (!l.data.empty() && *std::max_element(l.data.begin(), l.data.end()) > 1.0f)
+    io::write_png(out / (stem + ".png"), eval::HdrTone{eval::kLogEps}.log_min_max(l));
+  else
+    io::write_png(out / (stem + ".png"), l);
+  io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
+  io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
+               {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
+}
+
+/// The training settings (train::settings()) as flags of `sub`, each writing its member of `cfg`: a number
+/// is checked against its row's interval (a message naming the flag), a flag is a switch, the exchange one of
+/// its names. --help shows each with its default.
+inline void add_settings(CLI::App* sub, train::Config& cfg) {
+  for (const auto& s : train::settings()) {
+    const train::Setting* row = &s;
+    std::visit(
+        [&](auto m) {
+          auto& v = cfg.*m;
+          using V = std::decay_t<decltype(v)>;
+          if constexpr (std::is_same_v<V, bool>) {
+            sub->add_flag(s.flag(), v, s.help);
+          } else if constexpr (std::is_same_v<V, train::Exchange>) {
+            sub->add_option_function<std::string>(
+                   s.flag(), [&v, flag = s.flag()](const std::string& x) { v = train::parse_exchange(x, "train " + flag); }, s.help)
+                ->check(CLI::IsMember({"auto", "dense", "sparse"}))
+                ->default_str(train::exchange_name(v));
+          } else {
+            std::string range = row->range_text();
+            std::erase(range, ' ');
+            if (range.rfind("in", 0) == 0) range.erase(0, 2);
+            auto* o = sub->add_option(s.flag(), v, s.help);
+            if constexpr (!std::is_same_v<V, std::optional<double>>) o->capture_default_str();
+            o->check(CLI::Validator(
+                [row](std::string& x) -> std::string {
+                  double d = 0;
+                  std::size_t used = 0;
+                  try {
+                    d = std::stod(x, &used);
+                  } catch (const std::exception&) {
+                    return "";  // not a number: CLI11's conversion says so
+                  }
+                  if (used != x.size()) return "";
+                  return row->allows(d) ? "" : "must be " + row->range_text() + ", got " + x;
+                },
+                range));
+          }
+        },
+        s.member);
+  }
+}
+
+const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
+                               "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
+                               "min-max, none";
+
+}  // namespace detail
+
+EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train::Group* group) {
+  using namespace detail;
+  if (programme.variants.empty()) throw Error("cli::run: a program needs at least one variant");
+  std::string variant_list;
+  for (const auto& v : programme.variants) variant_list += (variant_list.empty() ? "" : ", ") + v.name;
+  const std::string default_variant = programme.variants.front().name;
+
+  CLI::App app{programme.description};
+  app.require_subcommand(1);
+  app.fallthrough(false);
+
+  // The recording every verb reads, and how to read it (any format io::load reads).
+  std::string folder;
+  io::LoadOptions load_opt;
+  std::vector<double> time_window;
+  auto add_recording = [&](CLI::App* sub, const std::string& help) {
+    sub->add_option("recording", folder, help)->required();
+    sub->add_option("--calib", load_opt.calib,
+                    "calibration instead of the recording's own: a calib.txt file (fx fy cx cy [k1 k2 p1 p2 [k3]]) or COLMAP's cameras.txt");
+    sub->add_option("--poses", load_opt.poses,
+                    "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
+                    "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
+    sub->add_option("--time-window", time_window,
+                    "only the events from T0 to T1 (seconds on the recording's clock as inspect shows it; DSEC HDF5 files are read "
+                    "through ms_to_idx, only the window)")
+        ->expected(2);
+    sub->add_option("--format", load_opt.format,
+                    "the reader, where the content does not decide it (a folder holding two layouts): " + io::format_list())
+        ->check(CLI::IsMember(io::format_names()));
+    sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
+    sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
+    sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
+    sub->add_option("--poses-topic", load_opt.poses_topic,
+                    "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
+  };
+  const std::string rec_help = [] {
+    std::string h = "recording: ";
+    for (const auto& f : io::formats()) h += std::string(f.description) + "; ";
+    return h + "calib.txt and groundtruth.txt beside a file that lacks them";
+  }();
+
+  // inspect
+  auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
+  add_recording(inspect, rec_help);
+
+  // convert
+  fs::path convert_out;
+  auto* convert = app.add_subcommand("convert", [] {
+    std::string h = "write a recording in another format, chosen by the output's name:";
+    for (const auto& f : io::formats())
+      if (!f.extensions.empty()) {
+        h += std::string(" ") + f.name + " (";
+        for (std::size_t k = 0; k < f.extensions.size(); ++k) h += (k ? ", " : "") + f.extensions[k];
+        h += "),";
+      }
+    return h + " else an IJRR-layout folder";
+  }());
+  add_recording(convert, "recording to read (any format evnerf reads)");
+  convert->add_option("output", convert_out,
+                      "output folder (IJRR layout), file.h5 (calib.txt, groundtruth.txt written beside it) or file.bag (ROS bag, DAVIS topics)")
+      ->required();
+  std::string bag_compression = "lz4";
+  convert->add_option("--compression", bag_compression, "ROS bag output: chunk compression")
+      ->check(CLI::IsMember({"none", "bz2", "lz4"}))
+      ->capture_default_str();
+
+  // simulate
+  std::string scene;
+  fs::path out;
+  sim::SimulateOptions so;  // the flags fill it in
+  auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
+  simulate->add_option("scene", scene,
+                       "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
+                       "or a scene description file")
+      ->required();
+  simulate->add_option("--out", out, "output folder")->required();
+  simulate->add_flag("--realistic", so.realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
+  simulate->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
+  simulate->add_flag("--hdr", so.hdr,
+                     "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
+                     "frames); writes the unclipped linear truth that eval scores against");
+  simulate->add_option("--seed", so.seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
+  simulate->add_option("--textures", so.textures, "with 'random': photos (.png) to texture some surfaces with");
+  simulate->add_option("--log-offset", so.log_offset, "the sensor's dark end: pixels see log(I + offset)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  simulate->add_option("--noise-rate", so.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
+  simulate->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  simulate->add_option("--width", so.width, "sensor width (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--height", so.height, "sensor height (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
+
+  // baselines
+  std::string align = "global-log-affine";
+  double contrast = 0.2;
+  fs::path baselines_out;
+  auto* baselines = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
+  add_recording(baselines, rec_help);
+  baselines->add_option("--out", baselines_out, "output folder (default: <folder>/baselines)");
+  baselines->add_option("--align", align, kAlignHelp)->capture_default_str();
+  baselines->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+
+  // train
+  train::Config cfg;
+  std::string variant = default_variant;
+  bool resume = false, quiet = false;
+  auto* trainc = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
+  add_recording(trainc, rec_help);
+  trainc->add_option("--out", out, "output folder")->required();
+  trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
+  add_settings(trainc, cfg);
+  bool per_channel = false;
+  trainc->add_flag("--per-channel", per_channel,
+                   "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
+                   "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
+  std::string green_sites = "first";
+  trainc->add_option("--green-sites", green_sites,
+                     "--per-channel: green's model trains on the first of its two sites per 2x2 block, a quarter-resolution sensor "
+                     "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
+      ->check(CLI::IsMember({"first", "both"}))
+      ->capture_default_str();
+  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near and far)");
+  trainc->add_flag("--quiet", quiet, "no progress bar");
+
+  // render
+  fs::path ckpt;
+  int novel = 8;
+  auto* renderc = app.add_subcommand("render", "intensity and depth at every slice boundary and along a novel path");
+  renderc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
+  renderc->add_option("--out", out, "output folder")->required();
+  renderc->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
+  std::string channel_up = "volume";
+  const std::string up_help =
+      "with channels.json: each channel's volume rendered at every pixel of the sensor (volume), or at its own "
+      "quarter-resolution sites and interpolated bilinearly (sites)";
+  renderc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+
+  // eval
+  int holdout = 0;
+  auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
+  evalc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
+  add_recording(evalc, rec_help);
+  evalc->add_option("--out", out, "output folder")->required();
+  evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
+  evalc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+  evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+
+  if (group && group->size() <= 1) group = nullptr;
+  const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (!lead) return e.get_exit_code() == 0 ? 0 : 2;
+    const int code = app.exit(e);  // prints the help, or the message and a pointer to --help
+    return code == 0 ? 0 : 2;
+  }
+  const std::string cmd = app.get_subcommands().front()->get_name();
+  if (group && cmd != "train") {
+    if (lead)
+      fmt::print(stderr, "evnerf {}: error: only train runs in several processes ({} were started); run {} as one process\n", cmd,
+                 group->size(), cmd);
+    return 2;
+  }
+  if (time_window.size() == 2) {
+    load_opt.t_begin = time_window[0];
+    load_opt.t_end = time_window[1];
+  }
+  try {
+    if (*inspect) {
+      const io::Format& format = io::detect_format(folder, load_opt.format);
+      if (format.inspect) std::fputs(format.inspect(folder).c_str(), stdout);
+      auto d = io::load(folder, load_opt);
+      fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
+      fmt::print("format        {}\n", format.name);
+      if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
+      if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
+      std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
+      return 0;
+    }
+    if (*convert) {
+      const auto d = io::load(folder, load_opt);
+      io::WriteOptions wo;
+      wo.compression = bag_compression;
+      io::convert(convert_out, d, wo);
+      fmt::print("wrote {} events, {} frames, {} poses → {}\n", d.events.size(), d.frames.size(), d.trajectory.size(), convert_out.string());
+      return 0;
+    }
+    if (*simulate) {
+      std::string scene_text;
+      const auto t0 = std::chrono::steady_clock::now();
+      auto rec = sim::simulate(scene, so, &scene_text);
+      sim::write_recording(out, rec);
+      if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
+      if (!rec.linear.empty())
+        fmt::print("{}: wrote the unclipped linear truth (linear/){}; eval scores against it\n", out.string(),
+                   rec.clipped ? ", as highlights clip the frames" : "");
+      const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", rec.scene_name,
+                 rec.events.size(), rec.events.count_positive(), rec.duration, rec.frames.size(), rec.renders, secs,
+                 out.string());
+      return 0;
+    }
+    if (*baselines) {
+      const auto d = io::load(folder, load_opt);
+      const auto als = alignments_from(align);
+      const auto b = run_baselines(d, als, contrast);
+      print_scores(b.scored, b.truth);
+      const auto& j = b.scored.json;
+      const auto& ids = b.ids;
+      const auto& primary = b.scored.primary;
+      const auto& truth = b.truth;
+      const bool colour = b.colour;
+      const fs::path rec_path(folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
+      const fs::path bo = !baselines_out.empty()          ? baselines_out
+                          : fs::is_directory(rec_path) ? rec_path / "baselines"
+                                                       : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
+      write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
+      const std::size_t mid = ids.size() / 2;
+      io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}, colour ? 3 : 1));
+      fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
+      return 0;
+    }
+    if (*trainc) {
+      cfg.progress = !quiet;
+      if (group) {
+        cfg.group = group;
+        // The processes on one machine share its cores: each takes its part unless --threads says.
+        if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
+      }
+      require(cfg.far > cfg.near, "train: --far must be greater than --near");
+      const auto d = io::load(folder, load_opt);
+      // The variant named by --preset, as with_variant finds it.
+      const VariantEntry* entry = nullptr;
+      for (const auto& v : programme.variants)
+        if (v.name == variant) entry = &v;
+      if (!entry) throw Error("unknown variant '" + variant + "' (this program has: " + variant_list + ")");
+      TrainJob job;
+      job.cfg = &cfg;
+      job.recording = fs::absolute(folder).string();
+      job.resume = resume;
+      job.lead = lead;
+      job.group = group;
+      if (!per_channel) return entry->train(job, entry->name, train::prepare(d, cfg), out, d.events.size());
+      if (entry->channels != 1)
+        throw Error("train --per-channel: the variant '" + entry->name + "' renders colour; name a grey one (each channel gets a grey model)");
+      const auto pattern = io::bayer_of(d);
+      for (int c = 0; c < 3; ++c) {
+        const auto sub = io::channel_dataset(d, pattern, c, io::parse_green_sites(green_sites));
+        if (lead)
+          fmt::print(stderr, "channel {}: {}x{} {}, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(),
+                     sub.sites.empty() ? "sites" : "sensor, both green sites", sub.events.size());
+        const int code = entry->train(job, entry->name, train::prepare(sub, cfg), out / kChannelDirs[c], sub.events.size());
+        if (code != 0) return code;
+      }
+      if (!lead) return 0;
+      write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern, io::parse_green_sites(green_sites)).dump(2) + "\n");
+      fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
+      return 0;
+    }
+    if (*renderc) {
+      const auto model = load_renderable(ckpt, parse_channel_upsampling(channel_up), programme.open);
+      const auto& desc = model.desc;
+      const float dlo = float(model.near), dhi = float(model.far * 0.6);
+      for (std::size_t i = 0; i < desc.poses.size(); ++i)
+        write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
+      for (int k = 0; k < novel; ++k)
+        write_rendering(out, fmt::format("novel_{:04d}", k), model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)),
+                        dlo, dhi);
+      fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
+                 out.string());
+      return 0;
+    }
+    if (*evalc) {
+      const auto d = io::load(folder, load_opt);
+      const auto als = alignments_from(align);
+      const auto model = load_renderable(ckpt, parse_channel_upsampling(channel_up), programme.open);
+      auto e = evaluate(model, d, als, holdout);
+      print_scores(e.scored, e.truth);
+      if (e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth")) {
+        const auto& fd = e.json.at("error_scales").at("fine_by_depth");
+        const auto z = fd.at("edges_m").template get<std::vector<double>>();
+        const auto p = fd.at("pixel_share").template get<std::vector<double>>();
+        fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {:.2f}-{:.2f} m ({:.0f} % of pixels), {:.2f}-{:.2f} m ({:.0f} %), "
+                   "{:.2f}-{:.2f} m ({:.0f} %)\n",
+                   z[0], z[1], 100 * p[0], z[1], z[2], 100 * p[1], z[2], z[3], 100 * p[2]);
+        for (const auto& [name, v] : fd.at("methods").items()) {
+          const auto f = v.at("fine_mse").template get<std::vector<double>>();
+          fmt::print("{:<22} {:>8.3f} {:>8.3f} {:>8.3f}\n", name, f[0] * 1e3, f[1] * 1e3, f[2] * 1e3);
+        }
+      }
+      for (std::size_t q = 0; q < e.ids.size(); ++q)
+        write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], float(model.near), float(model.far * 0.6));
+      write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");
+      const std::size_t mid = e.ids.size() / 2;
+      const auto& al = e.scored.primary.aligned;
+      io::write_png(out / "montage.png", io::montage({e.truth.shown(mid), al[0][mid], al[1][mid], al[2][mid]}, e.colour ? 3 : 1));
+      if (!e.heldout.empty()) {
+        fmt::print("held-out frames only ({}, novel views):\n", e.heldout.size());
+        print_table(e.scored.primary, e.heldout);
+      }
+      fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
+                 "high-pass filter), renders/\n",
+                 e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    // In a group the others may be waiting in a sum this process will never join: end them all.
+    if (group) group->abort(fmt::format("evnerf {}: error (rank {} of {}): {}", cmd, group->rank(), group->size(), e.what()), 1);
+    fmt::print(stderr, "evnerf {}: error: {}\n", cmd, e.what());
+    return 1;
+  }
+  return 2;
+}
+
+}  // namespace evnerf::cli

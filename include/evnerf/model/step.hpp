@@ -1,0 +1,241 @@
+// model/step.hpp — a training step of EvNerf (model/model.hpp): the sampler's refresh, the step's draw of a
+// window of slices, pixels and noise (loss::draw_step), the tiles of pixels rendered and handed to the
+// objective in parallel, per-thread gradients reduced in a fixed order (the result depends on neither the
+// tiling nor the thread count), the threshold floor, and the shards of a data-parallel step summed across
+// processes (train/group.hpp's exchange). Included by model/model.hpp. Depends on loss/, render/ and core/.
+#pragma once
+#include "model.hpp"
+
+namespace evnerf {
+
+/// update_sampler: the sampler refreshed as it would be before training step `step`; a world ball is seen
+/// when its centre projects into the image of one of up to 64 boundary poses spread over the recording,
+/// within the ball's projected radius, between near and far.
+template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
+void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sampler(const TrainingData& data, long step, std::uint64_t seed) {
+  render::SamplerUpdate u;
+  u.step = step;
+  u.seed = seed;
+  const std::size_t np = data.boundary_poses.size(), every = std::max<std::size_t>(1, np / 64);
+  std::vector<const geometry::Pose*> poses;
+  for (std::size_t i = 0; i < np; i += every) poses.push_back(&data.boundary_poses[i]);
+  if (np > 0) poses.push_back(&data.boundary_poses.back());
+  const auto& cam = data.camera;
+  const double near = box().near, far = box().far;
+  u.seen = [&cam, poses, near, far](const Vec3& world, double radius) {
+    for (const auto* pose : poses) {
+      const Vec3 q = pose->q.conjugate() * (world - pose->t);
+      if (q.z() < near - radius || q.z() > far + radius || q.z() <= 1e-6) continue;
+      const double mx = cam.fx() * radius / q.z(), my = cam.fy() * radius / q.z();
+      const Vec2 uv = cam.project(q);
+      if (uv.x() >= -mx && uv.x() <= cam.width() + mx && uv.y() >= -my && uv.y() <= cam.height() + my) return true;
+    }
+    return false;
+  };
+  renderer_.update_sampler(params_.values.data(), std::move(u));
+}
+
+/// train_step over shards: this process's shards, their gradients summed in shard order, exchanged with the
+/// other processes, averaged; then the optimiser step.
+template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
+template <class Exchange>
+StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile,
+                                                                     const StepShards& shards, Exchange&& exchange) {
+  check_data(data);
+  require(shards.count >= 1 && shards.ranks >= 1 && shards.count % shards.ranks == 0 && shards.rank >= 0 && shards.rank < shards.ranks,
+          "train_step: the shards per step (" + std::to_string(shards.count) + ") must be a positive multiple of the processes (" +
+              std::to_string(shards.ranks) + ")");
+  const long s = adam_.step();
+  update_sampler(data, s, Rng(seed).split(static_cast<std::uint64_t>(s)).split(0xCCu).next_u64());
+  StepStats st;
+  if (shards.count == 1) {
+    st = gradients(data, pixels_per_step, seed, pixels_per_tile);
+  } else {
+    // This process's shards, their gradients summed in shard order, their statistics and touched slices.
+    std::vector<double> totals(kTotals + n_slices_, 0.0);
+    bool first = true;
+    for (int k = shards.rank; k < shards.count; k += shards.ranks) {
+      if (!first) {  // keep the sum so far; gradients() overwrites grads
+        shard_sum_.resize(params_.grads.size());
+        shard_sum_.swap(params_.grads);
+      }
+      const StepStats one = gradients(data, pixels_per_step, seed, pixels_per_tile, k);
+      if (!first) {
+        Scalar* g = params_.grads.data();
+        const Scalar* a = shard_sum_.data();
+        parallel_blocks(params_.grads.size(), 1 << 16, [&](std::size_t b, std::size_t e, int) {
+          for (std::size_t i = b; i < e; ++i) g[i] = a[i] + g[i];
+        });
+      }
+      first = false;
+      add_totals(totals, one);
+      for (std::size_t j = 0; j < one.window; ++j) totals[kTotals + one.first_slice + j] += 1;
+    }
+    exchange(params_.grads, totals);
+    st = from_totals(totals, shards.count);
+    touched_.clear();
+    for (std::size_t j = 0; j < n_slices_; ++j)
+      if (totals[kTotals + j] > 0) {
+        touched_.push_back(threshold_offset() + 2 * j);
+        touched_.push_back(threshold_offset() + 2 * j + 1);
+      }
+    if (!std::isfinite(st.loss)) return st;
+    const Scalar inv = static_cast<Scalar>(1.0 / shards.count);
+    for (auto& g : params_.grads) g *= inv;
+  }
+  if (!std::isfinite(st.loss)) return st;
+  apply_update();
+  return st;
+}
+
+/// gradients: the step's draw (window, pixels, noise), its tiles rendered and scored in parallel with
+/// per-thread gradients reduced in a fixed order, the deferred table gradients flushed, the threshold floor.
+template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
+StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile, int shard) {
+  check_data(data);
+  const long s = adam_.step();
+  Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
+  if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
+  StepWindow& sw = window_;
+  loss::draw_step<objective_type>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites,
+                             data.slices_per_interval);
+  const std::size_t first = sw.first, L = sw.len;
+  const int P = static_cast<int>(sw.pixels.size());
+  const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
+  const int n_tiles = (P + tile - 1) / tile;
+  const int threads = std::max(1, std::min(thread_count(), n_tiles));
+  params_.size_accumulators(threads);  // each thread zeroes its own below
+  std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0);
+  std::vector<std::array<double, StepStats::kMaxTerms>> loss_terms(threads);
+  std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), rays(threads, 0);
+  std::vector<std::array<double, 2>> pass_loss(threads);
+  const std::uint64_t ray_key = rng.next_u64();
+  if (work_.size() < static_cast<std::size_t>(threads)) work_.resize(static_cast<std::size_t>(threads));
+  parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
+    params_.zero_accumulator(th);
+    TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
+    w.rw.evaluated = w.rw.backward_samples = 0;
+    w.pass_loss = {};
+    w.distortion = 0;
+    w.terms = {};
+    w.rays = 0;
+    w.rw.training_termination = ray_termination_;
+    w.rw.training_cut = static_cast<scalar>(ray_cut_);
+    renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
+    for (std::size_t t = b; t < e; ++t) {
+      const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
+      loss_ev[th] += train_tile(data, sw, p0, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
+    }
+    evaluated[th] = w.rw.evaluated;
+    pass_loss[th] = w.pass_loss;
+    loss_dist[th] = w.distortion;
+    loss_terms[th] = w.terms;
+    rays[th] = w.rays;
+    backward[th] = w.rw.backward_samples;
+  });
+  // The table gradients each thread held back, applied in parts (a hash grid's levels) shared out by
+  // their samples: each thread's accumulator gets the same additions in the same order whichever thread
+  // applies them, and the threads, whose tiles differ in samples, finish together.
+  constexpr int parts = renderer_type::flush_parts;
+  parallel_jobs_by_cost(
+      static_cast<std::size_t>(threads) * parts,
+      [&](std::size_t j) { return static_cast<double>(renderer_type::deferred_count(work_[j / parts].rw)); },
+      [&](std::size_t j) { renderer_type::flush_part(work_[j / parts].rw, static_cast<int>(j % parts)); });
+  for (int th = 0; th < threads; ++th) renderer_type::clear_deferred(work_[static_cast<std::size_t>(th)].rw);
+  params_.end_accumulate(threads);
+  StepStats st;
+  st.first_slice = first;
+  st.window = L;
+  for (double l : loss_ev) st.event_loss += l;
+  for (double l : loss_dist) st.distortion_loss += l;
+  for (const auto& l : loss_terms)
+    for (int k = 1; k < n_terms; ++k) st.term_loss[k] += l[k];
+  for (const auto& l : pass_loss)
+    for (int net = 0; net < 2; ++net) st.pass_event_loss[net] += l[net];
+  for (std::size_t e : evaluated) st.samples += e;
+  for (std::size_t e : backward) st.backward_samples += e;
+  // Threshold floor on every slice of the window (λ = 1000 for joint training, floor at the policy's
+  // initial value; fixed thresholds get no gradient at all).
+  for (std::size_t k = 0; k < L; ++k) {
+    const std::size_t to = threshold_offset() + 2 * (first + k);
+    if constexpr (ThresholdP::learnable && ThresholdP::lambda > 0) {
+      const auto fl = ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init},
+                                         std::array<double, 2>{params_.values[to], params_.values[to + 1]});
+      st.threshold_loss += ThresholdP::lambda * fl.value;
+      params_.grads[to] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[0]);
+      params_.grads[to + 1] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[1]);
+    } else if constexpr (!ThresholdP::learnable) {
+      params_.grads[to] = params_.grads[to + 1] = Scalar(0);
+    }
+  }
+  st.term_loss[0] = st.event_loss;
+  st.loss = st.event_loss + st.threshold_loss + st.distortion_loss;
+  for (int k = 1; k < n_terms; ++k) st.loss += st.term_loss[k];
+  for (std::size_t r : rays) st.rays += r;
+  touched_.clear();
+  for (std::size_t k = 0; k < 2 * L; ++k) touched_.push_back(threshold_offset() + 2 * first + k);
+  return st;
+}
+
+/// train_tile: one tile's rays as the objective lists them, each with its random stream, forward through
+/// every pass, the objective's score of each pass, the distortion term, backward.
+template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
+double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_tile(const TrainingData& data, const StepWindow& sw, int p0, int P, int batch,
+                                                                     std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
+  loss::TileView t;
+  t.draw = &sw;
+  t.p0 = p0;
+  t.P = P;
+  t.batch = batch;
+  t.channels = channels;
+  t.camera = &data.camera;
+  t.bayer = &data.bayer;
+  t.poses = data.boundary_poses.data();
+  t.pixel_dirs = data.pixel_dirs.data();
+  t.near = box().near;
+  t.far = box().far;
+  t.log_eps = FieldT::radiance::log_eps;
+  t.ray_key = ray_key;
+  w.list.clear();
+  objective_.rays(t, w.list, w.scratch);
+  const int R = w.list.size();
+  w.origin.resize(R);
+  w.dir.resize(R);
+  w.rng.clear();
+  for (int r = 0; r < R; ++r) {
+    const std::size_t pose = w.list.pose[r], pixel = w.list.pixel[r];
+    const auto a = geometry::Camera::ray_along(data.boundary_poses[pose], data.pixel_dirs[pixel].cast<double>());
+    w.origin[r] = a.origin;
+    w.dir[r] = a.dir;
+    w.rng.push_back(Rng(ray_key).split(w.list.key[r]));
+  }
+  w.rays += static_cast<std::size_t>(R);
+  const int L = static_cast<int>(sw.len);
+  const std::size_t to = threshold_offset() + 2 * sw.first;
+  w.bp.resize(static_cast<std::size_t>(L));
+  w.bm.resize(static_cast<std::size_t>(L));
+  for (int k = 0; k < L; ++k) {
+    w.bp[k] = params_.values[to + 2 * k];
+    w.bm[k] = params_.values[to + 2 * k + 1];
+  }
+  const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr};
+  const Scalar* params = params_.values.data();
+  renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
+  double loss = 0;
+  for (int net = 0; net < n_fields; ++net) {
+    const loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(),
+                                                                        w.rw.pass[net].dcolor.data(), channels};
+    std::array<double, StepStats::kMaxTerms> l{};
+    objective_.score(t, v, th, w.scratch, l.data());
+    w.pass_loss[net] += l[0];
+    loss += l[0];
+    for (int k = 1; k < n_terms; ++k) w.terms[k] += l[k];
+  }
+  // The distortion regulariser: its weight times the mean over the step's rays, every pass (the expected
+  // rays per pixel, the same for every tile).
+  if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (objective_.rays_per_pixel() * batch));
+  renderer_.backward(params, w.rw, grads);
+  return loss;
+}
+
+}  // namespace evnerf
