@@ -4,10 +4,12 @@
 # (the frames, or the linear HDR truth of a scene whose frames clip, scored in its log space), whether the
 # collapse detector fired, our error split by scale (eval's error_scales: coarse and fine PSNR) and eval's
 # offset oracle (the score with the truth's log offsets per image row, and per row and column). A scene
-# passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Writes $OUT/robustness.csv and prints a
-# Markdown table.
+# passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Each scene is recorded by every sensor
+# of SENSORS (`simulate --sensor`: ideal, and random, drawn from the scene's seed), side by side in the
+# table. Writes $OUT/robustness.csv and prints a Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
-# Environment: PRESET (the default preset), STEPS (train's default), SEED (training seed, 1), THREADS (2),
+# Environment: SENSORS ("ideal random"), PRESET (the default preset), STEPS (train's default), SEED (training
+#              seed, 1), THREADS (2),
 #              OUT (out/robustness), BUILD (build), EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS
 #              (more train options, split at spaces: to compare a binary or an option against the default).
 set -euo pipefail
@@ -19,6 +21,7 @@ THREADS=${THREADS:-2}
 EV="${EVNERF:-$BUILD/examples/evnerf}"
 [ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "robustness: EVNERF=$EV is not an executable" >&2; exit 2; }
 [ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
+read -r -a SENSORS <<<"${SENSORS:-ideal random}"
 SEEDS=("$@")
 [ ${#SEEDS[@]} -gt 0 ] || SEEDS=(1 2 3 4 5 6 7 8 9 10)
 TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
@@ -28,16 +31,17 @@ TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iterations "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
-echo "scene_seed,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr" > "$CSV"
+echo "scene_seed,sensor,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr" > "$CSV"
 for n in "${SEEDS[@]}"; do
-  dir="$OUT/random-$n"
-  [ -f "$dir/scene/events.txt" ] || "$EV" simulate random --seed "$n" --out "$dir/scene" > "$dir.simulate.txt" 2>&1
+ for sensor in "${SENSORS[@]}"; do
+  dir="$OUT/random-$n-$sensor"
+  [ -f "$dir/scene/events.txt" ] || "$EV" simulate random --seed "$n" --sensor "$sensor" --out "$dir/scene" > "$dir.simulate.txt" 2>&1
   rm -rf "$dir/run" "$dir/eval"
   "$EV" train "$dir/scene" --out "$dir/run" "${TRAIN_ARGS[@]}" > "$dir/train.txt" 2>&1
   "$EV" eval "$dir/run/model.ckpt" "$dir/scene" --out "$dir/eval" > "$dir/eval.txt" 2>&1
-  python3 - "$dir" "$n" >> "$CSV" <<'PY'
+  python3 - "$dir" "$n" "$sensor" >> "$CSV" <<'PY'
 import json, sys
-d, n = sys.argv[1:]
+d, n, sensor = sys.argv[1:]
 metrics = json.load(open(f"{d}/eval/metrics.json"))
 m = metrics["methods"]
 truth = metrics.get("truth", {}).get("kind", "frames")
@@ -53,20 +57,24 @@ events = sum(1 for _ in open(f"{d}/scene/events.txt"))
 ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for b in (di, hpf))
 scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
 db = lambda key: "" if key not in scales else "inf" if scales[key] is None else f"{scales[key]:.2f}"  # null: no error; absent: older eval
-print(f"{n},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
+print(f"{n},{sensor},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
       f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')},{db('oracle_rows_psnr')},{db('oracle_both_psnr')}")
 PY
   tail -n 1 "$CSV"
+ done
 done
 python3 - "$CSV" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-print("| seed | path | events | truth | ours PSNR / SSIM | ours coarse / fine PSNR | oracle rows / both | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
-print("|---|---|---|---|---|---|---|---|---|---|---|")
+print("| seed | sensor | path | events | truth | ours PSNR / SSIM | ours coarse / fine PSNR | oracle rows / both | direct integration | high-pass filter | collapse fired | +3 dB / +0.10 |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 for r in rows:
-    print(f"| {r['scene_seed']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['coarse_psnr']} / {r['fine_psnr']} | {r.get('oracle_rows_psnr') or '-'} / {r.get('oracle_both_psnr') or '-'} | {r['di_psnr']} / {r['di_ssim']} | "
+    print(f"| {r['scene_seed']} | {r['sensor']} | {r['path']} | {int(r['events'])/1e6:.1f} M | {r['truth']} | {r['psnr']} / {r['ssim']} | {r['coarse_psnr']} / {r['fine_psnr']} | {r.get('oracle_rows_psnr') or '-'} / {r.get('oracle_both_psnr') or '-'} | {r['di_psnr']} / {r['di_ssim']} | "
           f"{r['hpf_psnr']} / {r['hpf_ssim']} | {'yes' if r['collapse_fired'] == '1' else 'no'} | {'yes' if r['pass'] == '1' else 'no'} |")
-print(f"passed {sum(r['pass'] == '1' for r in rows)} of {len(rows)}; collapse fired on {sum(r['collapse_fired'] == '1' for r in rows)}")
+for sensor in dict.fromkeys(r["sensor"] for r in rows):
+    rs = [r for r in rows if r["sensor"] == sensor]
+    print(f"{sensor} sensor: passed {sum(r['pass'] == '1' for r in rs)} of {len(rs)}, mean PSNR {sum(float(r['psnr']) for r in rs) / len(rs):.2f}; "
+          f"collapse fired on {sum(r['collapse_fired'] == '1' for r in rs)}")
 PY
 # The current table is kept in the repository (RESULTS, default bench/results; empty: not copied).
 RESULTS=${RESULTS-bench/results}

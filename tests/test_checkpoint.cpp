@@ -211,7 +211,12 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields; another fo
   CHECK_THROWS_WITH(t.deserialize(patched(count_at, &many, 8), "x.ckpt"), doctest::Contains("boundaries need more bytes than remain"));
   const double zeros[4] = {0, 0, 0, 0};
   CHECK_THROWS_WITH(t.deserialize(patched(poses_at + 64 + 32, zeros, 32), "x.ckpt"),
-                    doctest::Contains("boundary 1 of the run has a zero rotation quaternion"));
+                    doctest::Contains("boundary 1 of the run has a rotation quaternion of norm 0"));
+  // Found by tests/fuzz (fuzz_checkpoint): a component near the largest double overflows the norm, and the
+  // normalised quaternion was zero.
+  const double vast = -8.7e307;
+  CHECK_THROWS_WITH(t.deserialize(patched(poses_at + 64 + 56, &vast, 8), "x.ckpt"),
+                    doctest::Contains("boundary 1 of the run has a rotation quaternion of norm inf"));
   const double early = -5;
   CHECK_THROWS_WITH(t.deserialize(patched(poses_at + 64, &early, 8), "x.ckpt"),
                     doctest::Contains("the run's boundary times do not increase at boundary 1"));

@@ -1,6 +1,11 @@
+#include <evnerf/events/hot_pixels.hpp>
 #include <evnerf/io/dataset.hpp>
 #include <evnerf/sim/random_scene.hpp>
+#include <evnerf/sim/simulate.hpp>
 #include <evnerf/sim/simulator.hpp>
+
+#include <map>
+#include <set>
 
 #include "common.hpp"
 
@@ -268,4 +273,147 @@ TEST_CASE("simulator: the dark end is log(I + offset), not a clamp; HDR truth is
   auto ask = small_sensor();
   ask.hdr = true;
   CHECK(sim::Simulator(ldr, ask).run().linear.size() == 3);
+}
+
+// ---- the sensor's parameters ----------------------------------------------------------------------------
+
+TEST_CASE("sensor: a refractory period removes every event closer than it to the pixel's last; without it some are closer") {
+  auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 4\npath slider -0.2 0 0 0.2 0 0 0 0 1 0.5\n", "moving.txt");
+  auto cfg = small_sensor();
+  cfg.threshold_pos = cfg.threshold_neg = 0.05;  // many events per pixel per edge
+  auto closest = [&](double refractory) {
+    cfg.refractory = refractory;
+    const auto rec = sim::Simulator(spec, cfg).run();
+    std::map<int, double> last;
+    double gap = 1e9;
+    for (std::size_t i = 0; i < rec.events.size(); ++i) {
+      const int p = rec.events.y[i] * 40 + rec.events.x[i];
+      if (last.count(p)) gap = std::min(gap, rec.events.t[i] - last[p]);
+      last[p] = rec.events.t[i];
+    }
+    return std::make_pair(gap, rec.events.size());
+  };
+  const auto [free_gap, free_n] = closest(0);
+  const auto [gap, n] = closest(2e-3);
+  CHECK(free_gap < 2e-3);
+  CHECK(gap >= 2e-3 - 1e-12);
+  CHECK(n < free_n);
+}
+
+TEST_CASE("sensor: a hot pixel fires at its rate on a static scene; C+ and C- scale the ON and OFF counts") {
+  auto still = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3\npath slider 0 0 0 0 0 0 0 0 1 2.0\n", "static.txt");
+  auto cfg = small_sensor();
+  cfg.hot_pixels = 2;
+  cfg.hot_rate = 400;  // 2 s: 800 events at each of two pixels
+  const auto hot = sim::Simulator(still, cfg).run();
+  std::map<int, int> per_pixel;
+  for (std::size_t i = 0; i < hot.events.size(); ++i) ++per_pixel[hot.events.y[i] * 40 + hot.events.x[i]];
+  REQUIRE(per_pixel.size() == 2);
+  for (const auto& [p, count] : per_pixel) CHECK(std::abs(count - 800) < 5 * std::sqrt(800.0));
+  // A brightening and darkening scene: counts go as the log change over the threshold.
+  auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 noise 0.7 3 5\npath slider -0.2 0 0 0.2 0 0 0 0 1 0.5\n", "ramp.txt");
+  auto counts = [&](double cp, double cn) {
+    auto c = small_sensor();
+    c.threshold_pos = cp;
+    c.threshold_neg = cn;
+    const auto rec = sim::Simulator(spec, c).run();
+    const double on = static_cast<double>(rec.events.count_positive());
+    return std::make_pair(on, static_cast<double>(rec.events.size()) - on);
+  };
+  const auto [on1, off1] = counts(0.1, 0.1);
+  const auto [on2, off2] = counts(0.2, 0.1);  // C+ doubled: about half the ON events, the OFF ones as they were
+  const auto [on3, off3] = counts(0.1, 0.2);
+  REQUIRE(on1 > 200);
+  REQUIRE(off1 > 200);
+  CHECK(on2 / on1 == doctest::Approx(0.5).epsilon(0.15));
+  CHECK(off2 == doctest::Approx(off1).epsilon(0.05));
+  CHECK(off3 / off1 == doctest::Approx(0.5).epsilon(0.15));
+  CHECK(on3 == doctest::Approx(on1).epsilon(0.05));
+}
+
+TEST_CASE("sensor: --sensor random draws every parameter inside its range, from the seed; values no sensor has are refused by flag") {
+  using R = sim::RandomSensorRanges;
+  sim::SensorOptions o;
+  o.model = "random";
+  std::set<double> seen;
+  for (std::uint64_t seed = 1; seed <= 50; ++seed) {
+    const auto c = sim::sensor_model(o, seed);
+    CHECK(c.threshold_pos >= R::threshold_pos[0]);
+    CHECK(c.threshold_pos <= R::threshold_pos[1]);
+    CHECK(c.threshold_neg / c.threshold_pos >= R::ratio[0] - 1e-12);
+    CHECK(c.threshold_neg / c.threshold_pos <= R::ratio[1] + 1e-12);
+    CHECK(c.threshold_sigma <= R::mismatch[1]);
+    CHECK(c.refractory <= R::refractory[1]);
+    CHECK(c.noise_rate <= R::noise_rate[1]);
+    CHECK(c.hot_pixels >= R::hot_pixels[0]);
+    CHECK(c.hot_pixels <= R::hot_pixels[1]);
+    CHECK(c.jitter <= R::jitter[1]);
+    CHECK(sim::sensor_model(o, seed).threshold_pos == c.threshold_pos);  // the seed decides
+    seen.insert(c.threshold_pos);
+  }
+  CHECK(seen.size() == 50);
+  // A parameter given keeps its value over the model's; the others stay the model's.
+  o.model = "realistic";
+  o.refractory = 5e-4;
+  const auto r = sim::sensor_model(o, 1);
+  CHECK(r.refractory == 5e-4);
+  CHECK(r.threshold_neg == sim::SensorConfig::realistic().threshold_neg);
+  auto refused = [](sim::SensorOptions bad) {
+    try {
+      sim::sensor_model(bad, 1);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  sim::SensorOptions b;
+  b.threshold_pos = 0;
+  CHECK_CONTAINS(refused(b), "simulate: --threshold-pos must be in (0, 5], got 0");
+  b = {};
+  b.refractory = -1e-3;
+  CHECK_CONTAINS(refused(b), "--refractory must be in [0, 1], got -0.001");
+  b = {};
+  b.mismatch = 1.0;
+  CHECK_CONTAINS(refused(b), "--mismatch must be in [0, 0.5], got 1");
+  b = {};
+  b.hot_pixels = -2;
+  CHECK_CONTAINS(refused(b), "--hot-pixels must be in [0, 1000000], got -2");
+  b = {};
+  b.model = "perfect";
+  CHECK_CONTAINS(refused(b), "--sensor 'perfect': expected ideal, realistic or random");
+  // The drawn values go with the recording: sensor_model.txt.
+  sim::SimulateOptions so;
+  so.sensor.model = "random";
+  so.seed = 3;
+  so.width = 32;
+  so.height = 24;
+  so.progress = false;
+  const auto rec = sim::simulate("planes", so);
+  CHECK(rec.sensor.threshold_pos == sim::sensor_model(so.sensor, 3).threshold_pos);
+  const auto text = sim::sensor_model_text(rec.sensor);
+  CHECK_CONTAINS(text, "threshold_pos " + short_number(rec.sensor.threshold_pos, 9));
+  CHECK_CONTAINS(text, "hot_pixels " + std::to_string(rec.sensor.hot_pixels));
+}
+
+TEST_CASE("sensor: the hot pixels planted in a moving textured scene are the ones suspected; its texture is not") {
+  sim::SimulateOptions so;
+  so.width = 64;
+  so.height = 48;
+  so.progress = false;
+  const auto clean = sim::simulate("planes", so);
+  CHECK(events::suspected_hot_pixels(clean.events).empty());
+  so.sensor.hot_pixels = 4;
+  so.sensor.hot_rate = 150;
+  const auto hot = sim::simulate("planes", so);
+  // The signal is drawn first, so the planted pixels are those whose counts changed.
+  const int W = so.width;
+  std::vector<int> a(static_cast<std::size_t>(W) * so.height, 0), b(a.size(), 0);
+  for (std::size_t i = 0; i < clean.events.size(); ++i) ++a[clean.events.y[i] * W + clean.events.x[i]];
+  for (std::size_t i = 0; i < hot.events.size(); ++i) ++b[hot.events.y[i] * W + hot.events.x[i]];
+  std::set<int> planted, found;
+  for (std::size_t p = 0; p < a.size(); ++p)
+    if (a[p] != b[p]) planted.insert(static_cast<int>(p));
+  REQUIRE(planted.size() == 4);
+  for (const auto& h : events::suspected_hot_pixels(hot.events)) found.insert(h.y * W + h.x);
+  CHECK(found == planted);
 }

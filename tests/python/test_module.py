@@ -329,3 +329,21 @@ def test_every_setting_of_the_table(planes, tmp_path):
             b = int(b) if r["integer"] else float(b)
             with pytest.raises((evnerf.Error, TypeError, OverflowError), match=name):
                 evnerf.train(planes, **{"iterations": 1, "threads": 1, name: b})
+
+
+def test_the_sensor_of_a_simulation(tmp_path):
+    ideal = evnerf.sensor_model()
+    assert (ideal["threshold_pos"], ideal["threshold_neg"], ideal["refractory"], ideal["hot_pixels"]) == (0.25, 0.25, 0.0, 0)
+    drawn = evnerf.sensor_model("random", seed=4)
+    assert drawn == evnerf.sensor_model("random", seed=4) != evnerf.sensor_model("random", seed=5)
+    assert 0.15 <= drawn["threshold_pos"] <= 0.5 and 0.7 <= drawn["threshold_neg"] / drawn["threshold_pos"] <= 1.4
+    assert evnerf.sensor_model("realistic", refractory=0.0005)["refractory"] == 0.0005
+    d = evnerf.simulate("planes", width=24, height=18, sensor="random", seed=4, out=tmp_path / "rec")
+    written = dict(line.split() for line in (tmp_path / "rec" / "sensor_model.txt").read_text().splitlines())
+    assert float(written["threshold_pos"]) == pytest.approx(drawn["threshold_pos"], rel=1e-8)
+    assert int(written["hot_pixels"]) == drawn["hot_pixels"]
+    assert len(d) > 0
+    with pytest.raises(evnerf.Error, match=r"--threshold-pos must be in \(0, 5\], got -0.1"):
+        evnerf.simulate("planes", width=24, height=18, threshold_pos=-0.1)
+    with pytest.raises(evnerf.Error, match="unknown keyword 'refractory_period'"):
+        evnerf.simulate("planes", width=24, height=18, refractory_period=0.001)

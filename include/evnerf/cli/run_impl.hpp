@@ -220,7 +220,20 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                        "or a scene description file")
       ->required();
   simulate->add_option("--out", out, "output folder")->required();
-  simulate->add_flag("--realistic", so.realistic, "sensor effects: threshold mismatch, refractory period, leak and shot noise");
+  simulate->add_option("--sensor", so.sensor.model,
+                       "the sensor: ideal (thresholds 0.25 / 0.25, nothing else), realistic (C+ 0.22, C- 0.28, 3 % mismatch, 0.1 ms "
+                       "refractory, 0.1 Hz background, 3 hot pixels, 20 us jitter) or random (each parameter drawn from what cameras "
+                       "span, from --seed); the flags below set single parameters; written to <out>/sensor_model.txt")
+      ->check(CLI::IsMember({"ideal", "realistic", "random"}))
+      ->capture_default_str();
+  simulate->add_option("--threshold-pos", so.sensor.threshold_pos, "C+: the log-intensity rise of an ON event");
+  simulate->add_option("--threshold-neg", so.sensor.threshold_neg, "C-: the log-intensity fall of an OFF event (positive)");
+  simulate->add_option("--mismatch", so.sensor.mismatch, "per-pixel threshold deviation: relative standard deviation (0.03 = 3 %)");
+  simulate->add_option("--refractory", so.sensor.refractory, "seconds a pixel is blind after it fires");
+  simulate->add_option("--noise-rate", so.sensor.noise_rate, "background activity: events per pixel per second");
+  simulate->add_option("--hot-pixels", so.sensor.hot_pixels, "pixels that fire on their own, at --hot-rate");
+  simulate->add_option("--hot-rate", so.sensor.hot_rate, "a hot pixel's events per second (200 unless given)");
+  simulate->add_option("--jitter", so.sensor.jitter, "timestamp noise: standard deviation in seconds");
   simulate->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
   simulate->add_flag("--hdr", so.hdr,
                      "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
@@ -230,7 +243,6 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   simulate->add_option("--log-offset", so.log_offset, "the sensor's dark end: pixels see log(I + offset)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  simulate->add_option("--noise-rate", so.noise_rate, "background events per pixel per second")->capture_default_str()->check(CLI::NonNegativeNumber);
   simulate->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);

@@ -154,7 +154,10 @@ inline CheckpointRun read_checkpoint_run(CheckpointReader& r) {
     for (double x : v)
       if (!std::isfinite(x)) r.fail("boundary " + std::to_string(i) + " of the run has a non-finite time or pose");
     const Quat q(v[7], v[4], v[5], v[6]);
-    if (!(q.norm() > 1e-12)) r.fail("boundary " + std::to_string(i) + " of the run has a zero rotation quaternion");
+    const double norm = q.norm();  // overflows to infinity for components near the largest double
+    if (!(norm > 1e-12) || !std::isfinite(norm))
+      r.fail("boundary " + std::to_string(i) + " of the run has a rotation quaternion of norm " + short_number(norm) +
+             " (a rotation needs a finite, nonzero one)");
     if (i > 0 && !(v[0] > run.times[i - 1])) r.fail("the run's boundary times do not increase at boundary " + std::to_string(i));
     run.times[i] = v[0];
     run.poses[i].t = Vec3(v[1], v[2], v[3]);

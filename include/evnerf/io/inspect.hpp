@@ -1,10 +1,12 @@
 // io/inspect.hpp — a summary of a recording (counts, spans, coverage) and the warnings a user should see
-// before training on it. Depends on io/dataset.hpp only.
+// before training on it: the ON share and the asymmetry it suggests, suspected hot pixels. Depends on
+// io/dataset.hpp and events/hot_pixels.hpp.
 #pragma once
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "../events/hot_pixels.hpp"
 #include "dataset.hpp"
 
 namespace evnerf::io {
@@ -14,8 +16,13 @@ struct Summary {
   std::size_t events = 0, on = 0, off = 0, frames = 0, poses = 0;
   double t_begin = 0, t_end = 0, rate = 0;  ///< seconds; events per second
   double frame_begin = 0, frame_end = 0, pose_begin = 0, pose_end = 0;
+  std::vector<events::HotPixel> hot;  ///< suspected hot pixels (events::suspected_hot_pixels), busiest first
   std::vector<std::string> warnings;
 };
+
+/// The ON share outside which inspect warns that the thresholds look asymmetric: over a recording whose
+/// brightness returns, ON and OFF counts go as 1/C⁺ and 1/C⁻.
+inline constexpr double kBalancedOnShare[2] = {0.45, 0.55};
 
 inline Summary summarize(const Dataset& d) {
   Summary s;
@@ -27,6 +34,7 @@ inline Summary summarize(const Dataset& d) {
   s.t_begin = d.events.t_begin();
   s.t_end = d.events.t_end();
   s.rate = s.t_end > s.t_begin ? static_cast<double>(s.events) / (s.t_end - s.t_begin) : 0;
+  s.hot = events::suspected_hot_pixels(d.events);
   s.frames = d.frames.size();
   if (s.frames) {
     s.frame_begin = d.frames.t.front();
@@ -99,6 +107,25 @@ inline std::string format_summary(const Summary& s) {
   else
     std::snprintf(buf, sizeof buf, "poses         none\n");
   o += buf;
+  if (!s.hot.empty()) {
+    std::snprintf(buf, sizeof buf, "hot pixels    %zu suspected (a count far above its neighbours'):", s.hot.size());
+    o += buf;
+    for (std::size_t k = 0; k < s.hot.size() && k < 8; ++k) {
+      std::snprintf(buf, sizeof buf, " (%d, %d) %zu vs %zu", s.hot[k].x, s.hot[k].y, s.hot[k].events, s.hot[k].neighbours);
+      o += buf;
+    }
+    o += s.hot.size() > 8 ? " ...\n" : "\n";
+  }
+  if (s.events > 0) {
+    const double on = static_cast<double>(s.on) / static_cast<double>(s.events);
+    if (on < kBalancedOnShare[0] || on > kBalancedOnShare[1]) {
+      std::snprintf(buf, sizeof buf,
+                    "warning: ON events are %.1f %% of the recording: its thresholds are likely asymmetric (where the brightness "
+                    "returns, C-/C+ is about ON/OFF = %.2f)\n",
+                    100 * on, static_cast<double>(s.on) / static_cast<double>(std::max<std::size_t>(1, s.off)));
+      o += buf;
+    }
+  }
   for (auto& w : s.warnings) o += "warning: " + w + "\n";
   return o;
 }

@@ -1,8 +1,10 @@
 // sim/simulate.hpp — a scene simulated from a few options, as `evnerf simulate` and the Python module's
 // `simulate` take them, and a simulated recording as an in-memory io::Dataset. Depends on sim/ and io/.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "../io/dataset.hpp"
@@ -12,15 +14,84 @@
 
 namespace evnerf::sim {
 
+/// The sensor `simulate` records with: a named model and any of its parameters set one by one. Each unset
+/// parameter keeps the model's value.
+struct SensorOptions {
+  /// ideal (thresholds 0.25 / 0.25, no mismatch, refractory period or noise), realistic
+  /// (SensorConfig::realistic) or random (every parameter drawn from what real cameras span, from the seed).
+  std::string model = "ideal";
+  std::optional<double> threshold_pos, threshold_neg;  ///< C⁺, C⁻ (log units)
+  std::optional<double> mismatch;                      ///< per-pixel threshold deviation, relative σ
+  std::optional<double> refractory;                    ///< seconds a pixel is blind after it fires
+  std::optional<double> noise_rate;                    ///< background activity, events per pixel per second
+  std::optional<int> hot_pixels;                       ///< pixels that fire on their own
+  std::optional<double> hot_rate;                      ///< their events per second
+  std::optional<double> jitter;                        ///< timestamp noise, standard deviation in seconds
+};
+
+/// The ranges `--sensor random` draws from (uniformly; the count of hot pixels as an integer): what DAVIS
+/// and Prophesee cameras span.
+struct RandomSensorRanges {
+  static constexpr double threshold_pos[2] = {0.15, 0.5};
+  static constexpr double ratio[2] = {0.7, 1.4};  ///< C⁻ / C⁺
+  static constexpr double mismatch[2] = {0.0, 0.05};
+  static constexpr double refractory[2] = {0.0, 1e-3};
+  static constexpr double noise_rate[2] = {0.0, 1.0};
+  static constexpr int hot_pixels[2] = {0, 10};
+  static constexpr double jitter[2] = {0.0, 5e-5};
+};
+
+/// The sensor's parameters for `o` and the simulation's seed: the model's (random: drawn from
+/// RandomSensorRanges with a stream of its own), then each parameter given. A value no sensor has is
+/// refused naming its flag.
+inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
+  SensorConfig c;
+  if (o.model == "realistic") {
+    c = SensorConfig::realistic();
+  } else if (o.model == "random") {
+    Rng rng = Rng(seed).split(0x53454E534F52ull);  // "SENSOR": independent of the scene and the noise
+    using R = RandomSensorRanges;
+    c.threshold_pos = rng.uniform(R::threshold_pos[0], R::threshold_pos[1]);
+    c.threshold_neg = c.threshold_pos * rng.uniform(R::ratio[0], R::ratio[1]);
+    c.threshold_sigma = rng.uniform(R::mismatch[0], R::mismatch[1]);
+    c.refractory = rng.uniform(R::refractory[0], R::refractory[1]);
+    c.noise_rate = rng.uniform(R::noise_rate[0], R::noise_rate[1]);
+    c.hot_pixels = R::hot_pixels[0] + static_cast<int>(rng.below(static_cast<std::uint64_t>(R::hot_pixels[1] - R::hot_pixels[0] + 1)));
+    c.jitter = rng.uniform(R::jitter[0], R::jitter[1]);
+  } else if (o.model != "ideal") {
+    throw Error("simulate: --sensor '" + o.model + "': expected ideal, realistic or random");
+  }
+  auto set = [](double& v, const std::optional<double>& x, const char* flag, double lo, double hi, bool lo_open) {
+    if (!x) return;
+    if (!std::isfinite(*x) || (lo_open ? *x <= lo : *x < lo) || *x > hi)
+      throw Error(std::string("simulate: ") + flag + " must be in " + (lo_open ? "(" : "[") + short_number(lo) + ", " + short_number(hi) +
+                  "], got " + short_number(*x));
+    v = *x;
+  };
+  set(c.threshold_pos, o.threshold_pos, "--threshold-pos", 0, 5, true);
+  set(c.threshold_neg, o.threshold_neg, "--threshold-neg", 0, 5, true);
+  set(c.threshold_sigma, o.mismatch, "--mismatch", 0, 0.5, false);
+  set(c.refractory, o.refractory, "--refractory", 0, 1, false);
+  set(c.noise_rate, o.noise_rate, "--noise-rate", 0, 1e4, false);
+  set(c.hot_rate, o.hot_rate, "--hot-rate", 0, 1e6, false);
+  set(c.jitter, o.jitter, "--jitter", 0, 0.1, false);
+  if (o.hot_pixels) {
+    if (*o.hot_pixels < 0 || *o.hot_pixels > 1000000)
+      throw Error("simulate: --hot-pixels must be in [0, 1000000], got " + std::to_string(*o.hot_pixels));
+    c.hot_pixels = *o.hot_pixels;
+  }
+  return c;
+}
+
 /// What `evnerf simulate` asks of a simulation besides the scene.
 struct SimulateOptions {
-  bool realistic = false;  ///< sensor effects (SensorConfig::realistic)
+  SensorOptions sensor;    ///< the sensor's model and parameters (sensor_model)
   bool bayer = false;      ///< RGGB mosaic (always on for the built-in colour scene, blocks)
   bool hdr = false;        ///< high dynamic range lighting and the linear truth (sim::hdr_lighting)
   std::uint64_t seed = 1;  ///< sensor noise; with the scene 'random', also the scene
   std::filesystem::path textures;  ///< with 'random': photos (.png) to texture surfaces with
   double log_offset = SensorConfig{}.log_offset;
-  double noise_rate = 0, noise_ratio = 0;
+  double noise_ratio = 0;  ///< uniform random events added, as a fraction of the signal events
   int width = SensorConfig{}.width, height = SensorConfig{}.height;
   double focal = 0;  ///< pixels; 0 = scaled with the width (200 at 240)
   bool progress = true;  ///< a progress bar on stderr
@@ -33,10 +104,9 @@ inline Recording simulate(const std::string& scene, const SimulateOptions& o, st
   require(o.width >= 8 && o.width <= 8192 && o.height >= 8 && o.height <= 8192,
           "simulate: the sensor's width and height must be between 8 and 8192 pixels");
   require(o.focal >= 0 && std::isfinite(o.focal), "simulate: the focal length must be positive (or 0 for the default)");
-  require(o.noise_rate >= 0 && o.noise_ratio >= 0, "simulate: noise rates must not be negative");
+  require(o.noise_ratio >= 0 && std::isfinite(o.noise_ratio), "simulate: --noise-ratio must not be negative");
   auto spec = scene == "random" ? random_scene(o.seed, texture_pictures(o.textures), scene_text) : load_scene(scene);
-  SensorConfig c = o.realistic ? SensorConfig::realistic() : SensorConfig{};
-  c.noise_rate = o.noise_rate;
+  SensorConfig c = sensor_model(o.sensor, o.seed);
   c.noise_ratio = o.noise_ratio;
   c.log_offset = o.log_offset;
   c.bayer = o.bayer || scene == "blocks";  // the built-in colour scene is seen through an RGGB mosaic

@@ -47,6 +47,8 @@ struct SensorConfig {
   double min_step = 5e-4, max_step = 5e-3;  ///< seconds
   std::uint64_t seed = 1;
 
+  /// A DAVIS-like sensor: asymmetric thresholds with 3 % mismatch, 0.1 ms refractory period, 0.1 Hz
+  /// background activity, three hot pixels, 20 µs timestamp jitter (`simulate --sensor realistic`).
   static SensorConfig realistic() {
     SensorConfig c;
     c.threshold_pos = 0.22;
@@ -73,7 +75,20 @@ struct Recording {
   std::size_t renders = 0;
   std::string scene_name;  ///< the scene's own name
   double duration = 0;     ///< the camera path's length in time, seconds
+  SensorConfig sensor;     ///< the sensor that recorded it (write_recording writes its model to sensor_model.txt)
 };
+
+/// The sensor's model as `name value` lines (sensor_model.txt): thresholds, mismatch, refractory period,
+/// background rate, hot pixels and their rate, jitter, and the seed of its noise.
+inline std::string sensor_model_text(const SensorConfig& c) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "threshold_pos %.9g\nthreshold_neg %.9g\nmismatch %.9g\nrefractory %.9g\nnoise_rate %.9g\nnoise_ratio %.9g\n"
+                "hot_pixels %d\nhot_rate %.9g\njitter %.9g\nseed %llu\n",
+                c.threshold_pos, c.threshold_neg, c.threshold_sigma, c.refractory, c.noise_rate, c.noise_ratio, c.hot_pixels, c.hot_rate,
+                c.jitter, static_cast<unsigned long long>(c.seed));
+  return buf;
+}
 
 class Simulator {
  public:
@@ -117,6 +132,7 @@ class Simulator {
   Recording run(bool progress = false) const {
     Recording rec;
     rec.camera = cam_;
+    rec.sensor = cfg_;
     rec.scene_name = spec_.scene.name;
     rec.duration = spec_.path.duration;
     const int W = cfg_.width, H = cfg_.height;
@@ -246,7 +262,7 @@ class Simulator {
 };
 
 /// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt)
-/// plus sensor.txt and depth/frame_XXXXXXXX.npy; with HDR truth also linear/frame_XXXXXXXX.npy (float32,
+/// plus sensor.txt, sensor_model.txt (sensor_model_text) and depth/frame_XXXXXXXX.npy; with HDR truth also linear/frame_XXXXXXXX.npy (float32,
 /// H×W or H×W×3) and linear/log_offset.txt. Every file is written atomically.
 inline void write_recording(const std::filesystem::path& dir, const Recording& rec) {
   namespace fs = std::filesystem;
@@ -289,6 +305,7 @@ inline void write_recording(const std::filesystem::path& dir, const Recording& r
   std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f 0 0 0 0 0\n", c.fx(), c.fy(), c.cx(), c.cy());
   write_file_atomic(dir / "calib.txt", buf);
   write_file_atomic(dir / "sensor.txt", std::to_string(c.width()) + " " + std::to_string(c.height()) + "\n");
+  write_file_atomic(dir / "sensor_model.txt", sensor_model_text(rec.sensor));
 }
 
 }  // namespace evnerf::sim
