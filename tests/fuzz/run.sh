@@ -92,7 +92,8 @@ fuzz_one() {
 }
 # The harnesses run side by side, one per core (JOBS, default nproc; each is single-threaded), each for
 # its SECONDS; their lines are printed in order once all have ended.
-JOBS=${JOBS:-$(nproc)}
+# (nproc honours OMP_NUM_THREADS, which is 1 here for the harnesses: ask it without.)
+JOBS=${JOBS:-$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)}
 for h in "${HARNESSES[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do wait -n || true; done
   fuzz_one "$h" &
