@@ -1,6 +1,8 @@
 // sim/random_scene.hpp — procedural random scenes from a seed (`evnerf simulate random --seed N`), written
 // as the scene description text of sim/scene.hpp, so a scene is its text: the generator draws from the
-// counter-based Rng (the same numbers on every machine) and writes every value rounded to a few digits.
+// counter-based Rng (the same numbers on every machine) one statement at a time (C++ leaves the order of a
+// call's arguments to the compiler, so no call takes two draws) and writes every value rounded to a few
+// digits. GCC and clang give every seed the same text.
 // What a seed gives: one of the three kinds of path (slider, orbit arc, hand-held; seed mod 3), a floor and
 // a back wall, 2–5 boxes, spheres and rectangles in view, textures with natural-image statistics (fractal
 // value noise, whose octaves halve in amplitude as they double in frequency, i.e. a 1/f² power spectrum),
@@ -36,7 +38,8 @@ class SceneWriter {
 
   /// An RGB colour of the given brightness (its largest channel), with a random tint.
   Vec3 colour(double brightness) {
-    Vec3 c(uniform(0.35, 1.0), uniform(0.35, 1.0), uniform(0.35, 1.0));
+    const double b = uniform(0.35, 1.0), g = uniform(0.35, 1.0), r = uniform(0.35, 1.0);
+    const Vec3 c(r, g, b);
     return c / c.maxCoeff() * brightness;
   }
   /// A texture: half fractal noise, a fifth each checkers and stripes, a tenth photos (noise when there are
@@ -50,14 +53,17 @@ class SceneWriter {
     std::uint64_t kind = below(10);
     kind = kind < 5 ? 0 : kind < 7 ? 1 : kind < 9 ? 2 : pictures_.empty() ? 0 : 3;
     std::string t;
-    if (kind == 0)
-      t = fmt("noise %.3f %d %d", uniform(0.08, 0.3) * resolvable, 4 + static_cast<int>(below(3)), static_cast<int>(below(100000)));
-    else if (kind == 1)
+    if (kind == 0) {
+      const int seed = static_cast<int>(below(100000)), octaves = 4 + static_cast<int>(below(3));
+      t = fmt("noise %.3f %d %d", uniform(0.08, 0.3) * resolvable, octaves, seed);
+    } else if (kind == 1)
       t = fmt("checker %.3f", uniform(0.3, 1.0) * resolvable);
     else if (kind == 2)
       t = fmt("stripes %.3f", uniform(0.3, 1.0) * resolvable);
-    else
-      return fmt("image %s %.3f", pictures_[below(pictures_.size())].c_str(), uniform(0.3, 1.5));
+    else {
+      const double scale = uniform(0.3, 1.5);
+      return fmt("image %s %.3f", pictures_[below(pictures_.size())].c_str(), scale);
+    }
     const std::uint64_t mood = below(8);
     const double hi = mood == 0 ? log_uniform(0.01, 0.1) : log_uniform(0.3, 0.95);
     const double lo = mood == 1 ? log_uniform(0.3, 0.9) * hi : log_uniform(0.01, 0.15);
@@ -103,9 +109,9 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
                                    kRandomSceneVersion);
   const int path_kind = static_cast<int>(seed % 3);  // 0 slider, 1 orbit arc, 2 hand-held: seeds 1..3 show all three
   // Light: travels down (+y is down) and into the scene; ambient against direct light spans a high range.
-  const Vec3 light(w.uniform(-0.6, 0.6), w.uniform(0.3, 1.0), w.uniform(-0.3, 1.0));
-  s += SceneWriter::fmt("light %.4f %.4f %.4f %.4f %.4f\n", light.x(), light.y(), light.z(), w.log_uniform(0.05, 0.4),
-                        w.uniform(0.4, 2.5));
+  const double lz = w.uniform(-0.3, 1.0), ly = w.uniform(0.3, 1.0), lx = w.uniform(-0.6, 0.6);
+  const double direct = w.uniform(0.4, 2.5), ambient = w.log_uniform(0.05, 0.4);
+  s += SceneWriter::fmt("light %.4f %.4f %.4f %.4f %.4f\n", lx, ly, lz, ambient, direct);
   const double bg = w.log_uniform(0.005, 0.05);
   s += SceneWriter::fmt("background %.4f %.4f %.4f\n", bg, bg, bg);
   const int objects = 2 + static_cast<int>(w.below(4));
@@ -125,8 +131,8 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
       }
     }
     const double a0 = w.uniform(-0.7, -0.3), a1 = a0 + w.uniform(0.6, 1.0);
-    s += SceneWriter::fmt("path arc 0 0 0 %.4f %.4f %.4f %.4f %.4f\n", w.uniform(2.2, 3.0), w.uniform(-1.0, -0.4), a0, a1,
-                          w.uniform(2.0, 3.0));
+    const double duration = w.uniform(2.0, 3.0), height = w.uniform(-1.0, -0.4), radius = w.uniform(2.2, 3.0);
+    s += SceneWriter::fmt("path arc 0 0 0 %.4f %.4f %.4f %.4f %.4f\n", radius, height, a0, a1, duration);
     return s;
   }
   // Slider and hand-held: the camera near the origin looking along +z at objects 1.2–3.8 m away, a floor
@@ -141,24 +147,29 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
       const double hx = w.uniform(0.1, 0.35), hy = w.uniform(0.1, 0.35), hz = w.uniform(0.1, 0.35);
       s += SceneWriter::fmt("box %.4f %.4f %.4f  %.4f %.4f %.4f  %s\n", x, y, z, hx, hy, hz, w.texture(z).c_str());
     } else if (kind == 1) {
-      s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, y, z, w.uniform(0.1, 0.35), w.texture(z).c_str());
+      const std::string texture = w.texture(z);
+      s += SceneWriter::fmt("sphere %.4f %.4f %.4f  %.4f  %s\n", x, y, z, w.uniform(0.1, 0.35), texture.c_str());
     } else {
       // A rectangle facing the camera, tilted a little; its u axis is made orthogonal to the normal.
-      const Vec3 n = Vec3(w.uniform(-0.35, 0.35), w.uniform(-0.25, 0.25), -1.0).normalized();
+      const double ny = w.uniform(-0.25, 0.25), nx = w.uniform(-0.35, 0.35);
+      const Vec3 n = Vec3(nx, ny, -1.0).normalized();
       const Vec3 u = (Vec3::UnitX() - n.x() * n).normalized();
+      const std::string texture = w.texture(z);
+      const double half_v = w.uniform(0.15, 0.4), half_u = w.uniform(0.15, 0.5);
       s += SceneWriter::fmt("plane %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f  %s\n", x, y, z, n.x(), n.y(), n.z(),
-                            u.x(), u.y(), u.z(), w.uniform(0.15, 0.5), w.uniform(0.15, 0.4), w.texture(z).c_str());
+                            u.x(), u.y(), u.z(), half_u, half_v, texture.c_str());
     }
   }
   if (path_kind == 0) {
     const double duration = w.uniform(2.0, 3.0);
     const double half = w.uniform(0.2, 0.4);
-    s += SceneWriter::fmt("path slider %.4f 0 0 %.4f 0 0 %.4f %.4f 1 %.4f\n", -half, half, w.uniform(-0.1, 0.1), w.uniform(-0.05, 0.1),
-                          duration);
+    const double look_y = w.uniform(-0.05, 0.1), look_x = w.uniform(-0.1, 0.1);
+    s += SceneWriter::fmt("path slider %.4f 0 0 %.4f 0 0 %.4f %.4f 1 %.4f\n", -half, half, look_x, look_y, duration);
   } else {
     // Sideways speed peaks at 1.5·2π·amplitude/duration: 0.3–0.75 m/s (the built-in room walks at 1.3).
-    s += SceneWriter::fmt("path handheld 0 0 0  %.4f %.4f 1  %.4f %.4f\n", w.uniform(-0.1, 0.1), w.uniform(-0.05, 0.1),
-                          w.uniform(0.1, 0.2), w.uniform(2.5, 3.0));
+    const double duration = w.uniform(2.5, 3.0), amplitude = w.uniform(0.1, 0.2);
+    const double look_y = w.uniform(-0.05, 0.1), look_x = w.uniform(-0.1, 0.1);
+    s += SceneWriter::fmt("path handheld 0 0 0  %.4f %.4f 1  %.4f %.4f\n", look_x, look_y, amplitude, duration);
   }
   return s;
 }
