@@ -81,7 +81,7 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert not np.array_equal(m10.render(P)[0], img)
     with pytest.raises(evnerf.Error, match="weight of 0.3 for a variant without the term"):
         evnerf.train(d, iterations=2, threads=1, tv=0.3, preset="paper")
-    # The parameter average is a keyword    # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
+    # The parameter average is a keyword: off, training takes the same steps (the same thresholds) but the
     # renders are those of the trained parameters; a decay of 1 is refused.
     m4 = evnerf.train(d, iterations=20, threads=2, seed=3, average=0.0)
     assert np.array_equal(m4.thresholds, m.thresholds) and not np.array_equal(m4.render(P)[0], img)
