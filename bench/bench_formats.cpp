@@ -1,8 +1,9 @@
 // Events per second read from each recording format, from the same synthetic stream of 2 M events
 // (240×180, 10 µs apart on average, as bench_main's text benchmarks) written by evnerf's own writers to files
 // in the temporary folder (in the page cache, as a re-read recording is): IJRR events.txt (the reference,
-// parsed by the fast text reader, no .npy cache), event_utils/HQF HDF5, and ROS bags with uncompressed,
-// lz4 and bz2 chunks (1 ms of events per dvs_msgs/EventArray, rosbag's 768 kB chunks).
+// parsed by the fast text reader, no .npy cache), Prophesee EVT 2.0 and EVT 3.0 .raw (times on whole
+// microseconds), event_utils/HQF HDF5, and ROS bags with uncompressed, lz4 and bz2 chunks (1 ms of events per
+// dvs_msgs/EventArray, rosbag's 768 kB chunks).
 // bench/formats.sh runs it and prints the medians.
 #include <benchmark/benchmark.h>
 #include <evnerf/core/rng.hpp>
@@ -57,6 +58,16 @@ void BM_read_text(benchmark::State& st) {
   for (auto _ : st) benchmark::DoNotOptimize(io::read_events_txt(path / "events.txt", 240, 180));
   st.SetItemsProcessed(static_cast<std::int64_t>(st.iterations() * kEvents));
 }
+void BM_read_prophesee(benchmark::State& st, const std::string& version) {
+  const auto path = dir() / (version == "2.0" ? "events.evt2.raw" : "events.raw");
+  io::Dataset us = dataset();
+  for (auto& t : us.events.t) t = std::round(t * 1e6) / 1e6;
+  io::write_prophesee_raw(path, us, version);
+  io::PropheseeInfo info;
+  for (auto _ : st) benchmark::DoNotOptimize(io::read_prophesee_events(path, {}, info));
+  st.SetItemsProcessed(static_cast<std::int64_t>(st.iterations() * kEvents));
+  st.counters["MB"] = static_cast<double>(fs::file_size(path)) / 1e6;
+}
 #ifdef EVNERF_HAVE_HDF5
 void BM_read_hdf5(benchmark::State& st) {
   const auto path = dir() / "events.h5";
@@ -81,6 +92,8 @@ void BM_read_rosbag(benchmark::State& st, const std::string& compression) {
 }  // namespace
 
 BENCHMARK(BM_read_text)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_read_prophesee, evt2, std::string("2.0"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_read_prophesee, evt3, std::string("3.0"))->Unit(benchmark::kMillisecond)->UseRealTime();
 #ifdef EVNERF_HAVE_HDF5
 BENCHMARK(BM_read_hdf5)->Unit(benchmark::kMillisecond)->UseRealTime();
 #endif

@@ -17,7 +17,7 @@ python3 - "$OUT/formats.json" <<'PY'
 import json, sys
 runs = json.load(open(sys.argv[1]))["benchmarks"]
 med = {r["run_name"].replace("/real_time", ""): r for r in runs if r.get("aggregate_name") == "median"}
-order = ["BM_read_text", "BM_read_hdf5", "BM_read_rosbag/none", "BM_read_rosbag/lz4", "BM_read_rosbag/bz2"]
+order = ["BM_read_text", "BM_read_prophesee/evt2", "BM_read_prophesee/evt3", "BM_read_hdf5", "BM_read_rosbag/none", "BM_read_rosbag/lz4", "BM_read_rosbag/bz2"]
 med = {k: med[k] for k in order if k in med}
 text = med["BM_read_text"]["items_per_second"]
 print(f"{'format':<22} {'M events/s':>10} {'vs text':>8} {'file MB':>8}")

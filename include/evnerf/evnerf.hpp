@@ -26,6 +26,7 @@
 #include "io/image_io.hpp"
 #include "io/inspect.hpp"
 #include "io/npy.hpp"
+#include "io/prophesee.hpp"
 #include "io/recording.hpp"
 #include "io/robust_e_nerf.hpp"
 #include "io/text.hpp"

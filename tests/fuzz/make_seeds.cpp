@@ -121,6 +121,28 @@ int main(int argc, char** argv) {
       put("checkpoint", std::string("checksummed") + kind, std::string(1, '\1') + ck.substr(0, ck.size() - 8));
     }
   }
+  {
+    // Prophesee files from the simulated recording: EVT 2.0, EVT 3.0 (evnerf's writers), and a .dat file.
+    io::LoadOptions lo;
+    lo.use_cache = false;
+    auto d = io::load(rec_dir, lo);
+    for (auto& t : d.events.t) t = std::round(t * 1e6) / 1e6;
+    for (const char* v : {"2.0", "3.0"}) {
+      const fs::path f = root / "prophesee_tmp" / (std::string("seed") + v + ".raw");
+      io::write_prophesee_raw(f, d, v);
+      put("prophesee", std::string("evt") + v, read_file(f));
+    }
+    std::string dat = "% Date 2020-01-01 00:00:00\n% Version 2\n% Width 32\n% Height 24\n";
+    dat += std::string{'\x0c', '\x08'};
+    for (std::size_t i = 0; i < d.events.size() && i < 300; ++i) {
+      const auto t = static_cast<std::uint32_t>(std::llround(d.events.t[i] * 1e6));
+      const std::uint32_t w = d.events.x[i] | std::uint32_t(d.events.y[i]) << 14 | std::uint32_t(d.events.polarity[i] > 0) << 28;
+      for (int k = 0; k < 4; ++k) dat.push_back(static_cast<char>(t >> (8 * k)));
+      for (int k = 0; k < 4; ++k) dat.push_back(static_cast<char>(w >> (8 * k)));
+    }
+    put("prophesee", "dat", dat);
+    fs::remove_all(root / "prophesee_tmp");
+  }
   fs::remove_all(rec_dir);
   std::printf("wrote %d seeds under %s\n", written, root.c_str());
   return 0;

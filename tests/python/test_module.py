@@ -4,6 +4,7 @@ Run by ctest (python.module) with PYTHONPATH at the built module; by hand:
     PYTHONPATH=build/examples/python /usr/bin/python3 -m pytest tests/python
 """
 import json
+import os
 import signal
 import threading
 import time
@@ -347,3 +348,25 @@ def test_the_sensor_of_a_simulation(tmp_path):
         evnerf.simulate("planes", width=24, height=18, threshold_pos=-0.1)
     with pytest.raises(evnerf.Error, match="unknown keyword 'refractory_period'"):
         evnerf.simulate("planes", width=24, height=18, refractory_period=0.001)
+
+
+PROPHESEE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "prophesee_evt2_sample", "evt2.raw")
+
+
+@pytest.mark.skipif(not os.path.exists(PROPHESEE), reason="../shared/data/prophesee_evt2_sample is absent")
+def test_a_prophesee_recording_gives_the_independent_decoders_digests(tmp_path):
+    import hashlib
+    calib = tmp_path / "calib.txt"
+    calib.write_text("500 500 320 240\n")
+    d = evnerf.load(PROPHESEE, calib=calib)
+    e = d.events
+    assert len(d) == 521252 and d.width == 640 and d.height == 480
+    digest = lambda a: hashlib.sha3_224(a.tobytes()).hexdigest()
+    assert digest(np.rint(e.t * 1e6).astype("<u8")) == "9855ba39c1baea316ae623b72466e420df60a7510248391856eb4eaf"
+    assert digest(e.x.astype("<u2")) == "93fc6cff19b483fd48ca53345c6c1cf05123681d7b7272a1717e9303"
+    assert digest(e.y.astype("<u2")) == "07cfaef58e5fa71ce9910ed5b88fb7e9fcf71e4a8654cc2c4666f1ae"
+    assert digest((e.p > 0).astype(np.bool_)) == "d2b5e9c4047f4c431937b24cd46c8b504e055372b0ded1df77f0ffa1"
+    w = evnerf.load(PROPHESEE, calib=calib, time_window=(913.75, 913.76))
+    assert len(w) == int(np.count_nonzero((e.t >= 913.75) & (e.t < 913.76)))
+    with pytest.raises(evnerf.Error, match="sensor_size must be"):
+        evnerf.load(PROPHESEE, calib=calib, sensor_size=(0, 480))

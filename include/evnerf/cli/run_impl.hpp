@@ -170,6 +170,17 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                     "only the events from T0 to T1 (seconds on the recording's clock as inspect shows it; DSEC HDF5 files are read "
                     "through ms_to_idx, only the window)")
         ->expected(2);
+    sub->add_option_function<std::string>(
+           "--sensor-size",
+           [&](const std::string& v) {
+             int w = 0, h = 0;
+             char end = 0;
+             if (std::sscanf(v.c_str(), "%dx%d%c", &w, &h, &end) != 2 || w <= 0 || h <= 0 || w > 65535 || h > 65535)
+               throw CLI::ValidationError("--sensor-size", "expected WxH (for example 1280x720), got '" + v + "'");
+             load_opt.width = w, load_opt.height = h;
+           },
+           "the sensor's size WxH, where the recording does not give it (a Prophesee file whose header names no geometry)")
+        ->type_name("WxH");
     sub->add_option("--format", load_opt.format,
                     "the reader, where the content does not decide it (a folder holding two layouts): " + io::format_list())
         ->check(CLI::IsMember(io::format_names()));
@@ -333,9 +344,11 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
     if (*inspect) {
       const io::Format& format = io::detect_format(folder, load_opt.format);
       if (format.inspect) std::fputs(format.inspect(folder).c_str(), stdout);
+      load_opt.calibration_optional = true;  // inspect describes a file without calibration; training will ask for it
       auto d = io::load(folder, load_opt);
       fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
       fmt::print("format        {}\n", format.name);
+      for (const auto& note : d.notes) fmt::print("{}\n", note);
       if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
       if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
       std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);

@@ -1,7 +1,8 @@
 // io/dataset.hpp — the formats evnerf reads and writes, as one table (formats()): an IJRR-layout folder,
-// an EventNeRF scene, a Robust e-NeRF sequence, an event HDF5 file, a ROS bag. io::load picks the reader
-// from the content (or LoadOptions::format), io::convert the writer from the output's name; --format,
-// inspect, convert and the error texts that list formats come from the table. A new format is one header
+// an EventNeRF scene, a Robust e-NeRF sequence, Prophesee .raw (EVT 2.0, 3.0) and .dat files, an event HDF5
+// file, a ROS bag. io::load picks the reader from the content (or LoadOptions::format), io::convert the
+// writer from the output's name; --format, inspect, convert and the error texts that list formats come from
+// the table. A new format is one header
 // (its reader, `<name>_format()` returning its Format) and one line in formats(). Depends on io/.
 #pragma once
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "eventnerf.hpp"
+#include "prophesee.hpp"
 #include "recording.hpp"
 #include "robust_e_nerf.hpp"
 #ifdef EVNERF_HAVE_HDF5
@@ -128,23 +130,14 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
 /// LoadOptions names, or calib.txt and groundtruth.txt beside it. Frames, when the file has them, are
 /// kept in memory.
 inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
-  namespace fs = std::filesystem;
   auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height, opt.t_begin, opt.t_end)
                                      : read_hdf5(path, opt.width, opt.height, opt.t_begin, opt.t_end);
   check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
   Dataset d;
-  d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
-  const fs::path calib = opt.calib.empty() ? d.folder / "calib.txt" : opt.calib;
-  if (!fs::exists(calib))
-    throw Error(calib.string(), 0, "missing: an HDF5 recording takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]])");
-  d.camera = read_calib_source(calib, rec.width, rec.height);
-  d.events = std::move(rec.events);
   d.frames.t = std::move(rec.frame_times);
   d.frames.images = std::move(rec.frames);
-  if (!opt.poses.empty())
-    d.trajectory = read_pose_source(opt.poses, d.frames);
-  else if (fs::exists(d.folder / "groundtruth.txt"))
-    d.trajectory = read_poses_txt(d.folder / "groundtruth.txt");
+  attach_calibration_and_poses(path, opt, d, rec.width, rec.height, "an HDF5 recording");
+  d.events = std::move(rec.events);
   return d;
 }
 #endif
@@ -157,9 +150,7 @@ inline void write_hdf5_recording(const std::filesystem::path& path, const Datase
   std::vector<Image> frames;
   for (std::size_t f = 0; f < d.frames.size(); ++f) frames.push_back(frame_image(d.frames, f));
   write_hdf5(path, d.events, d.camera.width(), d.camera.height(), times, frames);
-  const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
-  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
-  if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+  write_calibration_and_poses_beside(path, d);
 }
 #endif
 
@@ -306,6 +297,7 @@ inline const std::vector<Format>& formats() {
       {"eventnerf", true, "an EventNeRF scene folder (train/events/*.npz, train/pose, train/intrinsics)", &is_eventnerf, &load_eventnerf},
       {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)", &is_robust_e_nerf,
        &load_robust_e_nerf},
+      evt2_format(), evt3_format(), dat_format(),
 #ifdef EVNERF_HAVE_HDF5
       {"hdf5", false, kHdf5Description, &is_hdf5, &load_hdf5,
        [](const fs::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); }, {".h5", ".hdf5"}},
@@ -381,16 +373,21 @@ inline const Format& detect_format(const std::filesystem::path& path, const std:
 /// reader is picked from the content, not the name (detect_format).
 inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) { return detect_format(path, opt.format).load(path, opt); }
 
-/// Writes a recording in the format `out`'s name chooses: the file format whose extension it ends in,
-/// else (a folder) the IJRR layout. Returns the format's name.
+/// Writes a recording in the format `out`'s name chooses: the file format with the longest extension its
+/// name ends in (`.evt2.raw` before `.raw`), else (a folder) the IJRR layout. Returns the format's name.
 inline std::string convert(const std::filesystem::path& out, const Dataset& d, const WriteOptions& opt = {}) {
-  const std::string ext = out.extension().string();
+  const std::string name = out.filename().string();
+  const Format* best = nullptr;
+  std::size_t best_len = 0;
   for (const auto& f : formats())
-    if (std::find(f.extensions.begin(), f.extensions.end(), ext) != f.extensions.end()) {
-      if (!f.write) throw Error(out.string(), 0, std::string("format '") + f.name + "': " + (*f.unavailable ? f.unavailable : "no writer"));
-      f.write(out, d, opt);
-      return f.name;
-    }
+    for (const auto& ext : f.extensions)
+      if (name.size() > ext.size() && name.ends_with(ext) && ext.size() > best_len) best = &f, best_len = ext.size();
+  if (best) {
+    if (!best->write)
+      throw Error(out.string(), 0, std::string("format '") + best->name + "': " + (*best->unavailable ? best->unavailable : "no writer"));
+    best->write(out, d, opt);
+    return best->name;
+  }
   for (const auto& f : formats())
     if (f.folder && f.write) {
       f.write(out, d, opt);

@@ -41,6 +41,8 @@ inline Summary summarize(const Dataset& d) {
     s.frame_end = d.frames.t.back();
   }
   s.poses = d.trajectory.size();
+  if (d.uncalibrated)
+    s.warnings.push_back("no calibration: training needs calib.txt beside the file or --calib (the camera here is a pinhole guess)");
   char buf[256];
   if (s.poses) {
     s.pose_begin = d.trajectory.front();

@@ -43,6 +43,9 @@ struct LoadOptions {
   /// The reader, where the content does not decide it (a folder holding two layouts): a name of
   /// io::formats(); empty = from the content.
   std::string format;
+  /// A recording in one file without calibration beside it loads with a pinhole guess and
+  /// Dataset::uncalibrated instead of an Error (inspect describes such a file; training needs --calib).
+  bool calibration_optional = false;
 };
 
 struct Dataset {
@@ -63,6 +66,10 @@ struct Dataset {
   /// green sites of the mosaic); empty: every pixel. Training draws its pixels among these only.
   std::vector<std::uint8_t> sites;
   bool from_cache = false;
+  /// The camera is a guess: no calibration was found (LoadOptions::calibration_optional).
+  bool uncalibrated = false;
+  /// What the reader says of the file beyond the recording (a header's kind, skipped words): inspect shows it.
+  std::vector<std::string> notes;
 };
 
 /// The colour filter of a recording's events: the one it names, else RGGB (the Color-DAVIS346's, and the
@@ -269,5 +276,35 @@ struct Format {
   std::string (*inspect)(const std::filesystem::path&) = nullptr;
   const char* unavailable = "";  ///< why this build has no reader (the Debian package to install), or ""
 };
+
+/// A recording held in one file (HDF5, Prophesee): its calibration from LoadOptions::calib, else calib.txt
+/// beside it; its poses from LoadOptions::poses, else groundtruth.txt beside it (when present). Without a
+/// calibration, an Error naming the file to give, unless LoadOptions::calibration_optional: then a pinhole
+/// guess (focal length the sensor's width, centred) and Dataset::uncalibrated.
+inline void attach_calibration_and_poses(const std::filesystem::path& path, const LoadOptions& opt, Dataset& d, int width, int height,
+                                         const char* what) {
+  d.folder = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  const std::filesystem::path calib = opt.calib.empty() ? d.folder / "calib.txt" : opt.calib;
+  if (!opt.calib.empty() || std::filesystem::exists(calib)) {
+    d.camera = read_calib_source(calib, width, height);
+  } else if (opt.calibration_optional) {
+    d.camera = geometry::Camera(width, height, width, width, 0.5 * width, 0.5 * height);
+    d.uncalibrated = true;
+  } else {
+    throw Error(calib.string(), 0, std::string("missing: ") + what +
+                                       " takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]]) or --calib");
+  }
+  if (!opt.poses.empty())
+    d.trajectory = read_pose_source(opt.poses, d.frames);
+  else if (std::filesystem::exists(d.folder / "groundtruth.txt"))
+    d.trajectory = read_poses_txt(d.folder / "groundtruth.txt");
+}
+
+/// Writes calib.txt and, when there are poses, groundtruth.txt beside a recording written as one file.
+inline void write_calibration_and_poses_beside(const std::filesystem::path& path, const Dataset& d) {
+  const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
+  if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+}
 
 }  // namespace evnerf::io

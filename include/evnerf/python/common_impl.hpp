@@ -81,10 +81,15 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
   m.def(
       "load",
       [](const fs::path& path, std::optional<fs::path> calib, std::optional<fs::path> poses, std::optional<std::pair<double, double>> window,
-         const std::string& format) {
+         const std::string& format, std::optional<std::pair<int, int>> sensor_size) {
         io::LoadOptions o;
         if (calib) o.calib = *calib;
         if (poses) o.poses = *poses;
+        if (sensor_size) {
+          if (sensor_size->first <= 0 || sensor_size->second <= 0 || sensor_size->first > 65535 || sensor_size->second > 65535)
+            throw Error("load: sensor_size must be (width, height), each 1 to 65535");
+          o.width = sensor_size->first, o.height = sensor_size->second;
+        }
         if (window) {
           o.t_begin = window->first;
           o.t_end = window->second;
@@ -94,9 +99,10 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
         return Dataset{std::make_shared<io::Dataset>(io::load(path, o))};
       },
       py::arg("path"), py::kw_only(), py::arg("calib") = py::none(), py::arg("poses") = py::none(), py::arg("time_window") = py::none(),
-      py::arg("format") = "",
-      "Any recording evnerf reads (IJRR folder, EventNeRF or Robust e-NeRF folder, event HDF5, ROS bag); calib and poses as "
-      "the command line's --calib and --poses, time_window (t0, t1) seconds, format as --format.");
+      py::arg("format") = "", py::arg("sensor_size") = py::none(),
+      "Any recording evnerf reads (IJRR folder, EventNeRF or Robust e-NeRF folder, Prophesee .raw or .dat, event HDF5, ROS bag); "
+      "calib and poses as the command line's --calib and --poses, time_window (t0, t1) seconds, format as --format, "
+      "sensor_size (width, height) as --sensor-size.");
 
   m.def(
       "simulate",

@@ -1,0 +1,445 @@
+// io/prophesee.hpp — Prophesee's files: `.raw` in EVT 2.0 (32-bit words) and EVT 3.0 (16-bit words, vectorised),
+// and the older `.dat` CD files; writers for EVT 2.0 and EVT 3.0. Each file starts with text lines beginning
+// with '%' (`% evt 3.0`, `% format EVT3;height=720;width=1280`, `% geometry 1280x720`, `% plugin_name …`,
+// `% Width 640` in .dat); the sensor's size comes from those lines, else from the sensor generation the
+// plugin names (Gen3: 640×480, Gen4 / IMX636: 1280×720, GenX320: 320×320), else from --sensor-size.
+// Words are little-endian. EVT 2.0: type in bits 31–28; a CD word (0 OFF, 1 ON) holds the 6 low bits of the
+// microsecond time (27–22), x (21–11), y (10–0); EVT_TIME_HIGH (8) the time's bits 33–6. EVT 3.0: type in bits
+// 15–12; EVT_ADDR_Y (0) sets y, EVT_ADDR_X (2) is one event at x with polarity bit 11, VECT_BASE_X (3) sets a
+// base x and polarity, VECT_12 (4) and VECT_8 (5) are events at the base + each set bit of their mask (the base
+// then moves on by 12 or 8), EVT_TIME_LOW (6) and EVT_TIME_HIGH (8) set the two 12-bit halves of a 24-bit
+// microsecond time that wraps every 16.8 s. External triggers (0xA) and vendor words are skipped and counted.
+// .dat: after the header, a byte of event type and a byte of event size (8), then records of a 32-bit
+// microsecond time and x (bits 13–0), y (27–14), polarity (31–28). Times are held as integer microseconds and
+// given in seconds; a time that runs backwards, a coordinate outside the sensor, a truncated word or an unknown
+// version is an Error naming the file and the byte offset. A recording in one file takes calib.txt and
+// groundtruth.txt beside it (or --calib, --poses). Depends on io/recording.hpp and io/ijrr.hpp.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ijrr.hpp"
+#include "recording.hpp"
+
+namespace evnerf::io {
+
+/// What a Prophesee file's header and words say (inspect shows it).
+struct PropheseeInfo {
+  std::string kind;  ///< "evt 2.0", "evt 3.0" or "dat"
+  int width = 0, height = 0;
+  std::string geometry_from;  ///< which header line (or flag) gave the size
+  std::size_t header_bytes = 0;
+  std::size_t events = 0, triggers = 0, other_words = 0;
+};
+
+namespace detail {
+/// The '%' lines at the start of a file, as (key, value) pairs split at the first space.
+struct PercentHeader {
+  std::vector<std::pair<std::string, std::string>> lines;
+  std::size_t bytes = 0;
+  const std::string* find(const std::string& key) const {
+    for (const auto& [k, v] : lines)
+      if (k == key) return &v;
+    return nullptr;
+  }
+};
+
+inline PercentHeader read_percent_header(std::FILE* f, const std::string& file) {
+  PercentHeader h;
+  std::string line;
+  for (;;) {
+    const int c = std::fgetc(f);
+    if (c != '%') {
+      if (c != EOF) std::ungetc(c, f);
+      break;
+    }
+    line.clear();
+    int d;
+    while ((d = std::fgetc(f)) != EOF && d != '\n') {
+      line.push_back(static_cast<char>(d));
+      if (line.size() > 4096) throw Error(file, 0, "header line at byte " + std::to_string(h.bytes) + " longer than 4096 bytes");
+    }
+    if (d == EOF) throw Error(file, 0, "header line at byte " + std::to_string(h.bytes) + " runs to the end of the file");
+    h.bytes += line.size() + 2;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    const auto a = line.find_first_not_of(' ');
+    if (a == std::string::npos) continue;
+    const auto sp = line.find(' ', a);
+    h.lines.emplace_back(line.substr(a, sp == std::string::npos ? std::string::npos : sp - a),
+                         sp == std::string::npos ? std::string() : line.substr(line.find_first_not_of(' ', sp) == std::string::npos
+                                                                                    ? line.size()
+                                                                                    : line.find_first_not_of(' ', sp)));
+    if (h.lines.back().first == "end") break;
+    if (h.lines.size() > 10000) throw Error(file, 0, "more than 10000 header lines");
+  }
+  return h;
+}
+
+/// An integer header value, or -1.
+inline long header_int(const std::string& s) {
+  char* end = nullptr;
+  const long v = std::strtol(s.c_str(), &end, 10);
+  return end != s.c_str() && v > 0 && v <= 65535 ? v : -1;
+}
+
+/// The sensor size from the header (format, geometry, Width/Height, sensor generation), or opt's when given.
+inline void sensor_geometry(const PercentHeader& h, const LoadOptions& opt, const std::string& file, PropheseeInfo& info) {
+  if (opt.width > 0 && opt.height > 0) {
+    info.width = opt.width, info.height = opt.height, info.geometry_from = "--sensor-size";
+  } else if (const auto* fmt = h.find("format"); fmt && fmt->find("width=") != std::string::npos && fmt->find("height=") != std::string::npos) {
+    info.width = static_cast<int>(header_int(fmt->substr(fmt->find("width=") + 6)));
+    info.height = static_cast<int>(header_int(fmt->substr(fmt->find("height=") + 7)));
+    info.geometry_from = "the header's format line";
+  } else if (const auto* g = h.find("geometry"); g && g->find('x') != std::string::npos) {
+    info.width = static_cast<int>(header_int(*g));
+    info.height = static_cast<int>(header_int(g->substr(g->find('x') + 1)));
+    info.geometry_from = "the header's geometry line";
+  } else if (h.find("Width") && h.find("Height")) {
+    info.width = static_cast<int>(header_int(*h.find("Width")));
+    info.height = static_cast<int>(header_int(*h.find("Height")));
+    info.geometry_from = "the header's Width and Height lines";
+  } else {
+    std::string gen;
+    if (const auto* p = h.find("plugin_name")) gen = *p;
+    if (const auto* s = h.find("sensor_generation")) gen += " gen" + *s;
+    std::transform(gen.begin(), gen.end(), gen.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    gen.erase(std::remove(gen.begin(), gen.end(), '.'), gen.end());
+    if (gen.find("genx320") != std::string::npos || gen.find("imx8") != std::string::npos)
+      info.width = 320, info.height = 320;
+    else if (gen.find("gen4") != std::string::npos || gen.find("imx636") != std::string::npos)
+      info.width = 1280, info.height = 720;
+    else if (gen.find("gen3") != std::string::npos)
+      info.width = 640, info.height = 480;
+    info.geometry_from = "the sensor generation of the header's plugin_name";
+  }
+  if (info.width <= 0 || info.height <= 0)
+    throw Error(file, 0, "the header gives no sensor size (no format, geometry or Width/Height line and no known sensor generation): "
+                         "give it with --sensor-size WxH");
+  check_sensor_size(info.width, info.height, file + " (the sensor size of its header)");
+}
+
+/// Collects decoded events: times in microseconds (as the file holds them) into seconds, only those of the
+/// window; checks order and coordinates. `done` once a time passes the window's end. room(n) before a block
+/// that may add up to n events; finish() gives back what room() reserved beyond them.
+class RawSink {
+ public:
+  RawSink(events::EventStream& ev, const LoadOptions& opt, const std::string& file, int w, int h)
+      : ev_(ev), file_(file), w_(static_cast<unsigned>(w)), h_(static_cast<unsigned>(h)), t0_(opt.t_begin), t1_(opt.t_end) {}
+  void room(std::size_t n) {
+    if (ev_.t.size() + n <= ev_.t.capacity()) return;
+    const std::size_t size = std::max(ev_.t.size() + n, ev_.t.capacity() + ev_.t.capacity() / 2);
+    ev_.reserve(size);
+  }
+  void finish() {
+    if (ev_.t.capacity() > ev_.t.size() + ev_.t.size() / 4 + 4096)
+      ev_.t.shrink_to_fit(), ev_.x.shrink_to_fit(), ev_.y.shrink_to_fit(), ev_.polarity.shrink_to_fit();
+  }
+  void add(std::int64_t us, unsigned x, unsigned y, int on, std::size_t offset) {
+    if (us < last_) [[unlikely]]
+      bad(offset, "time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(last_) + " µs)");
+    if (x >= w_ || y >= h_) [[unlikely]]
+      bad(offset, "event at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w_) + "x" +
+                      std::to_string(h_) + " sensor");
+    last_ = us;
+    ++count_;
+    const double t = static_cast<double>(us) / 1e6;
+    if (t >= t1_) [[unlikely]] {
+      done_ = true;
+      return;
+    }
+    if (t < t0_) return;
+    // room() reserved for it: the stores do not reallocate.
+    ev_.t.push_back(t);
+    ev_.x.push_back(static_cast<std::uint16_t>(x));
+    ev_.y.push_back(static_cast<std::uint16_t>(y));
+    ev_.polarity.push_back(static_cast<std::int8_t>(on ? 1 : -1));
+  }
+  [[noreturn]] void bad(std::size_t offset, const std::string& what) const {
+    throw Error(file_, 0, "byte " + std::to_string(offset) + ": " + what);
+  }
+  bool done() const { return done_; }
+  std::size_t count() const { return count_; }
+
+ private:
+  events::EventStream& ev_;
+  std::string file_;
+  unsigned w_, h_;
+  double t0_, t1_;
+  std::int64_t last_ = 0;
+  std::size_t count_ = 0;
+  bool done_ = false;
+};
+
+/// Reads `f` from its position in blocks of whole words of `word` bytes, calling `block(words, n, offset)`
+/// until it returns false or the file ends; a file that ends inside a word is an Error.
+template <class Block>
+void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, Block&& block) {
+  std::vector<unsigned char> buf(std::size_t(1) << 20);
+  std::size_t keep = 0;
+  for (;;) {
+    const std::size_t got = std::fread(buf.data() + keep, 1, buf.size() - keep, f) + keep;
+    if (std::ferror(f)) throw Error(file, 0, "read error after byte " + std::to_string(offset));
+    const std::size_t whole = got / word * word;
+    if (whole && !block(buf.data(), whole / word, offset)) return;
+    offset += whole;
+    keep = got - whole;
+    if (got < buf.size()) {
+      if (keep) throw Error(file, 0, "byte " + std::to_string(offset) + ": the file ends inside a " + std::to_string(word) + "-byte word");
+      return;
+    }
+    std::memmove(buf.data(), buf.data() + whole, keep);
+  }
+}
+
+inline std::uint32_t le32(const unsigned char* p) { return p[0] | p[1] << 8 | p[2] << 16 | static_cast<std::uint32_t>(p[3]) << 24; }
+inline std::uint16_t le16(const unsigned char* p) { return static_cast<std::uint16_t>(p[0] | p[1] << 8); }
+
+inline void decode_evt2(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
+  std::int64_t high = -1;  // the time's bits 33–6 (with wraps past 2^34 µs added); -1 before the first
+  read_words(f, 4, offset, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+    sink.room(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t w = le32(p + 4 * i);
+      const unsigned type = w >> 28;
+      if (type <= 1) {
+        if (high < 0) continue;  // before the first time base: its time is unknown
+        sink.add(high << 6 | (w >> 22 & 63), w >> 11 & 0x7FF, w & 0x7FF, static_cast<int>(type), at + 4 * i);
+        if (sink.done()) return false;
+      } else if (type == 8) {
+        std::int64_t h = w & 0x0FFFFFFF;
+        if (high >= 0) {
+          h += high >> 28 << 28;
+          if (h < high) {
+            if (high - h < std::int64_t(1) << 27) sink.bad(at + 4 * i, "EVT_TIME_HIGH runs backwards");
+            h += std::int64_t(1) << 28;  // the 34-bit time wrapped (after 4 h 46 min)
+          }
+        }
+        high = h;
+      } else if (type == 0xA) {
+        ++info.triggers;
+      } else {
+        ++info.other_words;
+      }
+    }
+    return true;
+  });
+}
+
+inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
+  std::int64_t high = -1, low = 0;  // high: bits 23–12 with the 24-bit wraps added
+  unsigned y = 0, base = 0;
+  int pol = 0;
+  bool have_y = false;
+  read_words(f, 2, offset, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+    sink.room(n);  // one event per word; a vector word makes room for its 12
+    for (std::size_t i = 0; i < n; ++i) {
+      const unsigned w = le16(p + 2 * i), type = w >> 12;
+      const std::size_t off = at + 2 * i;
+      switch (type) {
+        case 0x0: y = w & 0x7FF, have_y = true; break;
+        case 0x2:
+          if (high < 0 || !have_y) break;
+          sink.add(high << 12 | low, w & 0x7FF, y, w >> 11 & 1, off);
+          if (sink.done()) return false;
+          break;
+        case 0x3: base = w & 0x7FF, pol = w >> 11 & 1; break;
+        case 0x4:
+        case 0x5: {
+          const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
+          sink.room(12);
+          if (high >= 0 && have_y)
+            for (unsigned m = mask; m; m &= m - 1) {
+              sink.add(high << 12 | low, base + static_cast<unsigned>(__builtin_ctz(m)), y, pol, off);
+              if (sink.done()) return false;
+            }
+          base += len;
+          break;
+        }
+        case 0x6: low = w & 0xFFF; break;
+        case 0x8: {
+          std::int64_t h = w & 0xFFF;
+          if (high >= 0) {
+            h += high >> 12 << 12;
+            if (h < high) {
+              if (high - h < 0x800) sink.bad(off, "EVT_TIME_HIGH runs backwards");
+              h += 0x1000;  // the 24-bit time wrapped (every 16.8 s)
+            }
+          }
+          high = h;
+          break;
+        }
+        case 0xA: ++info.triggers; break;
+        default: ++info.other_words;
+      }
+    }
+    return true;
+  });
+}
+
+inline void decode_dat(std::FILE* f, std::size_t offset, RawSink& sink, const std::string& file) {
+  unsigned char ts[2];
+  if (std::fread(ts, 1, 2, f) != 2) throw Error(file, 0, "byte " + std::to_string(offset) + ": no event type and size after the header");
+  if (ts[1] != 8)
+    throw Error(file, 0, "byte " + std::to_string(offset + 1) + ": event size " + std::to_string(ts[1]) +
+                             " (a .dat file of CD events has 8-byte records)");
+  std::int64_t wraps = 0, last = -1;
+  read_words(f, 8, offset + 2, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+    sink.room(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::int64_t t = le32(p + 8 * i);
+      const std::uint32_t w = le32(p + 8 * i + 4);
+      if (last >= 0 && t + wraps < last && last - (t + wraps) > (std::int64_t(1) << 31)) wraps += std::int64_t(1) << 32;
+      t += wraps;
+      last = t;
+      sink.add(t, w & 0x3FFF, w >> 14 & 0x3FFF, (w >> 28) != 0, at + 8 * i);
+      if (sink.done()) return false;
+    }
+    return true;
+  });
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+
+/// Opens a Prophesee file and reads its header: the kind ("evt 2.0", "evt 3.0", "dat") or "" when it is none.
+inline std::string prophesee_kind(const PercentHeader& h) {
+  std::string v;
+  if (const auto* e = h.find("evt")) v = *e;
+  if (const auto* fmt = h.find("format")) {
+    const auto s = fmt->substr(0, fmt->find(';'));
+    v = s == "EVT2" ? "2.0" : s == "EVT3" ? "3.0" : s == "EVT21" ? "2.1" : s;
+  }
+  if (!v.empty()) return "evt " + v;
+  return h.find("Width") || h.find("Version") || h.find("Date") ? "dat" : "";
+}
+}  // namespace detail
+
+/// Reads a Prophesee .raw (EVT 2.0, 3.0) or .dat file's events (only LoadOptions' time window; reading stops
+/// past its end); `info` gets what the header and words said.
+inline events::EventStream read_prophesee_events(const std::filesystem::path& path, const LoadOptions& opt, PropheseeInfo& info) {
+  const std::string file = path.string();
+  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
+  const auto h = detail::read_percent_header(f.get(), file);
+  info.kind = detail::prophesee_kind(h);
+  info.header_bytes = h.bytes;
+  if (info.kind != "evt 2.0" && info.kind != "evt 3.0" && info.kind != "dat")
+    throw Error(file, 0, "Prophesee " + (info.kind.empty() ? std::string("file of no known kind") : info.kind) +
+                             ": evnerf reads EVT 2.0 and EVT 3.0 .raw files and .dat CD files");
+  detail::sensor_geometry(h, opt, file, info);
+  events::EventStream ev;
+  ev.width = info.width;
+  ev.height = info.height;
+  detail::RawSink sink(ev, opt, file, info.width, info.height);
+  if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {  // the whole file: about an event per word
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(path, ec);
+    if (!ec && bytes > h.bytes) sink.room((bytes - h.bytes) / (info.kind == "evt 3.0" ? 2 : info.kind == "dat" ? 8 : 4));
+  }
+  if (info.kind == "evt 2.0")
+    detail::decode_evt2(f.get(), h.bytes, sink, info, file);
+  else if (info.kind == "evt 3.0")
+    detail::decode_evt3(f.get(), h.bytes, sink, info, file);
+  else
+    detail::decode_dat(f.get(), h.bytes, sink, file);
+  sink.finish();
+  info.events = sink.count();
+  return ev;
+}
+
+/// Whether a file's '%' header says `kind`: "evt 2.0", "evt 3.0", "dat", or "evt" for any EVT version (a
+/// version evnerf does not read goes to the EVT 3.0 entry, whose reader names it).
+inline bool is_prophesee(const std::filesystem::path& path, const char* kind) {
+  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  if (!f) return false;
+  try {
+    const auto k = detail::prophesee_kind(detail::read_percent_header(f.get(), path.string()));
+    return std::string(kind) == "evt" ? k.rfind("evt", 0) == 0 : k == kind;
+  } catch (const Error&) {
+    return false;
+  }
+}
+
+/// Loads a Prophesee file as a recording: its events, calib.txt and groundtruth.txt beside it (or the
+/// LoadOptions' files). Without a calibration, an Error, unless LoadOptions::calibration_optional (inspect).
+inline Dataset load_prophesee(const std::filesystem::path& path, const LoadOptions& opt) {
+  PropheseeInfo info;
+  Dataset d;
+  d.events = read_prophesee_events(path, opt, info);
+  attach_calibration_and_poses(path, opt, d, info.width, info.height, "a Prophesee recording");
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "prophesee     %s, %dx%d (from %s), %zu header bytes, %zu events in the file, %zu trigger words, %zu other words",
+                info.kind.c_str(), info.width, info.height, info.geometry_from.c_str(), info.header_bytes, info.events, info.triggers,
+                info.other_words);
+  d.notes.push_back(buf);
+  return d;
+}
+
+/// Writes the events as an EVT 2.0 (`version` "2.0") or EVT 3.0 (one EVT_ADDR_X word per event) .raw file,
+/// with calib.txt and groundtruth.txt beside it as io::load reads them back. Times are rounded to whole
+/// microseconds and must lie in [0, 2^34) µs.
+inline void write_prophesee_raw(const std::filesystem::path& path, const Dataset& d, const std::string& version) {
+  const auto& ev = d.events;
+  const int w = d.camera.width(), h = d.camera.height();
+  if (w > 2048 || h > 2048) throw Error(path.string(), 0, "EVT words hold coordinates below 2048; the sensor is " + std::to_string(w) + "x" + std::to_string(h));
+  std::string out = "% evt " + version + "\n% format EVT" + (version == "2.0" ? "2" : "3") + ";height=" + std::to_string(h) +
+                    ";width=" + std::to_string(w) + "\n% geometry " + std::to_string(w) + "x" + std::to_string(h) +
+                    "\n% integrator_name evnerf\n% end\n";
+  auto put = [&](std::uint64_t v, int bytes) {
+    for (int k = 0; k < bytes; ++k) out.push_back(static_cast<char>(v >> (8 * k) & 0xFF));
+  };
+  std::int64_t high = -1, low = -1;
+  int y = -1;
+  out.reserve(out.size() + ev.size() * (version == "2.0" ? 4 : 4));
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    const double tu = std::nearbyint(ev.t[i] * 1e6);
+    if (!(tu >= 0 && tu < 17179869184.0))
+      throw Error(path.string(), 0, "event " + std::to_string(i) + " at " + short_number(ev.t[i]) + " s: EVT times lie in [0, 2^34) µs");
+    const auto us = static_cast<std::int64_t>(tu);
+    const unsigned on = ev.polarity[i] > 0, x = ev.x[i], yy = ev.y[i];
+    if (version == "2.0") {
+      if (us >> 6 != high) put(0x80000000u | static_cast<std::uint32_t>((high = us >> 6) & 0x0FFFFFFF), 4);
+      put(on << 28 | static_cast<std::uint32_t>(us & 63) << 22 | x << 11 | yy, 4);
+      continue;
+    }
+    const std::int64_t full = us >> 12;
+    if (full != high) {
+      // Steps of less than half the 12-bit range, so that a reader tells each wrap of the 24-bit time.
+      while (high >= 0 && full - high >= 0x800) put(0x8000u | ((high += 0x7FF) & 0xFFF), 2);
+      put(0x8000u | ((high = full) & 0xFFF), 2);
+      low = -1;
+    }
+    if ((us & 0xFFF) != low) put(0x6000u | static_cast<unsigned>(low = us & 0xFFF), 2);
+    if (static_cast<int>(yy) != y) put(yy, 2), y = static_cast<int>(yy);
+    put(0x2000u | on << 11 | x, 2);
+  }
+  write_file_atomic(path, out);
+  write_calibration_and_poses_beside(path, d);
+}
+
+/// The formats' entries in io::formats(): an EVT 2.0 file is written for an output ending in .evt2.raw, EVT 3.0
+/// (what today's sensors write) for any other .raw.
+inline Format evt2_format() {
+  return {"evt2", false, "a Prophesee .raw file in EVT 2.0 (Gen3 and older sensors; '% evt 2.0' in its header)",
+          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 2.0"); }, &load_prophesee,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "2.0"); }, {".evt2.raw"}};
+}
+inline Format evt3_format() {
+  return {"evt3", false, "a Prophesee .raw file in EVT 3.0 (IMX636, Gen4, GenX320; '% evt 3.0' in its header)",
+          [](const std::filesystem::path& p) { return is_prophesee(p, "evt") && !is_prophesee(p, "evt 2.0"); }, &load_prophesee,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "3.0"); }, {".raw"}};
+}
+inline Format dat_format() {
+  return {"dat", false, "a Prophesee .dat file of CD events ('%' header lines, then 8-byte records)",
+          [](const std::filesystem::path& p) { return is_prophesee(p, "dat"); }, &load_prophesee};
+}
+
+}  // namespace evnerf::io
