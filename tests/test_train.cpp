@@ -15,6 +15,7 @@
 
 #include <sys/resource.h>
 
+#include <evnerf/sim/simulate.hpp>
 #include <evnerf/sim/simulator.hpp>
 #include <evnerf/train/trainer.hpp>
 #include <evnerf/model/variants.hpp>
@@ -99,6 +100,38 @@ TEST_CASE("training data: poses that do not cover the events are an error; clamp
   std::vector<double> t{10.0, 11.0};
   d.trajectory = geometry::Trajectory(t, {geometry::Pose{}, geometry::Pose{}});
   CHECK_THROWS_WITH(train::prepare(d, f.cfg), doctest::Contains("do not cover the events"));
+}
+
+TEST_CASE("training data: suspected hot pixels are never drawn; keep_hot_pixels draws them; a clean recording keeps every pixel") {
+  sim::SimulateOptions so;
+  so.width = 64;
+  so.height = 48;
+  so.progress = false;
+  train::Config cfg;
+  const auto clean = train::prepare(sim::to_dataset(sim::simulate("planes", so)), cfg);
+  CHECK(clean.masked.empty());
+  CHECK(clean.sites.all());
+  so.sensor.hot_pixels = 3;
+  so.sensor.hot_rate = 150;
+  const auto d = sim::to_dataset(sim::simulate("planes", so));
+  const auto td = train::prepare(d, cfg);
+  REQUIRE(td.masked.size() == 3);
+  REQUIRE(td.sites.list.size() == static_cast<std::size_t>(64 * 48 - 3));
+  for (const auto& h : td.masked) CHECK(td.sites.mask[static_cast<std::size_t>(h.y) * 64 + h.x] == 0);
+  // The pixels of many steps' draws: never a masked one.
+  Rng rng(4);
+  loss::StepDraw draw;
+  std::set<std::uint32_t> drawn;
+  for (int step = 0; step < 50; ++step) {
+    loss::draw_step<loss::WindowInterval<24>>(td.slices, td.slice_enabled, td.prefix, 0.05, 512, rng, draw, &td.sites);
+    for (auto p : draw.pixels) drawn.insert(p);
+  }
+  for (const auto& h : td.masked) CHECK(drawn.count(static_cast<std::uint32_t>(h.y * 64 + h.x)) == 0);
+  CHECK(drawn.size() > 1000);
+  cfg.keep_hot_pixels = true;
+  const auto kept = train::prepare(d, cfg);
+  CHECK(kept.masked.empty());
+  CHECK(kept.sites.all());
 }
 
 TEST_CASE("noise injection inside training draws a fresh noise map per step") {

@@ -92,6 +92,10 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
                group ? fmt::format(" in each of {} processes, {} shards per step", group->size(), cfg.shard_count())
                : cfg.shard_count() > 1 ? fmt::format(", {} shards per step", cfg.shard_count())
                                        : std::string());
+  if (lead && !td.masked.empty())
+    fmt::print(stderr, "left out {} suspected hot pixel{} (busiest at x {}, y {}: {} events against {} next to it; --keep-hot-pixels keeps them)\n",
+               td.masked.size(), td.masked.size() == 1 ? "" : "s", td.masked[0].x, td.masked[0].y, td.masked[0].events,
+               td.masked[0].neighbours);
   // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
   // checkpoint; a second signal kills at once (the handler restores the default action).
   const StopOnSignal stop_request;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "../core/error.hpp"
+#include "../events/hot_pixels.hpp"
 #include "../events/pixels.hpp"
 #include "../events/slicing.hpp"
 #include "../geometry/bayer.hpp"
@@ -37,6 +38,7 @@ struct TrainingData {
   events::PixelSites sites;                    ///< the pixels that carry events (one colour channel's sites of
                                                ///< a mosaic at the full sensor); all() = every pixel. Steps draw
                                                ///< their pixels and noise among them only.
+  std::vector<events::HotPixel> masked;        ///< suspected hot pixels left out of `sites` (unless Config::keep_hot_pixels)
   int slices_per_interval = 1;                 ///< slices per interval of the recording's own cut (train's
                                                ///< --subslices): a window objective's W counts such intervals,
                                                ///< so its windows span 1..W·this slices, the same time at any cut
@@ -98,6 +100,15 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   require(d.sites.empty() || d.sites.size() == static_cast<std::size_t>(d.camera.width()) * d.camera.height(),
           d.folder.string() + ": the pixel sites do not match the camera");
   td.sites = events::PixelSites(d.sites);
+  if (!cfg.keep_hot_pixels) {
+    td.masked = events::suspected_hot_pixels(d.events);
+    if (!td.masked.empty()) {
+      const int w = d.camera.width();
+      std::vector<std::uint8_t> mask = d.sites.empty() ? std::vector<std::uint8_t>(static_cast<std::size_t>(w) * d.camera.height(), 1) : d.sites;
+      for (const auto& h : td.masked) mask[static_cast<std::size_t>(h.y) * w + h.x] = 0;
+      td.sites = events::PixelSites(std::move(mask));
+    }
+  }
   if (cfg.holdout > 0)
     for (std::size_t k = cfg.holdout; k + 1 < b.size(); k += cfg.holdout) {
       td.slice_enabled[k - 1] = false;  // both slices touching boundary k

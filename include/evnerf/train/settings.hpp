@@ -39,6 +39,7 @@ struct Config {
   int subslices = 1;
   int holdout = 0;
   bool clamp_poses = false;
+  bool keep_hot_pixels = false;
   bool density_per_box = false;
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
@@ -175,6 +176,8 @@ inline const std::vector<Setting>& settings() {
        "slices per frame interval (boundaries between frames, poses interpolated); windows keep their span in time"},
       {"holdout", &Config::holdout, 0, inf, false, false, "hold out every k-th slice boundary from training (novel views; 0 = none)"},
       {"clamp_poses", &Config::clamp_poses, -inf, inf, false, false, "slice boundaries outside the poses take the nearest pose"},
+      {"keep_hot_pixels", &Config::keep_hot_pixels, -inf, inf, false, false,
+       "draw the suspected hot pixels too (pixels firing far above their neighbours, as inspect lists them; left out by default)"},
       {"density_per_box", &Config::density_per_box, -inf, inf, false, false,
        "density per unit of the normalised scene box, not per world unit"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
