@@ -15,7 +15,7 @@ cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BEN
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null
 OUT=build-bench/pairs; rm -rf "$OUT"; mkdir -p "$OUT"
-BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
+. bench/peer_config.sh  # BEST: the peer's flags for this CPU
 ours() {  # width, pair
   OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench --benchmark_filter="BM_fma_peak|BM_mlp_fused<$1>/" \
     --benchmark_format=json --benchmark_out="$OUT/ours_$1_$2.json" --benchmark_out_format=json >/dev/null

@@ -10,12 +10,12 @@ cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BEN
   -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
 cmake --build build-bench -j"$(nproc)" >/dev/null
 OUT=build-bench/results; mkdir -p "$OUT"; rm -f "$OUT"/ours_*.json; : > "$OUT/peer.jsonl"; : > "$OUT/peer_bf16.jsonl"  # no stale runs
+. bench/peer_config.sh  # BEST and OPENBLAS_CORE: the peer's configuration for this CPU
 LIB=/usr/lib/x86_64-linux-gnu
 # What the best-configuration flags set, in advance, so the autocast wrapper's peer does not re-execute.
 AUTOCAST_ENV=(env LD_LIBRARY_PATH="$LIB/openblas-openmp:${LD_LIBRARY_PATH:-}" LD_PRELOAD="$LIB/libtcmalloc_minimal.so.4"
-  OPENBLAS_CORETYPE=SkylakeX OMP_WAIT_POLICY=PASSIVE OMP_NUM_THREADS=2 OPENBLAS_NUM_THREADS=2)
+  OPENBLAS_CORETYPE="$OPENBLAS_CORE" OMP_WAIT_POLICY=PASSIVE OMP_NUM_THREADS=2 OPENBLAS_NUM_THREADS=2)
 PEER=../shared/peers/peer_torch.py
-BEST="--openblas-core SkylakeX --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
 for r in $(seq "$REPS"); do
   OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench --benchmark_format=json --benchmark_out="$OUT/ours_$r.json" \
     --benchmark_out_format=json >/dev/null
