@@ -181,20 +181,22 @@ class RawSink {
 /// until it returns false or the file ends; a file that ends inside a word is an Error.
 template <class Block>
 void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, Block&& block) {
-  std::vector<unsigned char> buf(std::size_t(1) << 20);
+  // Not value-initialised: a small file touches only the pages it reads into.
+  constexpr std::size_t kBlock = std::size_t(1) << 16;
+  const std::unique_ptr<unsigned char[]> buf(new unsigned char[kBlock]);
   std::size_t keep = 0;
   for (;;) {
-    const std::size_t got = std::fread(buf.data() + keep, 1, buf.size() - keep, f) + keep;
+    const std::size_t got = std::fread(buf.get() + keep, 1, kBlock - keep, f) + keep;
     if (std::ferror(f)) throw Error(file, 0, "read error after byte " + std::to_string(offset));
     const std::size_t whole = got / word * word;
-    if (whole && !block(buf.data(), whole / word, offset)) return;
+    if (whole && !block(buf.get(), whole / word, offset)) return;
     offset += whole;
     keep = got - whole;
-    if (got < buf.size()) {
+    if (got < kBlock) {
       if (keep) throw Error(file, 0, "byte " + std::to_string(offset) + ": the file ends inside a " + std::to_string(word) + "-byte word");
       return;
     }
-    std::memmove(buf.data(), buf.data() + whole, keep);
+    std::memmove(buf.get(), buf.get() + whole, keep);
   }
 }
 
