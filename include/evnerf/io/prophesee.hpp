@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/mman.h>
+
 #include "ijrr.hpp"
 #include "recording.hpp"
 
@@ -125,6 +127,21 @@ inline void sensor_geometry(const PercentHeader& h, const LoadOptions& opt, cons
   check_sensor_size(info.width, info.height, file + " (the sensor size of its header)");
 }
 
+/// Asks the kernel for huge pages behind a large vector's reserved memory (where transparent huge pages are
+/// on request): the events of a long recording fill hundreds of megabytes, and a page fault per 4 KiB is
+/// most of the time of a read on machines where faults are dear.
+template <class T>
+void huge_pages(std::vector<T>& v) {
+#ifdef MADV_HUGEPAGE
+  constexpr std::uintptr_t kHuge = std::uintptr_t(1) << 21;
+  const auto a = reinterpret_cast<std::uintptr_t>(v.data()), e = a + v.capacity() * sizeof(T);
+  const std::uintptr_t b = (a + kHuge - 1) & ~(kHuge - 1), f = e & ~(kHuge - 1);
+  if (f > b) ::madvise(reinterpret_cast<void*>(b), f - b, MADV_HUGEPAGE);  // advice only: a refusal costs nothing
+#else
+  (void)v;
+#endif
+}
+
 /// Collects decoded events: times in microseconds (as the file holds them) into seconds, only those of the
 /// window; checks order and coordinates. `done` once a time passes the window's end. room(n) before a block
 /// that may add up to n events; finish() gives back what room() reserved beyond them.
@@ -136,9 +153,10 @@ class RawSink {
     if (ev_.t.size() + n <= ev_.t.capacity()) return;
     const std::size_t size = std::max(ev_.t.size() + n, ev_.t.capacity() + ev_.t.capacity() / 2);
     ev_.reserve(size);
+    huge_pages(ev_.t), huge_pages(ev_.x), huge_pages(ev_.y), huge_pages(ev_.polarity);
   }
   void finish() {
-    if (ev_.t.capacity() > ev_.t.size() + ev_.t.size() / 4 + 4096)
+    if (ev_.t.capacity() > 2 * ev_.t.size() + 4096)
       ev_.t.shrink_to_fit(), ev_.x.shrink_to_fit(), ev_.y.shrink_to_fit(), ev_.polarity.shrink_to_fit();
   }
   void add(std::int64_t us, unsigned x, unsigned y, int on, std::size_t offset) {
@@ -344,7 +362,7 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {  // the whole file: about an event per word
     std::error_code ec;
     const auto bytes = std::filesystem::file_size(path, ec);
-    if (!ec && bytes > h.bytes) sink.room((bytes - h.bytes) / (info.kind == "evt 3.0" ? 2 : info.kind == "dat" ? 8 : 4));
+    if (!ec && bytes > h.bytes) sink.room((bytes - h.bytes) / (info.kind == "dat" ? 8 : 4));  // EVT 3.0: two words an event
   }
   if (info.kind == "evt 2.0")
     detail::decode_evt2(f.get(), h.bytes, sink, info, file);
