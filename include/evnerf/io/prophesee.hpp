@@ -38,7 +38,8 @@ struct PropheseeInfo {
   int width = 0, height = 0;
   std::string geometry_from;  ///< which header line (or flag) gave the size
   std::size_t header_bytes = 0;
-  std::size_t events = 0, triggers = 0, other_words = 0;
+  std::size_t events = 0;  ///< CD events decoded (up to the time window's end, where the read stops)
+  std::size_t triggers = 0, other_words = 0;  ///< trigger words, and words of other types, skipped
 };
 
 namespace detail {
@@ -74,10 +75,9 @@ inline PercentHeader read_percent_header(std::FILE* f, const std::string& file) 
     const auto a = line.find_first_not_of(' ');
     if (a == std::string::npos) continue;
     const auto sp = line.find(' ', a);
+    const auto v = sp == std::string::npos ? std::string::npos : line.find_first_not_of(' ', sp);
     h.lines.emplace_back(line.substr(a, sp == std::string::npos ? std::string::npos : sp - a),
-                         sp == std::string::npos ? std::string() : line.substr(line.find_first_not_of(' ', sp) == std::string::npos
-                                                                                    ? line.size()
-                                                                                    : line.find_first_not_of(' ', sp)));
+                         v == std::string::npos ? std::string() : line.substr(v));
     if (h.lines.back().first == "end") break;
     if (h.lines.size() > 10000) throw Error(file, 0, "more than 10000 header lines");
   }
