@@ -133,7 +133,7 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   CHECK(t.params().size() == 0);
 }
 
-TEST_CASE("checkpoints: the run's record round-trips as typed fields; another format version and bad fields are refused") {
+TEST_CASE("checkpoints: the run's record round-trips as typed fields, another format version and bad fields are refused") {
   Fixture f;
   f.cfg.density_per_box = true;
   const auto box = train::scene_box(f.td, f.cfg);
@@ -247,7 +247,7 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields; another fo
   CHECK_THROWS_WITH(t.deserialize(with_sum(wrong), "x.ckpt"), doctest::Contains("decay is not in (0, 1)"));
 }
 
-TEST_CASE("parameter average: TensorFlow's warm-up; never changes training; renders use it; checkpoints keep it") {
+TEST_CASE("parameter average: TensorFlow's warm-up, never changes training, renders use it, checkpoints keep it") {
   // The weight of step n's parameters: 1 − min(decay, (1 + n) / (10 + n)).
   CHECK(nn::ParameterAverage<float>::weight(0.998, 1) == doctest::Approx(9.0 / 11));
   CHECK(nn::ParameterAverage<float>::weight(0.998, 90) == doctest::Approx(0.09));
@@ -349,7 +349,7 @@ TEST_CASE("faults: a NaN in the parameters stops the run with a message and keep
   fs::remove_all(base);
 }
 
-TEST_CASE("faults: a full disk or an unwritable folder is a clear error; no partial file, the earlier checkpoint intact") {
+TEST_CASE("faults: a full disk or an unwritable folder is a clear error, no partial file, the earlier checkpoint intact") {
   Fixture f;
   const fs::path base = fs::temp_directory_path() / ("evnerf_full_" + std::to_string(::getpid()));
   const fs::path out = base / "run";

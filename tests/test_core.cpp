@@ -63,7 +63,7 @@ TEST_CASE("parallel_jobs_by_cost: every job once, each thread a contiguous run o
   CHECK(run(2, {1, 1, 100, 1, 1}) == std::vector<int>{0, 0, 1, 1, 1});
 }
 
-TEST_CASE("trajectory: interpolation is linear in translation and slerp in rotation; range policy") {
+TEST_CASE("trajectory: interpolation is linear in translation and slerp in rotation, range policy") {
   Pose a, b;
   b.t = Vec3(2, 0, 0);
   b.q = Quat(Eigen::AngleAxisd(1.0, Vec3::UnitZ()));

@@ -37,7 +37,7 @@ TEST_CASE("MSE and PSNR") {
   CHECK_THROWS_AS(eval::mse(a, Image(3, 4, 1)), Error);
 }
 
-TEST_CASE("alignment: log-affine undoes a gain and gamma in log space; min-max normalises") {
+TEST_CASE("alignment: log-affine undoes a gain and gamma in log space, min-max normalises") {
   Image gt = det(30, 20, 0.2, 0.3), pred(30, 20, 1);
   for (std::size_t i = 0; i < gt.data.size(); ++i)
     pred.data[i] = static_cast<float>(std::exp(0.5 * std::log(gt.data[i] + 1e-3) - 0.7) - 1e-3);
@@ -51,7 +51,7 @@ TEST_CASE("alignment: log-affine undoes a gain and gamma in log space; min-max n
   CHECK_THROWS(eval::parse_alignment("bogus"));
 }
 
-TEST_CASE("baselines: direct integration sums polarity × contrast; the high-pass filter forgets") {
+TEST_CASE("baselines: direct integration sums polarity × contrast, the high-pass filter forgets") {
   events::EventStream ev;
   ev.width = 2;
   ev.height = 1;
@@ -129,7 +129,7 @@ TEST_CASE("alignment: EventNeRF's fit recovers a known map per channel in log(x^
   CHECK(std::string(eval::to_string(eval::Alignment::EventNerf)) == "eventnerf");
 }
 
-TEST_CASE("HDR scoring: the truth's log range is put on [0, 1]; a known map is undone; clipping is seen") {
+TEST_CASE("HDR scoring: the truth's log range is put on [0, 1], a known map is undone, clipping is seen") {
   // Linear truth spanning 9 nats (1e-4 .. 0.8); a prediction that is a power law of it (exact in log space
   // when the offset is negligible) scores perfectly under the sequence fit, and the same prediction clipped
   // at 1 after a gain of 20 (what a frame does to highlights) scores worse.
@@ -291,7 +291,7 @@ TEST_CASE("error_scales: the row and column parts are the error's row and column
   CHECK(eval::error_scales(rgb_pred, rgb).row_mse == doctest::Approx(0.02 / 3).epsilon(1e-5));
 }
 
-TEST_CASE("offset_oracle: recovers log offsets per row, per column and both, constant over the sequence; per channel") {
+TEST_CASE("offset_oracle: recovers log offsets per row, per column and both, constant over the sequence, per channel") {
   const int W = 40, H = 30, C = 3;
   auto truth_frame = [&](double phase) {  // values in [0.2, 0.7]: no offset below pushes one past [0, 1]
     Image im(W, H, C);

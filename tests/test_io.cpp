@@ -249,7 +249,7 @@ TEST_CASE("dataset: a folder loads, the event cache is used on the second load a
   fs::remove_all(dir);
 }
 
-TEST_CASE("the format table: one name each, --format's list; every writer's output is detected as its format and reads back equal") {
+TEST_CASE("the format table: one name each, --format's list, every writer's output is detected as its format and reads back equal") {
   std::set<std::string> names;
   for (const auto& f : io::formats()) {
     CAPTURE(f.name);
@@ -259,7 +259,7 @@ TEST_CASE("the format table: one name each, --format's list; every writer's outp
     CHECK((f.load != nullptr) == (std::string(f.unavailable).empty()));  // or the build says why not
   }
   CHECK(io::format_names().size() == names.size());
-  CHECK(io::format_list() == "ijrr, eventnerf, robust-e-nerf, hdf5, rosbag");
+  CHECK(io::format_list() == "ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag");
   const auto dir = temp_dir("formats");
   fs::create_directories(dir / "rec");
   write(dir / "rec" / "events.txt", "0.10 1 2 1\n0.11 3 4 0\n0.12 5 6 1\n");
@@ -284,11 +284,11 @@ TEST_CASE("the format table: one name each, --format's list; every writer's outp
     ++written;
   }
   CHECK(written >= 1);
-  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
+  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag)");
   fs::remove_all(dir);
 }
 
-TEST_CASE("PNG: write then read back; montage and depth colouring have the right shape") {
+TEST_CASE("PNG: write then read back, montage and depth colouring have the right shape") {
   const auto dir = temp_dir("png");
   auto good_png_for_lengths = [&] { return read_file(dir / "a.png"); };
   Image img(5, 4, 1);

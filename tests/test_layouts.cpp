@@ -74,7 +74,7 @@ TEST_CASE("EventNeRF layout: events from .npz (deflated or stored), poses spread
   CHECK(worst < 0.05);
 }
 
-TEST_CASE("io::load: a folder holding two layouts is refused unless --format names one; --format checks what it is given") {
+TEST_CASE("io::load: a folder holding two layouts is refused unless --format names one, --format checks what it is given") {
   const fs::path fx = EVNERF_FIXTURES;
   const auto dir = temp_dir("twolayouts");
   fs::copy(fx / "eventnerf", dir, fs::copy_options::recursive);
@@ -100,7 +100,7 @@ TEST_CASE("io::load: a folder holding two layouts is refused unless --format nam
   CHECK(io::load(fx / "davis.bag", o).events.size() > 0);
 #endif
   o.format = "hdf";
-  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, hdf5, rosbag)");
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag)");
   // A time window, for every reader: only the events inside it, and an error when none are.
   o.format = "eventnerf";
   o.t_begin = 0.00115;

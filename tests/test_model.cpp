@@ -272,7 +272,7 @@ struct TvModels {
   }
 };
 
-TEST_CASE("total-variation share: 1 is the default's step; a share draws pixels per step, keeps the term's scale, ignores the tiling") {
+TEST_CASE("total-variation share: 1 is the default's step, a share draws pixels per step, keeps the term's scale, ignores the tiling") {
   TvModels t;
   const evtest::Fixture& f = t.f;
   auto &a = t.a, &b = t.b;
@@ -356,7 +356,7 @@ TEST_CASE("total-variation neighbours: any draws right or below, vertical and ho
   CHECK(std::string(loss::tv_neighbours_name(TvNeighbours::Across)) == "across");
 }
 
-TEST_CASE("total-variation neighbours: any is the default's step; vertical changes the term alone, whatever the tiling") {
+TEST_CASE("total-variation neighbours: any is the default's step, vertical changes the term alone, whatever the tiling") {
   TvModels t;
   const evtest::Fixture& f = t.f;
   auto &a = t.a, &b = t.b;
@@ -405,7 +405,7 @@ TEST_CASE("total-variation neighbours: across is vertical's step on a slider alo
   CHECK(a.gradients(ty, 16, 3, 4).term_loss[1] != sh.term_loss[1]);  // the choice matters on this data
 }
 
-TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical; its draw ignores tiling and threads") {
+TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical, its draw ignores tiling and threads") {
   const evtest::Fixture f;
   using M = OccupancyModel<1>;
   M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);

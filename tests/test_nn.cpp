@@ -112,7 +112,7 @@ TEST_CASE("spherical harmonics are orthonormal over the sphere") {
     for (int j = 0; j < K; ++j) CHECK(gram[i * K + j] == doctest::Approx(i == j ? 1.0 : 0.0).epsilon(0.03).scale(1));
 }
 
-TEST_CASE("hash grid: a grid point reproduces its table entry; dense levels do not collide") {
+TEST_CASE("hash grid: a grid point reproduces its table entry, dense levels do not collide") {
   using G = HashGrid<2, 1, 12, 4, 8>;  // both levels small enough to be dense
   std::vector<double> p(G::n_params);
   for (std::size_t i = 0; i < p.size(); ++i) p[i] = static_cast<double>(i);

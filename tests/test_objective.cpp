@@ -69,7 +69,7 @@ TEST_CASE_TEMPLATE("window objective: finite differences in double match the gra
   CHECK(checked_nonzero > 50);  // the check saw the hinge's active side often
 }
 
-TEST_CASE("window objective: one slice is spec §2's EventBounds exactly; the window's centre is Σ n_k B_k") {
+TEST_CASE("window objective: one slice is spec §2's EventBounds exactly, the window's centre is Σ n_k B_k") {
   const int np = 3, nn = 1;
   const double bp = 0.27, bm = -0.33, l0 = 0.2, l1 = 0.9;
   double g1 = 0, g2 = 0;
@@ -137,7 +137,7 @@ events::SliceSet one_slice_10x10(Fires&& fires) {
 }
 }  // namespace
 
-TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty pixels and the rest where events fired") {
+TEST_CASE("pixel policies: distinct pixels, EventPixels draws its share of empty pixels and the rest where events fired") {
   // 10×10 sensor, one slice, events at pixels 0..29.
   const events::CountPrefix pre(one_slice_10x10([](int p) { return p < 30; }));
   const events::PixelWindow w{100, 0, 1, &pre};
@@ -163,7 +163,7 @@ TEST_CASE("pixel policies: distinct pixels; EventPixels draws its share of empty
   CHECK(std::count(taken.begin(), taken.end(), 1) == 0);
 }
 
-TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel at the full sensor); no sites draws as before") {
+TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel at the full sensor), no sites draws as before") {
   // 10×10 sensor, one slice; the sites are the pixels of even x + y (a green quincunx); events fire at the
   // sites among pixels 0..29.
   std::vector<std::uint8_t> mask(100, 0);

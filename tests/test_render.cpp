@@ -270,7 +270,7 @@ TEST_CASE("compositing: an opaque sample at depth d gives depth d and its lumina
   CHECK(r.color[0] == doctest::Approx(1 / (1 + std::exp(-2.0))).epsilon(1e-6));
 }
 
-TEST_CASE("event loss: zero inside the bounds, growing outside; gradients match finite differences") {
+TEST_CASE("event loss: zero inside the bounds, growing outside, gradients match finite differences") {
   loss::EventBounds none{0, 0};
   // No events: |Δlog| < B → zero loss.
   CHECK(none.evaluate(0.5, 0.5 * std::exp(0.1), 0.3, -0.3)[0] == doctest::Approx(0.0));
@@ -329,7 +329,7 @@ TEST_CASE("threshold floor: zero above |B| >= 0.3, gradient pushes thresholds ba
   CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return ad::value(f, v[0], v[1]); }, x, {vg.grad[0], vg.grad[1]}) < 1e-6);
 }
 
-TEST_CASE("samplers: depth spacing policies; uniform is stratified_depths bit for bit, log bins grow with depth") {
+TEST_CASE("samplers: depth spacing policies, uniform is stratified_depths bit for bit, log bins grow with depth") {
   constexpr int n = 32;
   const float near = 0.3f, far = 7.0f;
   std::vector<float> a(n), b(n), t(n);
@@ -392,7 +392,7 @@ TEST_CASE("samplers: depth spacing policies; uniform is stratified_depths bit fo
   static_assert(render::Sampler<render::OccupancySkipping<8, 8, 1, 0, 10, Off>>);
 }
 
-TEST_CASE("samplers: stratified depths cover [near, far] in order; importance samples follow the weights") {
+TEST_CASE("samplers: stratified depths cover [near, far] in order, importance samples follow the weights") {
   std::vector<double> t(16);
   Rng rng(1);
   render::stratified_depths<double>(16, 1.0, 5.0, &rng, t.data());

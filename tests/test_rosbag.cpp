@@ -90,7 +90,7 @@ TEST_CASE("ROS bag: the fixtures written by rosbag (none, bz2, lz4 chunks) read 
   CHECK(first_times[0] == first_times[2]);
 }
 
-TEST_CASE("ROS bag: topics by name when two could serve; colour and Bayer frames; Odometry poses; calibration beside") {
+TEST_CASE("ROS bag: topics by name when two could serve, colour and Bayer frames, Odometry poses, calibration beside") {
   const fs::path fx = EVNERF_FIXTURES;
   io::LoadOptions o;
   o.calib = fx / "colour_calib.txt";

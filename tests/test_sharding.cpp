@@ -101,7 +101,7 @@ class ThreadGroup final : public train::Group {
 };
 }  // namespace
 
-TEST_CASE("gradient exchange: dense, sparse and auto give the same sums; sparse sends only the touched blocks") {
+TEST_CASE("gradient exchange: dense, sparse and auto give the same sums, sparse sends only the touched blocks") {
   constexpr std::size_t n = 16 * 40 + 5;  // a partial last block
   auto grads_of = [&](int rank) {
     std::vector<float> g(n, 0.0f);

@@ -56,7 +56,7 @@ TEST_CASE("simulator: a moving linear ramp gives the expected number of events p
   rec.events.validate("simulated");
 }
 
-TEST_CASE("simulator: background noise rate matches its parameter; deterministic for a seed") {
+TEST_CASE("simulator: background noise rate matches its parameter, deterministic for a seed") {
   auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3\npath slider 0 0 0 0 0 0 0 0 1 2.0\n", "static.txt");
   auto cfg = small_sensor();
   cfg.noise_rate = 2.0;  // events per pixel per second → 40·30·2·2 = 4800 expected
@@ -155,7 +155,7 @@ std::uint64_t text_hash(const std::string& s) {
 }
 }  // namespace
 
-TEST_CASE("random scenes: a seed always gives the same text; seeds differ; three kinds of path; every seed parses") {
+TEST_CASE("random scenes: a seed always gives the same text, seeds differ, three kinds of path, every seed parses") {
   const std::string one = sim::random_scene_text(1);
   CHECK(one == sim::random_scene_text(1));
   CHECK(one != sim::random_scene_text(2));
@@ -207,7 +207,7 @@ TEST_CASE("random scenes: the scene is in view and spans a high dynamic range") 
   CHECK(wide >= 4);
 }
 
-TEST_CASE("random scenes: photos from --textures; a folder without PNGs is refused") {
+TEST_CASE("random scenes: photos from --textures, a folder without PNGs is refused") {
   const fs::path dir = fs::temp_directory_path() / ("evnerf_tex_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   CHECK_THROWS_WITH(sim::texture_pictures(dir), doctest::Contains("no .png files"));
@@ -226,7 +226,7 @@ TEST_CASE("random scenes: photos from --textures; a folder without PNGs is refus
   fs::remove_all(dir);
 }
 
-TEST_CASE("simulator: the dark end is log(I + offset), not a clamp; HDR truth is written and read back") {
+TEST_CASE("simulator: the dark end is log(I + offset), not a clamp, HDR truth is written and read back") {
   auto spec = sim::parse_scene("light 0 0 1 0.02 2.0\n"
                                "plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3 colors 0.9 0.9 0.9 0.001 0.001 0.001\n"
                                "path slider 0 0 0 0.1 0 0 0 0 1 0.3\n",
@@ -277,7 +277,7 @@ TEST_CASE("simulator: the dark end is log(I + offset), not a clamp; HDR truth is
 
 // ---- the sensor's parameters ----------------------------------------------------------------------------
 
-TEST_CASE("sensor: a refractory period removes every event closer than it to the pixel's last; without it some are closer") {
+TEST_CASE("sensor: a refractory period removes every event closer than it to the pixel's last, without it some are closer") {
   auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 4\npath slider -0.2 0 0 0.2 0 0 0 0 1 0.5\n", "moving.txt");
   auto cfg = small_sensor();
   cfg.threshold_pos = cfg.threshold_neg = 0.05;  // many events per pixel per edge
@@ -300,7 +300,7 @@ TEST_CASE("sensor: a refractory period removes every event closer than it to the
   CHECK(n < free_n);
 }
 
-TEST_CASE("sensor: a hot pixel fires at its rate on a static scene; C+ and C- scale the ON and OFF counts") {
+TEST_CASE("sensor: a hot pixel fires at its rate on a static scene, C+ and C- scale the ON and OFF counts") {
   auto still = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3\npath slider 0 0 0 0 0 0 0 0 1 2.0\n", "static.txt");
   auto cfg = small_sensor();
   cfg.hot_pixels = 2;
@@ -331,7 +331,7 @@ TEST_CASE("sensor: a hot pixel fires at its rate on a static scene; C+ and C- sc
   CHECK(on3 == doctest::Approx(on1).epsilon(0.05));
 }
 
-TEST_CASE("sensor: --sensor random draws every parameter inside its range, from the seed; values no sensor has are refused by flag") {
+TEST_CASE("sensor: --sensor random draws every parameter inside its range, from the seed, values no sensor has are refused by flag") {
   using R = sim::RandomSensorRanges;
   sim::SensorOptions o;
   o.model = "random";
@@ -395,7 +395,7 @@ TEST_CASE("sensor: --sensor random draws every parameter inside its range, from 
   CHECK_CONTAINS(text, "hot_pixels " + std::to_string(rec.sensor.hot_pixels));
 }
 
-TEST_CASE("sensor: the hot pixels planted in a moving textured scene are the ones suspected; its texture is not") {
+TEST_CASE("sensor: the hot pixels planted in a moving textured scene are the ones suspected, its texture is not") {
   sim::SimulateOptions so;
   so.width = 64;
   so.height = 48;

@@ -48,7 +48,7 @@ TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the l
   }
 }
 
-TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants differ") {
+TEST_CASE("training: fixed thresholds never move, noise-free and noisy variants differ") {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
   EvNerf<TinyField, render::Stratified<16>, loss::FixedThresholds> m(f.td.slices.size(), box, 7);
@@ -65,7 +65,7 @@ TEST_CASE("training: fixed thresholds never move; noise-free and noisy variants 
   }
   CHECK(m.params().values != quiet.params().values);
 }
-TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume equals uninterrupted; checkpoints round-trip",
+TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count, resume equals uninterrupted, checkpoints round-trip",
                    Model, Tiny, TinyBf16, TinyWindow) {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
@@ -93,7 +93,7 @@ TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count; resume 
         e.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
 }
 
-TEST_CASE("training data: poses that do not cover the events are an error; clamping is explicit") {
+TEST_CASE("training data: poses that do not cover the events are an error, clamping is explicit") {
   Fixture f;
   io::Dataset d = f.d;
   d.frames = {};
@@ -102,7 +102,7 @@ TEST_CASE("training data: poses that do not cover the events are an error; clamp
   CHECK_THROWS_WITH(train::prepare(d, f.cfg), doctest::Contains("do not cover the events"));
 }
 
-TEST_CASE("training data: suspected hot pixels are never drawn; keep_hot_pixels draws them; a clean recording keeps every pixel") {
+TEST_CASE("training data: suspected hot pixels are never drawn, keep_hot_pixels draws them, a clean recording keeps every pixel") {
   sim::SimulateOptions so;
   so.width = 64;
   so.height = 48;
@@ -218,7 +218,7 @@ TEST_CASE("training: a model refuses training data with another slicing (a resum
   }
 }
 
-TEST_CASE("training loop: a fresh run starts a fresh log of period means; the callback can stop it; the thread count is restored") {
+TEST_CASE("training loop: a fresh run starts a fresh log of period means, the callback can stop it, the thread count is restored") {
   Fixture f;
   const fs::path out = fs::temp_directory_path() / "evnerf_test_run_loop";
   fs::remove_all(out);
@@ -312,7 +312,7 @@ TEST_CASE("training loop: a fresh run starts a fresh log of period means; the ca
   fs::remove_all(out);
 }
 
-TEST_CASE("training loop: without an output folder nothing is written and the model trains the same; bad settings are refused") {
+TEST_CASE("training loop: without an output folder nothing is written and the model trains the same, bad settings are refused") {
   Fixture f;
   train::Config cfg = f.cfg;
   cfg.iterations = 20;
@@ -407,7 +407,7 @@ TEST_CASE("projected thresholds: learned, never inside the floor, no floor loss"
   }
 }
 
-TEST_CASE("train::Trainer: the Config decides box and Adam; a stopped run resumed ends where an uninterrupted one does, in its own box") {
+TEST_CASE("train::Trainer: the Config decides box and Adam, a stopped run resumed ends where an uninterrupted one does, in its own box") {
   Fixture f;
   train::Config cfg = f.run_config(30, 64);
   cfg.threads = 2;
@@ -516,7 +516,7 @@ TEST_CASE("the settings table: every setting round-trips through settings.json a
                        doctest::Contains("settings.json: pixels must be an integer, got \"many\""), Error);
 }
 
-TEST_CASE("collapse detection: a forced collapse stops the run with what it saw; a healthy run is not stopped") {
+TEST_CASE("collapse detection: a forced collapse stops the run with what it saw, a healthy run is not stopped") {
   Fixture f;
   train::Config cfg = f.run_config(300, 128);
   cfg.collapse_check_from = 100;
