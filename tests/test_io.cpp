@@ -259,7 +259,7 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
     CHECK((f.load != nullptr) == (std::string(f.unavailable).empty()));  // or the build says why not
   }
   CHECK(io::format_names().size() == names.size());
-  CHECK(io::format_list() == "ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag");
+  CHECK(io::format_list() == "ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4");
   const auto dir = temp_dir("formats");
   fs::create_directories(dir / "rec");
   write(dir / "rec" / "events.txt", "0.10 1 2 1\n0.11 3 4 0\n0.12 5 6 1\n");
@@ -284,7 +284,7 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
     ++written;
   }
   CHECK(written >= 1);
-  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag)");
+  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
   fs::remove_all(dir);
 }
 

@@ -100,7 +100,7 @@ TEST_CASE("io::load: a folder holding two layouts is refused unless --format nam
   CHECK(io::load(fx / "davis.bag", o).events.size() > 0);
 #endif
   o.format = "hdf";
-  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag)");
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
   // A time window, for every reader: only the events inside it, and an error when none are.
   o.format = "eventnerf";
   o.t_begin = 0.00115;

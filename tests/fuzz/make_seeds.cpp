@@ -141,6 +141,19 @@ int main(int argc, char** argv) {
       for (int k = 0; k < 4; ++k) dat.push_back(static_cast<char>(w >> (8 * k)));
     }
     put("prophesee", "dat", dat);
+#ifdef EVNERF_HAVE_AEDAT4
+    // AEDAT4 files: the first 300 events and two frames, in each compression evnerf writes.
+    auto small = d;
+    if (small.events.size() > 300) small.events.keep_time_window(-INFINITY, small.events.t[300]);
+    small.frames.t.resize(std::min<std::size_t>(2, small.frames.t.size()));
+    if (!small.frames.paths.empty()) small.frames.paths.resize(small.frames.t.size());
+    if (!small.frames.images.empty()) small.frames.images.resize(small.frames.t.size());
+    for (const char* c : {"none", "lz4", "zstd"}) {
+      const fs::path f = root / "prophesee_tmp" / (std::string("seed_") + c + ".aedat4");
+      io::write_aedat4(f, small, c);
+      put("aedat4", c, read_file(f));
+    }
+#endif
     fs::remove_all(root / "prophesee_tmp");
   }
   fs::remove_all(rec_dir);

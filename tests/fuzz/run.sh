@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=$PWD
-scripts/deps.sh clang libomp-dev libstb-dev libhdf5-dev libbz2-dev liblz4-dev
+scripts/deps.sh clang libomp-dev libstb-dev libhdf5-dev libbz2-dev liblz4-dev libzstd-dev
 SECONDS_EACH=${1:-60}
 shift || true
 BUILD=${BUILD:-build-fuzz}
@@ -24,7 +24,7 @@ HARNESSES=("$@")
 # fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
 # itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
 # fix; io::load isolates the library's crashes in a child process (README, Reliability).
-[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz layouts prophesee)
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz layouts prophesee aedat4)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
@@ -71,6 +71,9 @@ fuzz_one() {
       { printf E; cat "$e"/events/*.npz; printf '@@next@@'; cat "$e/intrinsics/r_00000.txt"
         for p in "$e"/pose/*.txt; do printf '@@next@@'; cat "$p"; done; } >"$SEEDS/$h/$(basename "$(dirname "$e")")"
     done
+  fi
+  if [ "$h" = aedat4 ]; then
+    max_len=16384  # the seeds hold 300 events and two frames
   fi
   if [ "$h" = rosbag ]; then
     for b in "$ROOT"/tests/fixtures/*.bag; do cp "$b" "$SEEDS/$h/"; done  # bags written by python3-rosbag

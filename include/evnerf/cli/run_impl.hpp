@@ -214,11 +214,11 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   }());
   add_recording(convert, "recording to read (any format evnerf reads)");
   convert->add_option("output", convert_out,
-                      "output folder (IJRR layout), file.h5 (calib.txt, groundtruth.txt written beside it) or file.bag (ROS bag, DAVIS topics)")
+                      "output: a folder (IJRR layout) or a file whose extension names its format (calib.txt and groundtruth.txt are written beside a file that has no place for them)")
       ->required();
   std::string bag_compression = "lz4";
-  convert->add_option("--compression", bag_compression, "ROS bag output: chunk compression")
-      ->check(CLI::IsMember({"none", "bz2", "lz4"}))
+  convert->add_option("--compression", bag_compression, "ROS bag output: chunk compression (none, bz2, lz4); AEDAT4 output: packet compression (none, lz4, zstd)")
+      ->check(CLI::IsMember({"none", "bz2", "lz4", "zstd"}))
       ->capture_default_str();
 
   // simulate

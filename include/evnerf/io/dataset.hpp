@@ -1,6 +1,6 @@
 // io/dataset.hpp — the formats evnerf reads and writes, as one table (formats()): an IJRR-layout folder,
 // an EventNeRF scene, a Robust e-NeRF sequence, Prophesee .raw (EVT 2.0, 3.0) and .dat files, an event HDF5
-// file, a ROS bag. io::load picks the reader from the content (or LoadOptions::format), io::convert the
+// file, a ROS bag, an AEDAT4 file. io::load picks the reader from the content (or LoadOptions::format), io::convert the
 // writer from the output's name; --format, inspect, convert and the error texts that list formats come from
 // the table. A new format is one header
 // (its reader, `<name>_format()` returning its Format) and one line in formats(). Depends on io/.
@@ -22,6 +22,9 @@
 #endif
 #ifdef EVNERF_HAVE_ROSBAG
 #include "rosbag.hpp"
+#endif
+#ifdef EVNERF_HAVE_AEDAT4
+#include "aedat4.hpp"
 #endif
 
 namespace evnerf::io {
@@ -282,8 +285,9 @@ inline std::string rosbag_summary(const std::filesystem::path& path) {
 }
 #endif
 
-/// What the two formats that need a library are (their entries with and without it).
+/// What the formats that need a library are (their entries with and without it).
 inline constexpr const char* kHdf5Description = "an event HDF5 file (event_utils/HQF or DSEC layout)";
+inline constexpr const char* kAedat4Description = "an iniVation AEDAT 4.0 file (DV, dv-processing: DAVIS346, DVXplorer)";
 inline constexpr const char* kRosbagDescription = "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)";
 
 /// The formats, in the order detection tries them (the folder layouts first; a folder that holds none of
@@ -312,6 +316,12 @@ inline const std::vector<Format>& formats() {
 #else
       {"rosbag", false, kRosbagDescription, nullptr, nullptr, nullptr, {".bag"},
        nullptr, "this build of evnerf has no ROS bag support (install libbz2-dev and liblz4-dev and rebuild)"},
+#endif
+#ifdef EVNERF_HAVE_AEDAT4
+      aedat4_format(),
+#else
+      {"aedat4", false, kAedat4Description, nullptr, nullptr, nullptr, {".aedat4"}, nullptr,
+       "this build of evnerf has no AEDAT4 support (install liblz4-dev and libzstd-dev and rebuild)"},
 #endif
   };
   return table;

@@ -257,7 +257,7 @@ inline std::string calib_text(const geometry::Camera& c) {
 
 /// What a writer is given besides the recording (convert's options).
 struct WriteOptions {
-  std::string compression = "lz4";  ///< ROS bag chunks: none, bz2 or lz4
+  std::string compression = "lz4";  ///< ROS bag chunks: none, bz2 or lz4; AEDAT4 packets: none, lz4 or zstd
 };
 
 /// One format of recordings: its name (--format), whether it is a folder or one file, how its content is
@@ -280,9 +280,10 @@ struct Format {
 /// A recording held in one file (HDF5, Prophesee): its calibration from LoadOptions::calib, else calib.txt
 /// beside it; its poses from LoadOptions::poses, else groundtruth.txt beside it (when present). Without a
 /// calibration, an Error naming the file to give, unless LoadOptions::calibration_optional: then a pinhole
-/// guess (focal length the sensor's width, centred) and Dataset::uncalibrated.
+/// guess (focal length the sensor's width, centred) and Dataset::uncalibrated. A pose file's times are in the
+/// file's clock: `origin` (Dataset::time_origin) is taken off them.
 inline void attach_calibration_and_poses(const std::filesystem::path& path, const LoadOptions& opt, Dataset& d, int width, int height,
-                                         const char* what) {
+                                         const char* what, double origin = 0) {
   d.folder = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
   const std::filesystem::path calib = opt.calib.empty() ? d.folder / "calib.txt" : opt.calib;
   if (!opt.calib.empty() || std::filesystem::exists(calib)) {
@@ -295,16 +296,21 @@ inline void attach_calibration_and_poses(const std::filesystem::path& path, cons
                                        " takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]]) or --calib");
   }
   if (!opt.poses.empty())
-    d.trajectory = read_pose_source(opt.poses, d.frames);
+    d.trajectory = read_pose_source(opt.poses, d.frames, origin);
   else if (std::filesystem::exists(d.folder / "groundtruth.txt"))
-    d.trajectory = read_poses_txt(d.folder / "groundtruth.txt");
+    d.trajectory = read_pose_source(d.folder / "groundtruth.txt", d.frames, origin);
 }
 
-/// Writes calib.txt and, when there are poses, groundtruth.txt beside a recording written as one file.
-inline void write_calibration_and_poses_beside(const std::filesystem::path& path, const Dataset& d) {
+/// Writes calib.txt and, when there are poses, groundtruth.txt beside a recording written as one file (pose
+/// times in the file's clock: `origin` added to them).
+inline void write_calibration_and_poses_beside(const std::filesystem::path& path, const Dataset& d, double origin = 0) {
   const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
   write_file_atomic(dir / "calib.txt", calib_text(d.camera));
-  if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+  if (d.trajectory.empty()) return;
+  if (origin == 0) return write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+  std::vector<double> t = d.trajectory.times();
+  for (double& v : t) v += origin;
+  write_poses_txt(dir / "groundtruth.txt", geometry::Trajectory(std::move(t), d.trajectory.poses(), (dir / "groundtruth.txt").string()));
 }
 
 }  // namespace evnerf::io
