@@ -125,8 +125,14 @@ def test_ctrl_c_stops_training(planes):
         if step == 2:
             signal.raise_signal(signal.SIGINT)
 
-    with pytest.raises(KeyboardInterrupt):
-        evnerf.train(planes, iterations=50, threads=1, callback=cb)
+    # Python's own handler, whatever the test runner inherited: a shell starts background jobs with SIGINT
+    # ignored, and an ignored signal would let the run go to its end.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            evnerf.train(planes, iterations=50, threads=1, callback=cb)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_training_releases_the_gil(planes):
