@@ -375,14 +375,14 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   return ev;
 }
 
-/// Whether a file's '%' header says `kind`: "evt 2.0", "evt 3.0", "dat", or "evt" for any EVT version (a
-/// version evnerf does not read goes to the EVT 3.0 entry, whose reader names it).
+/// Whether a file's '%' header says `kind`: "evt 2.0", "evt 3.0", "dat", or "evt 3.0+" for any EVT version but
+/// 2.0 (a version evnerf does not read goes to the EVT 3.0 entry, whose reader names it).
 inline bool is_prophesee(const std::filesystem::path& path, const char* kind) {
   std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) return false;
   try {
     const auto k = detail::prophesee_kind(detail::read_percent_header(f.get(), path.string()));
-    return std::string(kind) == "evt" ? k.rfind("evt", 0) == 0 : k == kind;
+    return std::string(kind) == "evt 3.0+" ? k.rfind("evt", 0) == 0 && k != "evt 2.0" : k == kind;
   } catch (const Error&) {
     return false;
   }
@@ -454,7 +454,7 @@ inline Format evt2_format() {
 }
 inline Format evt3_format() {
   return {"evt3", false, "a Prophesee .raw file in EVT 3.0 (IMX636, Gen4, GenX320; '% evt 3.0' in its header)",
-          [](const std::filesystem::path& p) { return is_prophesee(p, "evt") && !is_prophesee(p, "evt 2.0"); }, &load_prophesee,
+          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 3.0+"); }, &load_prophesee,
           [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "3.0"); }, {".raw"}};
 }
 inline Format dat_format() {
