@@ -109,6 +109,32 @@ TEST_CASE("HDF5: the event_utils/HQF and DSEC layouts written by h5py read back 
   fs::remove_all(dir);
 }
 
+TEST_CASE("HDF5: DSEC's Blosc-compressed events read through Debian's filter plugin, an unknown filter is named") {
+  const fs::path fx = EVNERF_FIXTURES;
+  if (H5Zfilter_avail(32001) <= 0) {  // without hdf5-filter-plugin-blosc-serial: the error says what to install
+    CHECK_CONTAINS(error_of([&] { io::read_hdf5(fx / "dsec_blosc.h5"); }), "hdf5-filter-plugin-blosc-serial");
+    return;
+  }
+  const auto r = io::read_hdf5(fx / "dsec_blosc.h5");
+  CHECK(r.layout == "dsec");
+  REQUIRE(r.events.size() == 4000);
+  for (std::size_t k = 0; k < 4000; k += 37) {
+    CAPTURE(k);
+    CHECK(r.events.x[k] == k % 8);
+    CHECK(r.events.y[k] == k % 6);
+    CHECK(r.events.polarity[k] == (k % 2 == 0 ? 1 : -1));
+    CHECK(r.events.t[k] == doctest::Approx(5.0 + 1e-4 * double(k)).epsilon(1e-12));
+  }
+  // A window read through ms_to_idx decompresses only the chunks it needs, and keeps exactly its events.
+  const auto w = io::read_hdf5(fx / "dsec_blosc.h5", 0, 0, 5.1, 5.2);
+  CHECK(w.events.size() == 1000);
+  CHECK(w.events_read < 4000);
+  CHECK(w.events.t.front() == doctest::Approx(5.1).epsilon(1e-12));
+  CHECK_CONTAINS(error_of([&] { io::read_hdf5(fx / "dsec_unknown_filter.h5"); }),
+                 "dataset 'events/x' is compressed with HDF5 filter 32999 ('blosc'), which this HDF5 library cannot load");
+  CHECK_CONTAINS(error_of([&] { io::read_hdf5(fx / "dsec_unknown_filter.h5"); }), "HDF5_PLUGIN_PATH");
+}
+
 TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wrong") {
   const auto dir = temp_dir("h5bad");
   auto err = [&](const fs::path& p) { return error_of([&] { io::read_hdf5(p); }); };

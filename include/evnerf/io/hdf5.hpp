@@ -6,7 +6,10 @@
 //                       events/p; `ms_to_idx` (the first event of every millisecond) is checked when present.
 // Events are read in blocks of kHdf5Block, converted and checked as they come, into vectors sized once from
 // the dataset's extent: the peak memory is the stream itself plus one block, whatever the file's size.
-// Every error names the file and the dataset. Compiled only where CMake found HDF5 (EVNERF_HAVE_HDF5).
+// Compressed datasets are read through HDF5's filter plugins: DSEC ships its events compressed with Blosc
+// (filter 32001), which Debian's hdf5-filter-plugin-blosc-serial provides; a filter the library cannot load
+// is an Error naming it and the package. Every error names the file and the dataset. Compiled only where
+// CMake found HDF5 (EVNERF_HAVE_HDF5).
 // Depends on core/, events/ and io/ only.
 #pragma once
 #include <hdf5.h>
@@ -88,6 +91,37 @@ inline bool h5_exists(hid_t file, const std::string& path) {
   }
 }
 
+/// Where Debian installs HDF5's filter plugins (hdf5-filter-plugin-blosc-serial: Blosc, DSEC's compression;
+/// hdf5-filter-plugin: LZ4, BZip2, Bitshuffle). Debian's libhdf5 searches it by default; HDF5_PLUGIN_PATH
+/// replaces that default, so the folder is put first in the search path once, where it exists (first:
+/// libhdf5 1.10 ends its search at a folder of the path that does not exist).
+inline constexpr const char* kDebianHdf5Plugins = "/usr/lib/x86_64-linux-gnu/hdf5/serial/plugins";
+inline void use_debian_plugins() {
+  static const bool done = [] {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(kDebianHdf5Plugins, ec)) return true;
+    unsigned n = 0;
+    if (H5PLsize(&n) < 0) return true;
+    for (unsigned i = 0; i < n; ++i) {
+      char dir[4096] = {0};
+      if (H5PLget(i, dir, sizeof dir) > 0 && std::string(dir) == kDebianHdf5Plugins) return true;
+    }
+    H5PLprepend(kDebianHdf5Plugins);
+    return true;
+  }();
+  (void)done;
+}
+
+/// The Debian package that provides the HDF5 filter `id`, as advice for an Error.
+inline std::string filter_package(H5Z_filter_t id) {
+  switch (id) {
+    case 32001: return "install Debian's hdf5-filter-plugin-blosc-serial";
+    case 307: case 32004: case 32008: return "install Debian's hdf5-filter-plugin";
+    case 32013: return "install Debian's hdf5-filter-plugin-zfp-serial";
+    default: return "put its plugin in a folder that HDF5_PLUGIN_PATH names";
+  }
+}
+
 /// A one-dimensional numeric dataset, read block by block.
 class H5Vector {
  public:
@@ -96,6 +130,19 @@ class H5Vector {
         space_(set_.ok() ? H5Dget_space(set_.get()) : -1, H5Sclose) {
     if (!set_.ok()) throw Error(where_ + " cannot be opened");
     if (!space_.ok()) throw Error(where_ + " has no readable shape");
+    // Every filter of its pipeline must be loadable, or the first read fails without saying why.
+    const H5Id dcpl(H5Dget_create_plist(set_.get()), H5Pclose);
+    const int filters = dcpl.ok() ? H5Pget_nfilters(dcpl.get()) : 0;
+    for (int i = 0; i < filters; ++i) {
+      unsigned flags = 0, config = 0;
+      std::size_t values = 0;
+      char name[80] = {0};
+      const H5Z_filter_t id = H5Pget_filter2(dcpl.get(), static_cast<unsigned>(i), &flags, &values, nullptr, sizeof name - 1, name, &config);
+      if (id < 0) throw Error(where_ + " has an unreadable filter pipeline");
+      if (H5Zfilter_avail(id) <= 0)
+        throw Error(where_ + " is compressed with HDF5 filter " + std::to_string(id) + (name[0] ? std::string(" ('") + name + "')" : std::string()) +
+                    ", which this HDF5 library cannot load (searched " + kDebianHdf5Plugins + " and HDF5_PLUGIN_PATH): " + filter_package(id));
+    }
     const int rank = H5Sget_simple_extent_ndims(space_.get());
     hsize_t dims[2] = {0, 0};
     if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space_.get(), dims, nullptr) < 0 || (rank == 2 && dims[1] != 1))
@@ -187,6 +234,7 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   const detail::H5Quiet quiet;
   if (!std::filesystem::is_regular_file(path)) throw Error(file, 0, "cannot open file (missing or not a file)");
   if (!is_hdf5(path)) throw Error(file, 0, "not an HDF5 file (no HDF5 signature at its start)");
+  detail::use_debian_plugins();
   const detail::H5Id h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!h5.ok()) throw Error(file, 0, "the HDF5 library cannot open this file (truncated or corrupt?)");
   const hid_t f = h5.get();
