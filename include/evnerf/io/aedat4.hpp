@@ -386,7 +386,6 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   events::EventStream ev;
   ev.width = w, ev.height = h;
   // Times go to the sink in microseconds from the origin, the whole second of the first event.
-  LoadOptions window = opt;
   std::unique_ptr<detail::RawSink> sink;
   bool have_origin = false;
   std::int64_t origin_us = 0, last_us = std::numeric_limits<std::int64_t>::min();
@@ -423,8 +422,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
         origin_us = t0 >= 0 ? t0 / 1000000 * 1000000 : -((-t0 + 999999) / 1000000 * 1000000);
         origin_sec = origin_us / 1000000;
         have_origin = true;
-        window.t_begin = opt.t_begin, window.t_end = opt.t_end;
-        sink = std::make_unique<detail::RawSink>(ev, window, where, w, h);
+        sink = std::make_unique<detail::RawSink>(ev, opt, where, w, h);
       }
       if (sink->done()) continue;
       sink->room(static_cast<std::size_t>(n));
