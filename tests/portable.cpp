@@ -1,12 +1,20 @@
-// Built without -march=native (baseline x86-64, or whatever the compiler defaults to): the paths that
-// builds for CPUs without AVX-512 take. The fused MLP (Fp32 and Bf16, which falls back to FP32 here) must
-// match the plain reference and the hash grid's batch forward must match its point-by-point forward.
-// Exit code 0 when all agree.
+// The library's paths for CPUs without AVX-512, built three ways (tests/CMakeLists.txt): at the compiler's
+// baseline (no AVX: Eigen serves the products), for AVX2 + FMA (the 8-lane kernels, which an AVX-512 CPU
+// runs too) and with -march=native. In each: the fused MLP (Fp32 and Bf16, which falls back to FP32 without
+// AVX-512 BF16) matches the plain reference, the hash grid's batch forward matches its point-by-point
+// forward, and where a float kernel is built, every product element is the scalar fused multiply-add chain
+// to the bit. `--digest` prints a digest of a float network's forward and backward bits instead: the AVX2
+// and the native build must print the same (portable.same_bits), which is what lets a float run give the
+// same result on an AVX-512 and an AVX2 machine. Exit code 0 when all agree, 77 when this build's
+// instructions are more than the CPU has.
 #include <evnerf/nn/encoding.hpp>
 #include <evnerf/nn/mlp.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <vector>
 
 #include "mlp_vs_reference.hpp"
@@ -22,7 +30,97 @@ bool mlp_matches(int n) {
   return worst < 1e-4;
 }
 
-int main() {
+namespace {
+
+#if defined(__AVX512F__) || defined(EVNERF_GEMM_AVX2)
+/// Ragged products in both B layouts, accumulating, overwriting and through both epilogues, each element
+/// against the fma chain (gemm::first_chain_mismatch). Returns the number of products that disagree.
+int kernel_mismatches() {
+  Rng rng(13);
+  int bad = 0, checked = 0;
+  for (int m : {1, 7, 8, 9, 16, 17, 31, 64, 65})
+    for (int n : {1, 3, 4, 6, 7, 12, 13, 45})
+      for (int k : {0, 1, 31, 150})
+        for (bool transposed : {false, true}) {
+          const std::ptrdiff_t lda = m + 3, ldc = m + 1, bk = transposed ? n : 1, bn = transposed ? 1 : k;
+          std::vector<float> a(static_cast<std::size_t>(lda) * k), b(static_cast<std::size_t>(k) * (n + 1)), bias(m),
+              y(static_cast<std::size_t>(m) * n), c0(static_cast<std::size_t>(ldc) * n);
+          for (auto* v : {&a, &b, &bias, &y, &c0})
+            for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
+          std::vector<float> acc = c0, plain = c0, fwd = c0, bwd = c0;
+          auto ops = [&](std::vector<float>& c) { return gemm::Operands<float>{m, n, k, a.data(), lda, b.data(), bk, bn, c.data(), ldc}; };
+          const gemm::BiasActivation<ReLU> bias_relu{bias.data()};
+          const gemm::ActivationGrad<ReLU> relu_grad{y.data(), m};
+          gemm::product<true>(ops(acc));
+          gemm::product<false>(ops(plain));
+          gemm::product<false>(ops(fwd), bias_relu);
+          gemm::product<false>(ops(bwd), relu_grad);
+          bad += gemm::first_chain_mismatch<true>(ops(acc), c0.data(), ldc).has_value();
+          bad += gemm::first_chain_mismatch<false>(ops(plain), nullptr, 0).has_value();
+          bad += gemm::first_chain_mismatch<false>(ops(fwd), nullptr, 0, bias_relu).has_value();
+          bad += gemm::first_chain_mismatch<false>(ops(bwd), nullptr, 0, relu_grad).has_value();
+          checked += 4;
+        }
+  std::printf("float kernel products equal to the fma chain: %d of %d\n", checked - bad, checked);
+  return bad;
+}
+#endif
+
+/// FNV-1a over the bits of a float network's output, parameter gradient and input gradient (64 wide, three
+/// hidden layers with a skip connection, a ragged tile of 517 samples) on fixed data.
+std::uint64_t network_digest() {
+  using M = Mlp<39, 64, 3, 16, ReLU, Identity, 1>;
+  const int n = 517;
+  Rng rng(21);
+  std::vector<float> params(M::n_params), x(static_cast<std::size_t>(M::in_dims) * n), dy(static_cast<std::size_t>(M::out_dims) * n);
+  M::init(params.data(), rng);
+  for (auto& v : x) v = static_cast<float>(rng.uniform(-1, 1));
+  for (auto& v : dy) v = static_cast<float>(rng.uniform(-1, 1));
+  typename M::template Workspace<float> ws;
+  const float* out = M::forward(params.data(), x.data(), n, ws);
+  std::vector<float> yv(out, out + static_cast<std::size_t>(M::out_dims) * n), dp(M::n_params, 0.f), dx(x.size(), 0.f);
+  M::backward(params.data(), ws, dy.data(), dp.data(), dx.data());
+  std::uint64_t h = 1469598103934665603ull;
+  for (const auto* v : {&yv, &dp, &dx})
+    for (float f : *v) {
+      std::uint32_t u;
+      std::memcpy(&u, &f, 4);
+      for (int q = 0; q < 4; ++q) h = (h ^ ((u >> (8 * q)) & 0xFF)) * 1099511628211ull;
+    }
+  return h;
+}
+
+/// Whether this CPU runs what this build was compiled for (the vector extensions the kernels use).
+bool cpu_runs_this_build() {
+#if defined(__AVX512F__)
+  if (!__builtin_cpu_supports("avx512f")) return false;
+#endif
+#if defined(__AVX2__) && defined(__FMA__)
+  if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma")) return false;
+#endif
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (!cpu_runs_this_build()) {
+    std::printf("this CPU lacks the vector extensions this build was compiled for: not run\n");
+    return 77;
+  }
+  if (argc > 1 && std::strcmp(argv[1], "--digest") == 0) {
+    std::printf("%016llx\n", static_cast<unsigned long long>(network_digest()));
+    return 0;
+  }
+  std::printf("float kernel in this build: %s\n",
+#if defined(__AVX512F__)
+              "AVX-512"
+#elif defined(EVNERF_GEMM_AVX2)
+              "AVX2 + FMA"
+#else
+              "none (Eigen)"
+#endif
+  );
   bool ok = mlp_matches<Mlp<17, 40, 3, 5, ReLU, Identity, 1>>(37);
   ok = mlp_matches<Mlp<17, 40, 3, 5, ReLU, Identity, 1, Bf16>>(37) && ok;
   using G = HashGrid<6, 2, 10, 4, 96>;
@@ -35,6 +133,9 @@ int main() {
   for (int j = 0; j < n; ++j) G::forward(params.data(), &pts[3 * static_cast<std::size_t>(j)], &yp[static_cast<std::size_t>(j) * G::out_dims]);
   std::printf("hash grid batch == point by point: %s\n", yb == yp ? "yes" : "no");
   ok = ok && yb == yp;
+#if defined(__AVX512F__) || defined(EVNERF_GEMM_AVX2)
+  ok = kernel_mismatches() == 0 && ok;
+#endif
   std::printf("bf16 kernel in this build: %s\n", bf16::available() ? "yes" : "no (Bf16 computes in FP32)");
   return ok ? 0 : 1;
 }
