@@ -1,4 +1,5 @@
 #include <evnerf/core/parallel.hpp>
+#include <evnerf/core/progress.hpp>
 #include <evnerf/core/rng.hpp>
 #include <evnerf/geometry/camera.hpp>
 #include <evnerf/geometry/trajectory.hpp>
@@ -26,6 +27,36 @@ TEST_CASE("rng: counter-based streams are reproducible and roughly uniform") {
   for (int i = 0; i < n; ++i) sq += r.normal() * 0 + std::pow(r.normal(), 2);
   CHECK(sq / n == doctest::Approx(1.0).epsilon(0.03));
   CHECK(r.split(1).next_u64() != r.split(2).next_u64());
+}
+
+TEST_CASE("ReadProgressLine: silent for a short read, then a line a second, and one at the end") {
+  double t = 0;
+  std::FILE* out = std::tmpfile();
+  REQUIRE(out);
+  ReadProgressLine line("rec.raw", out, 1.0, 1.0, [&] { return t; });
+  const std::uint64_t total = 4'000'000'000ull;
+  line(100, total);  // t = 0: within the delay
+  t = 0.5, line(1'000'000'000ull, total);
+  t = 1.5, line(1'500'000'000ull, total);  // shown
+  t = 2.0, line(1'600'000'000ull, total);  // within a second of the last: not shown
+  t = 2.6, line(2'000'000'000ull, total);  // shown
+  t = 3.0, line(total, total);             // the end: always shown, once
+  t = 3.1, line(total, total);
+  std::rewind(out);
+  std::string got;
+  for (int c; (c = std::fgetc(out)) != EOF;) got.push_back(static_cast<char>(c));
+  std::fclose(out);
+  CHECK(got ==
+        "reading rec.raw: 38 % (1.50 of 4.00 GB) 1.5 s, eta 2.5 s\n"
+        "reading rec.raw: 50 % (2.00 of 4.00 GB) 2.6 s, eta 2.6 s\n"
+        "reading rec.raw: 100 % (4.00 of 4.00 GB) 3.0 s\n");
+  // A read done within the delay prints nothing at all.
+  t = 0;
+  std::FILE* quiet = std::tmpfile();
+  ReadProgressLine fast("small.txt", quiet, 1.0, 1.0, [&] { return t; });
+  t = 0.2, fast(10, 10);
+  CHECK(std::ftell(quiet) == 0);
+  std::fclose(quiet);
 }
 
 TEST_CASE("parallel_jobs_by_cost: every job once, each thread a contiguous run of about equal cost") {

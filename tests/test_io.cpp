@@ -288,6 +288,76 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
   fs::remove_all(dir);
 }
 
+TEST_CASE("a whole-file read reports its progress: monotonic, in the file's bytes, to the end") {
+  // 150 000 events: several of the Prophesee reader's 64 KiB blocks, of AEDAT4's packets and of a bag's chunks.
+  const auto dir = temp_dir("progress");
+  fs::create_directories(dir / "rec");
+  std::string text;
+  for (int k = 0; k < 150000; ++k)
+    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
+  write(dir / "rec" / "events.txt", text);
+  write(dir / "rec" / "calib.txt", "100 100 16 12\n");
+  write(dir / "rec" / "sensor.txt", "32 24\n");
+  io::LoadOptions plain;
+  plain.use_cache = false;
+  const auto d = io::load(dir / "rec", plain);
+  // The readers that report (those evnerf also writes: Prophesee DAT reports through the same block reader
+  // as EVT 2.0 and 3.0), and the file whose bytes they count.
+  const std::set<std::string> reporting = {"ijrr", "evt2", "evt3", "rosbag", "aedat4"};
+  int checked = 0;
+  for (const auto& f : io::formats()) {
+    const std::string name = f.name;
+    if (!reporting.count(name) || !f.load) continue;
+    CAPTURE(name);
+    fs::path out = dir / "rec", counted = dir / "rec" / "events.txt";
+    if (name != "ijrr") {
+      out = counted = dir / ("out_" + name + (f.extensions.empty() ? "" : f.extensions.front()));
+      const bool writes = f.write != nullptr;
+      REQUIRE(writes);
+      io::convert(out, d);
+    }
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> calls;
+    io::LoadOptions opt = plain;
+    opt.progress = [&](std::uint64_t done, std::uint64_t total) { calls.emplace_back(done, total); };
+    const auto back = io::load(out, opt);
+    CHECK(back.events.size() == d.events.size());
+    REQUIRE(!calls.empty());
+    const std::uint64_t size = fs::file_size(counted);
+    bool monotonic = true, totals = true;
+    for (std::size_t k = 0; k < calls.size(); ++k) {
+      monotonic = monotonic && calls[k].first <= calls[k].second && (k == 0 || calls[k].first >= calls[k - 1].first);
+      totals = totals && calls[k].second == size;
+    }
+    CHECK(monotonic);
+    CHECK(totals);
+    // The last report is at the end of the data read: the file's end, or (AEDAT4) its last packet's, before the table.
+    CHECK(calls.back().first > size * 9 / 10);
+    if (name != "ijrr") CHECK(calls.size() >= 3);
+    // A progress function that throws abandons the read with its error.
+    opt.progress = [](std::uint64_t done, std::uint64_t) {
+      if (done > 0) throw Error("stopped by the caller");
+    };
+    CHECK_CONTAINS(error_of([&] { io::load(out, opt); }), "stopped by the caller");
+    ++checked;
+  }
+  CHECK(checked >= 4);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("inspect: a recording of one polarity is named so, not given a threshold ratio") {
+  const auto dir = temp_dir("one_polarity");
+  fs::create_directories(dir);
+  write(dir / "events.txt", "0.10 1 2 1\n0.11 3 4 1\n0.12 5 6 1\n");
+  write(dir / "calib.txt", "100 100 16 12\n");
+  write(dir / "sensor.txt", "32 24\n");
+  io::LoadOptions opt;
+  opt.use_cache = false;
+  const std::string text = io::format_summary(io::summarize(io::load(dir, opt)));
+  CHECK_CONTAINS(text, "warning: the recording has no OFF events");
+  CHECK(text.find("C-/C+") == std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("PNG: write then read back, montage and depth colouring have the right shape") {
   const auto dir = temp_dir("png");
   auto good_png_for_lengths = [&] { return read_file(dir / "a.png"); };

@@ -213,6 +213,27 @@ def test_colour_and_a_time_window(tmp_path):
     assert 0 < len(w) < len(d) and w.events.t[0] >= t[0] + 0.1 and w.events.t[-1] < t[0] + 0.3
 
 
+def test_a_load_reports_its_progress_and_can_be_stopped(tmp_path):
+    # Two IJRR folders written here (so no event cache of them exists: a load reads events.txt).
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "events.txt").write_text("".join(f"{0.1 + 1e-4 * k:.6f} {k % 32} {k % 24} {k % 2}\n" for k in range(5000)))
+        (tmp_path / name / "calib.txt").write_text("100 100 16 12\n")
+        (tmp_path / name / "sensor.txt").write_text("32 24\n")
+    calls = []
+    back = evnerf.load(tmp_path / "a", progress=lambda done, total: calls.append((done, total)))
+    assert len(back) == 5000 and calls
+    assert all(a[0] <= b[0] and a[1] == b[1] for a, b in zip(calls, calls[1:]))
+    assert calls[-1] == ((tmp_path / "a" / "events.txt").stat().st_size,) * 2
+
+    def stop(done, total):
+        raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        evnerf.load(tmp_path / "b", progress=stop)
+    with pytest.raises(evnerf.Error, match="progress must be a callable"):
+        evnerf.load(tmp_path / "b", progress=3)
+
+
 def test_channel_upsampling_is_checked(tmp_path):
     with pytest.raises(evnerf.Error, match="channel upsampling 'nearest': expected volume or sites"):
         evnerf.load_model(tmp_path / "channels.json", channel_upsampling="nearest")

@@ -16,6 +16,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "../core/progress.hpp"
 #include "../eval/evaluate.hpp"
 #include "../io/dataset.hpp"
 #include "../io/inspect.hpp"
@@ -293,7 +294,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       ->check(CLI::IsMember({"first", "both"}))
       ->capture_default_str();
   trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near and far)");
-  trainc->add_flag("--quiet", quiet, "no progress bar");
+  trainc->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
 
   // render
   fs::path ckpt;
@@ -340,6 +341,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
     load_opt.t_begin = time_window[0];
     load_opt.t_end = time_window[1];
   }
+  if (!quiet) load_opt.progress = ReadProgressLine(folder);  // shows only a read longer than a second
   try {
     if (*inspect) {
       const io::Format& format = io::detect_format(folder, load_opt.format);

@@ -1,11 +1,13 @@
 // core/fileio.hpp — whole-file reads and atomic writes (write to a temporary, fsync, rename), checksums.
 // Depends on the standard library and POSIX only.
 #pragma once
+#include <algorithm>
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <unistd.h>
@@ -15,8 +17,13 @@
 
 namespace evnerf {
 
-/// Reads a whole file into a string. Errors name the file.
-inline std::string read_file(const std::filesystem::path& path) {
+/// A long read's progress: `done` bytes of the file's `total` read so far. The readers of whole recordings
+/// call it after each block they read (64 KiB to a few MiB; an AEDAT4 packet, a bag's chunk), from the
+/// reading thread; it may throw to abandon the read. An empty function is never called.
+using ReadProgress = std::function<void(std::uint64_t done, std::uint64_t total)>;
+
+/// Reads a whole file into a string, reporting to `progress` (if given) every 16 MiB. Errors name the file.
+inline std::string read_file(const std::filesystem::path& path, const ReadProgress& progress = {}) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw Error(path.string(), 0, "cannot open file (missing or unreadable)");
   std::string buf;
@@ -25,7 +32,21 @@ inline std::string read_file(const std::filesystem::path& path) {
     if (size > 0) buf.resize(static_cast<std::size_t>(size));
     std::fseek(f, 0, SEEK_SET);
   }
-  std::size_t got = buf.empty() ? 0 : std::fread(buf.data(), 1, buf.size(), f);
+  std::size_t got = 0;
+  if (!progress) {
+    got = buf.empty() ? 0 : std::fread(buf.data(), 1, buf.size(), f);
+  } else {
+    constexpr std::size_t kPiece = std::size_t(16) << 20;
+    for (std::size_t k = 1; got < buf.size() && k > 0; got += k) {
+      k = std::fread(buf.data() + got, 1, std::min(kPiece, buf.size() - got), f);
+      try {
+        progress(got + k, buf.size());
+      } catch (...) {
+        std::fclose(f);
+        throw;
+      }
+    }
+  }
   if (got != buf.size()) buf.resize(got);
   // Streams whose size is unknown (pipes): read the rest in chunks.
   char chunk[1 << 16];

@@ -414,6 +414,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     const auto fb = detail::size_prefixed(body, where);
     const auto t = detail::flat_root(fb, is_ev ? "an EventPacket" : "a Frame");
     ++info.packets;
+    if (opt.progress) opt.progress(pos + 8 + static_cast<std::uint64_t>(e.size), file_size);
     if (is_ev) {
       const auto [at, n] = t.vector(0, 16);
       if (!n) continue;

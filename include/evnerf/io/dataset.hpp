@@ -59,7 +59,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     }
   }
   if (!loaded) {
-    d.events = read_events_txt(ev_path, w, h);
+    d.events = read_events_txt(ev_path, w, h, opt.progress);
     if (opt.use_cache) {
       try {
         save_event_cache(cache_dir, d.events, stamp);
@@ -165,7 +165,7 @@ inline void write_hdf5_recording(const std::filesystem::path& path, const Datase
 /// (ROS time, seconds) and moved to the recording's origin like the bag's own.
 inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
-  auto rec = read_rosbag(path, BagOptions{opt.events_topic, opt.images_topic, opt.camera_info_topic, opt.poses_topic});
+  auto rec = read_rosbag(path, BagOptions{opt.events_topic, opt.images_topic, opt.camera_info_topic, opt.poses_topic, opt.progress});
   const std::string file = path.string();
   int w = opt.width, h = opt.height;
   std::string from = "the size given";

@@ -214,8 +214,8 @@ inline events::EventStream parse_events(std::string_view text, const std::string
   return ev;
 }
 
-inline events::EventStream read_events_txt(const fs::path& path, int width, int height) {
-  const std::string text = read_file(path);
+inline events::EventStream read_events_txt(const fs::path& path, int width, int height, const ReadProgress& progress = {}) {
+  const std::string text = read_file(path, progress);
   return parse_events(text, path.string(), width, height);
 }
 

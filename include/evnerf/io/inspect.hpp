@@ -120,11 +120,14 @@ inline std::string format_summary(const Summary& s) {
   }
   if (s.events > 0) {
     const double on = static_cast<double>(s.on) / static_cast<double>(s.events);
-    if (on < kBalancedOnShare[0] || on > kBalancedOnShare[1]) {
+    if (s.on == 0 || s.off == 0) {
+      o += std::string("warning: the recording has no ") + (s.on == 0 ? "ON" : "OFF") +
+           " events: one polarity is missing (filtered out, or a sensor that reports only changes of one sign)\n";
+    } else if (on < kBalancedOnShare[0] || on > kBalancedOnShare[1]) {
       std::snprintf(buf, sizeof buf,
                     "warning: ON events are %.1f %% of the recording: its thresholds are likely asymmetric (where the brightness "
                     "returns, C-/C+ is about ON/OFF = %.2f)\n",
-                    100 * on, static_cast<double>(s.on) / static_cast<double>(std::max<std::size_t>(1, s.off)));
+                    100 * on, static_cast<double>(s.on) / static_cast<double>(s.off));
       o += buf;
     }
   }

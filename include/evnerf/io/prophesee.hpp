@@ -147,8 +147,13 @@ void huge_pages(std::vector<T>& v) {
 /// that may add up to n events; finish() gives back what room() reserved beyond them.
 class RawSink {
  public:
-  RawSink(events::EventStream& ev, const LoadOptions& opt, const std::string& file, int w, int h)
-      : ev_(ev), file_(file), w_(static_cast<unsigned>(w)), h_(static_cast<unsigned>(h)), t0_(opt.t_begin), t1_(opt.t_end) {}
+  RawSink(events::EventStream& ev, const LoadOptions& opt, const std::string& file, int w, int h, std::uint64_t file_bytes = 0)
+      : ev_(ev), file_(file), w_(static_cast<unsigned>(w)), h_(static_cast<unsigned>(h)), t0_(opt.t_begin), t1_(opt.t_end),
+        progress_(opt.progress), bytes_(file_bytes) {}
+  /// After a block: the file is read up to byte `offset` (LoadOptions::progress).
+  void read_to(std::size_t offset) const {
+    if (progress_) progress_(std::min<std::uint64_t>(offset, bytes_), bytes_);
+  }
   void room(std::size_t n) {
     if (ev_.t.size() + n <= ev_.t.capacity()) return;
     const std::size_t size = std::max(ev_.t.size() + n, ev_.t.capacity() + ev_.t.capacity() / 2);
@@ -193,12 +198,15 @@ class RawSink {
   std::int64_t last_ = 0;
   std::size_t count_ = 0;
   bool done_ = false;
+  const ReadProgress& progress_;
+  std::uint64_t bytes_;
 };
 
 /// Reads `f` from its position in blocks of whole words of `word` bytes, calling `block(words, n, offset)`
-/// until it returns false or the file ends; a file that ends inside a word is an Error.
+/// until it returns false or the file ends (and the sink's progress after each); a file that ends inside a
+/// word is an Error.
 template <class Block>
-void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, Block&& block) {
+void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink, Block&& block) {
   // Not value-initialised: a small file touches only the pages it reads into.
   constexpr std::size_t kBlock = std::size_t(1) << 16;
   const std::unique_ptr<unsigned char[]> buf(new unsigned char[kBlock]);
@@ -209,6 +217,7 @@ void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::s
     const std::size_t whole = got / word * word;
     if (whole && !block(buf.get(), whole / word, offset)) return;
     offset += whole;
+    sink.read_to(offset);
     keep = got - whole;
     if (got < kBlock) {
       if (keep) throw Error(file, 0, "byte " + std::to_string(offset) + ": the file ends inside a " + std::to_string(word) + "-byte word");
@@ -223,7 +232,7 @@ inline std::uint16_t le16(const unsigned char* p) { return static_cast<std::uint
 
 inline void decode_evt2(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
   std::int64_t high = -1;  // the time's bits 33–6 (with wraps past 2^34 µs added); -1 before the first
-  read_words(f, 4, offset, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+  read_words(f, 4, offset, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t w = le32(p + 4 * i);
@@ -257,7 +266,7 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
   unsigned y = 0, base = 0;
   int pol = 0;
   bool have_y = false;
-  read_words(f, 2, offset, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+  read_words(f, 2, offset, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);  // one event per word; a vector word makes room for its 12
     for (std::size_t i = 0; i < n; ++i) {
       const unsigned w = le16(p + 2 * i), type = w >> 12;
@@ -310,7 +319,7 @@ inline void decode_dat(std::FILE* f, std::size_t offset, RawSink& sink, const st
     throw Error(file, 0, "byte " + std::to_string(offset + 1) + ": event size " + std::to_string(ts[1]) +
                              " (a .dat file of CD events has 8-byte records)");
   std::int64_t wraps = 0, last = -1;
-  read_words(f, 8, offset + 2, file, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+  read_words(f, 8, offset + 2, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);
     for (std::size_t i = 0; i < n; ++i) {
       std::int64_t t = le32(p + 8 * i);
@@ -358,10 +367,10 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   events::EventStream ev;
   ev.width = info.width;
   ev.height = info.height;
-  detail::RawSink sink(ev, opt, file, info.width, info.height);
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(path, ec);
+  detail::RawSink sink(ev, opt, file, info.width, info.height, ec ? 0 : bytes);
   if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {  // the whole file: about an event per word
-    std::error_code ec;
-    const auto bytes = std::filesystem::file_size(path, ec);
     if (!ec && bytes > h.bytes) sink.room((bytes - h.bytes) / (info.kind == "dat" ? 8 : 4));  // EVT 3.0: two words an event
   }
   if (info.kind == "evt 2.0")

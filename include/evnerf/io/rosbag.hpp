@@ -61,6 +61,7 @@ struct BagTopic {
 /// there are several); "none": skip the role (not for events).
 struct BagOptions {
   std::string events_topic, images_topic, camera_info_topic, poses_topic;
+  ReadProgress progress;  ///< called after each chunk (or record of an unindexed bag) the read visits
 };
 
 /// What a bag holds, times in seconds after `origin_sec` (ROS time, whole seconds).
@@ -767,7 +768,7 @@ inline BagIndex read_bag_index(BagFile& f) {
 /// the chunks the index lists when `want` says the chunk holds a wanted connection, or every record when
 /// the bag has no index (connection records met on the way are added to `idx`).
 template <class Want, class Fn>
-void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn) {
+void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn, const ReadProgress& progress = {}) {
   std::string hb, data;
   std::vector<char> raw;
   Lz4Context lz4;
@@ -808,6 +809,7 @@ void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn) {
       const std::string at = f.name() + ": chunk at byte " + std::to_string(ci.pos);
       if (bag_op(h, at) != kBagChunk) throw Error(at + ": the index points at a record that is not a chunk; 'rosbag reindex' rebuilds it");
       chunk(ci.pos, h, doff, len);
+      if (progress) progress(doff + len, f.size());
     }
     return;
   }
@@ -835,6 +837,7 @@ void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn) {
       throw Error(at + ": unknown record (op " + std::to_string(op) + ")");
     }
     off = doff + len;
+    if (progress && op == kBagChunk) progress(off, f.size());
   }
 }
 
@@ -1241,7 +1244,8 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
           pose.q = Quat(p.q[3] / n, p.q[0] / n, p.q[1] / n, p.q[2] / n);
           poses.emplace_back(rel(p.has_stamp && !p.stamp.zero() ? p.stamp : record_time), pose);
         }
-      });
+      },
+      opt.progress);
 
   if (ev.empty()) throw Error(f.name(), 0, "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
   if (unsorted) {  // messages out of time order (two connections, or a recorder that reordered them)

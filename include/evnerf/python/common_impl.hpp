@@ -81,7 +81,7 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
   m.def(
       "load",
       [](const fs::path& path, std::optional<fs::path> calib, std::optional<fs::path> poses, std::optional<std::pair<double, double>> window,
-         const std::string& format, std::optional<std::pair<int, int>> sensor_size) {
+         const std::string& format, std::optional<std::pair<int, int>> sensor_size, py::object progress) {
         io::LoadOptions o;
         if (calib) o.calib = *calib;
         if (poses) o.poses = *poses;
@@ -95,14 +95,22 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
           o.t_end = window->second;
         }
         o.format = format;
+        if (!progress.is_none()) {
+          if (!PyCallable_Check(progress.ptr())) throw Error("load: progress must be a callable (bytes_read, bytes_total)");
+          o.progress = [progress](std::uint64_t done, std::uint64_t total) {
+            py::gil_scoped_acquire gil;
+            progress(done, total);  // what it raises (KeyboardInterrupt among them) ends the read
+          };
+        }
         py::gil_scoped_release nogil;
         return Dataset{std::make_shared<io::Dataset>(io::load(path, o))};
       },
       py::arg("path"), py::kw_only(), py::arg("calib") = py::none(), py::arg("poses") = py::none(), py::arg("time_window") = py::none(),
-      py::arg("format") = "", py::arg("sensor_size") = py::none(),
-      "Any recording evnerf reads (IJRR folder, EventNeRF or Robust e-NeRF folder, Prophesee .raw or .dat, event HDF5, ROS bag); "
-      "calib and poses as the command line's --calib and --poses, time_window (t0, t1) seconds, format as --format, "
-      "sensor_size (width, height) as --sensor-size.");
+      py::arg("format") = "", py::arg("sensor_size") = py::none(), py::arg("progress") = py::none(),
+      "Any recording evnerf reads (IJRR folder, EventNeRF or Robust e-NeRF folder, Prophesee .raw or .dat, event HDF5, ROS bag, "
+      "AEDAT4); calib and poses as the command line's --calib and --poses, time_window (t0, t1) seconds, format as --format, "
+      "sensor_size (width, height) as --sensor-size; progress(bytes_read, bytes_total), if given, is called as a long read goes on "
+      "(IJRR text, Prophesee, AEDAT4, ROS bags), and what it raises stops the read.");
 
   m.def(
       "simulate",
