@@ -250,8 +250,8 @@ namespace {
 // A colour network of a user's own that does not lay out its weights as nn::Mlp does (no layer_out): the
 // field still compiles, with no view weights named.
 struct OpaqueColourNet {
-  static constexpr int in_dims = 3 + 4, out_dims = 1;
-  static constexpr std::size_t n_params = 10;
+  [[maybe_unused]] static constexpr int in_dims = 3 + 4, out_dims = 1;  // read by Field only where it needs them
+  [[maybe_unused]] static constexpr std::size_t n_params = 10;
   using output_activation = nn::Identity;
   static std::string name() { return "opaque"; }
 };
