@@ -1,6 +1,6 @@
 // nn/detail/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
-// in place through strides (no packing), so a layer's weights, their transpose or a tile's gradients go
-// straight into the kernel. On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
+// in place through strides, so a layer's weights, their transpose or a tile's gradients go straight into the
+// kernel (the AVX2 kernel copies a row panel of A side by side first where many column blocks read it). On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
 // which the gradient checks use) Eigen does the work. Also the 16×16-block transpose that gives the
 // backward pass Wᵀ. Depends on Eigen and nn/activation.hpp only.
 //
@@ -268,6 +268,19 @@ namespace detail {
 /// best of 64–512 on an AVX2 CPU for the weight gradients of 64-wide layers over 1024 samples).
 inline constexpr int k_chunk8 = 64;
 
+/// The 8·V rows i0.. of A's columns 0..K-1 copied side by side into a per-thread buffer (masked rows as
+/// zeros), so that block8 reads them with a leading dimension of 8·V. Valid until the thread's next call.
+template <int V>
+inline const float* pack_panel8(const float* a, std::ptrdiff_t lda, int K, const __m256i (&mask)[2]) {
+  thread_local std::vector<float, Eigen::aligned_allocator<float>> buf;
+  const std::size_t need = static_cast<std::size_t>(8 * V) * static_cast<std::size_t>(K);
+  if (buf.size() < need) buf.resize(need);
+  float* out = buf.data();
+  for (int k = 0; k < K; ++k)
+    for (int v = 0; v < V; ++v) _mm256_storeu_ps(out + (8 * V) * k + 8 * v, _mm256_maskload_ps(a + k * lda + 8 * v, mask[v]));
+  return out;
+}
+
 /// Lanes 0..r-1 of a mask (r in 0..8).
 inline __m256i lanes_below(int r) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(r), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
@@ -279,8 +292,12 @@ template <int V, int NR, bool Accumulate, bool Full, class Epi>
 inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
                    std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __m256i (&mask)[2], const Epi& epi, int i0,
                    int j0) {
+  // Every loop over the accumulators is unrolled, so that each is a register: a loop GCC leaves rolled
+  // indexes the array, which then lives on the stack and is stored to on every k.
   __m256 acc[V][NR];
+#pragma GCC unroll 8
   for (int j = 0; j < NR; ++j)
+#pragma GCC unroll 2
     for (int v = 0; v < V; ++v) {
       if constexpr (Accumulate)
         acc[v][j] = Full ? _mm256_loadu_ps(c + j * ldc + 8 * v) : _mm256_maskload_ps(c + j * ldc + 8 * v, mask[v]);
@@ -290,15 +307,19 @@ inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const f
   for (int k = 0; k < K; ++k) {
     const float* ak = a + k * lda;
     __m256 av[V];
+#pragma GCC unroll 2
     for (int v = 0; v < V; ++v) av[v] = Full ? _mm256_loadu_ps(ak + 8 * v) : _mm256_maskload_ps(ak + 8 * v, mask[v]);
     const float* bp = b + k * bk;
-#pragma GCC unroll 6
+#pragma GCC unroll 8
     for (int j = 0; j < NR; ++j) {
       const __m256 bj = _mm256_broadcast_ss(bp + j * bn);
+#pragma GCC unroll 2
       for (int v = 0; v < V; ++v) acc[v][j] = _mm256_fmadd_ps(av[v], bj, acc[v][j]);
     }
   }
+#pragma GCC unroll 8
   for (int j = 0; j < NR; ++j)
+#pragma GCC unroll 2
     for (int v = 0; v < V; ++v) {
       __m256 r = acc[v][j];
       if constexpr (Epi::active) r = epi(r, i0 + 8 * v, j0 + j, mask[v]);
@@ -586,9 +607,19 @@ inline void product_unchecked(const Operands<T>& o, [[maybe_unused]] const Epi& 
       const float* a = o.a + k0 * o.lda;
       const float* b = o.b + k0 * o.bk;
       detail::row_panels8(o.m, [&](auto v, auto full, int i0, const __m256i(&mask)[2]) {
+        constexpr int V = decltype(v)::value;
+        // A row panel read by many column blocks is packed first (its 8·V rows of each k side by side) where
+        // its leading dimension is a multiple of 1 KB (a 256-wide layer's): its k columns would fall into a
+        // few L1 sets and be fetched again from L2 by every block. Packing moves values, not arithmetic.
+        const float* ap = a + i0;
+        std::ptrdiff_t lda = o.lda;
+        if (o.n > 12 && kc > 16 && o.lda % 256 == 0) {
+          ap = detail::pack_panel8<V>(a + i0, o.lda, kc, mask);
+          lda = 8 * V;
+        }
         detail::column_blocks8(o.n, [&](auto nr, int j) {
-          detail::block8<decltype(v)::value, decltype(nr)::value, Accumulate, decltype(full)::value>(
-              kc, a + i0, o.lda, b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
+          detail::block8<V, decltype(nr)::value, Accumulate, decltype(full)::value>(
+              kc, ap, lda, b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
         });
       });
       k0 += chunk;
