@@ -181,9 +181,10 @@ void BM_gemm(benchmark::State& st) {
   st.counters["gmacs"] = benchmark::Counter(double(m) * n * k / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 }
 /// Fast's shapes over one tile of 1024 samples: the density network's first layer (64 × 32) and the colour
-/// network's one-row output (1 × 64), forward and weight gradient.
+/// network's one-row output (1 × 64), forward and weight gradient; the paper network's 256 × 256 layer.
 void gemm_shapes(benchmark::internal::Benchmark* b) {
   b->Args({64, 1024, 32, 0})->Args({64, 32, 1024, 1})->Args({1, 1024, 64, 0})->Args({1, 64, 1024, 1});
+  b->Args({256, 256, 256, 0})->Args({256, 256, 256, 1});  // the paper network's hidden layer over a tile of 256
 }
 
 #if defined(__AVX512BF16__)

@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # The network ratios under a noisy machine: each of our MLP benchmarks runs right next to the PyTorch
 # peer's same network (best configuration), pair after pair, the order flipping every pair; each pair
-# gives a ratio, and the script prints their median and range. Usage: bench/pairs.sh [pairs]
+# gives a ratio, and the script prints their median and range, written to bench/results/speed_ISA.csv
+# (RESULTS) and docs/results.md. Usage: bench/pairs.sh [pairs]
+# ISA=avx2: both sides on their AVX2 + FMA paths on a CPU with AVX-512 (ours built with EVNERF_NO_AVX512 in
+# build-bench-avx2, the peer with OpenBLAS's AVX2 kernels).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PAIRS=${1:-10}
@@ -11,13 +14,18 @@ if [ ! -f "$PEER" ]; then
   exit 1
 fi
 scripts/deps.sh libbenchmark-dev python3-torch python3-numpy libopenblas0-openmp libtcmalloc-minimal4
-cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
-  -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
-cmake --build build-bench -j"$(nproc)" >/dev/null
-OUT=build-bench/pairs; rm -rf "$OUT"; mkdir -p "$OUT"
+case "${ISA:-native}" in
+  native) B=build-bench; NO512=OFF ;;
+  avx2) B=build-bench-avx2; NO512=ON ;;
+  *) echo "bench/pairs.sh: ISA is native or avx2, not '$ISA'" >&2; exit 2 ;;
+esac
+cmake -S . -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
+  -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_NO_AVX512="$NO512" >/dev/null
+cmake --build "$B" -j"$(nproc)" >/dev/null
+OUT=$B/pairs; rm -rf "$OUT"; mkdir -p "$OUT"
 . bench/peer_config.sh  # BEST: the peer's flags for this CPU
 ours() {  # width, pair
-  OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench --benchmark_filter="BM_fma_peak|BM_mlp_fused<$1>/" \
+  OMP_NUM_THREADS=2 "$B"/bench/evnerf_bench --benchmark_filter="BM_fma_peak|BM_mlp_fused<$1>/" \
     --benchmark_format=json --benchmark_out="$OUT/ours_$1_$2.json" --benchmark_out_format=json >/dev/null
 }
 peer() {  # width, samples, pair
@@ -30,4 +38,11 @@ for p in $(seq "$PAIRS"); do
     peer 256 16384 "$p"; ours 256 "$p"; peer 64 65536 "$p"; ours 64 "$p"
   fi
 done
-python3 bench/pairs.py "$OUT" "$PAIRS"
+python3 bench/pairs.py "$OUT" "$PAIRS" "${ISA:-native}" "$CPU_FEATURES" "$OPENBLAS_CORE"
+# The current figures are kept in the repository (RESULTS, default bench/results; empty: not copied), one
+# file per ISA; bench/results.py puts them in docs/results.md.
+RESULTS=${RESULTS-bench/results}
+if [ -n "$RESULTS" ]; then
+  mkdir -p "$RESULTS" && cp "$OUT/pairs.csv" "$RESULTS/speed_${ISA:-native}.csv" && echo "copied to $RESULTS/speed_${ISA:-native}.csv"
+  python3 bench/results.py
+fi

@@ -1,11 +1,17 @@
 # Sourced by bench/run.sh and bench/pairs.sh: the PyTorch peer's best configuration for the CPU this runs on
 # (../shared/peers/README.md), with the OpenBLAS kernels chosen from the CPU's vector features: SkylakeX
 # only where AVX-512 (F, BW, VL) is there, Zen or Haswell (by vendor) with AVX2 + FMA, Sandybridge with AVX
-# alone. Sets OPENBLAS_CORE and BEST (the peer's flags) and says which it chose; exits with a reason on a
-# CPU without AVX, where neither side's fast kernels run.
+# alone. Sets OPENBLAS_CORE, BEST (the peer's flags) and CPU_FEATURES and says which it chose; exits with a reason on a
+# CPU without AVX, where neither side's fast kernels run. ISA=avx2 measures the AVX2 + FMA paths on a CPU
+# with AVX-512: the peer then takes the AVX2 kernels too.
 cpu_flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
 cpu_vendor=$(grep -m1 '^vendor_id' /proc/cpuinfo | awk '{print $3}')
 has() { [[ $cpu_flags == *" $1 "* ]]; }
+# The CPU's own features, named in the results.
+CPU_FEATURES="$(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA")"
+if [ "${ISA:-}" = avx2 ]; then
+  cpu_flags=${cpu_flags// avx512f / }
+fi
 if has avx512f && has avx512bw && has avx512vl; then
   OPENBLAS_CORE=SkylakeX
 elif has avx2 && has fma; then
@@ -17,4 +23,4 @@ else
   exit 3
 fi
 BEST="--openblas-core $OPENBLAS_CORE --blas-variant openmp --omp-wait passive --malloc tcmalloc --threads 2"
-echo "peer: OpenBLAS kernels $OPENBLAS_CORE for this CPU ($(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA"))" >&2
+echo "peer: OpenBLAS kernels $OPENBLAS_CORE for this CPU ($CPU_FEATURES)${ISA:+ as ISA=$ISA}" >&2

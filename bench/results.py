@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
-time_to_quality.csv from bench/time_to_quality.sh), so both say the same and neither is edited by hand.
+time_to_quality.csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh), so both say the same and neither is edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
 --check writes nothing and fails when a page differs from what the CSV files give (ctest docs.results)."""
@@ -119,13 +119,14 @@ def headline(q):
     return lines
 
 
-def results_page(q, robust, ttq):
+def results_page(q, robust, ttq, speed=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
-         "how. The page is written by `bench/results.py` from the CSV files the benchmarks leave in `bench/results/`",
-         "(`bench/quality.sh`, `bench/robustness.sh`, `bench/time_to_quality.sh`); the README's table comes from the",
-         "same files. Every figure is PSNR dB / SSIM against the recording's frames under the named alignment",
+         "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
+         "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`); the README's table comes from the same files. Every quality",
+         "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
          "contrast of 0.2. A run's bits depend on its thread count, so the figures compare across machines only at",
@@ -179,6 +180,17 @@ def results_page(q, robust, ttq):
             rs = [r for r in robust if r["sensor"] == sensor]
             p.append(f"- {sensor} sensor: {sum(r['pass'] == '1' for r in rs)} of {len(rs)} pass, mean {statistics.mean(float(r['psnr']) for r in rs):.2f} dB / "
                      f"{statistics.mean(float(r['ssim']) for r in rs):.3f}; the collapse check fired on {sum(r['collapse_fired'] == '1' for r in rs)}.")
+    if speed:
+        p += ["", "## Network speed against PyTorch (`bench/pairs.sh`)", "",
+              "The fused MLP's forward + backward (samples per second) right next to the PyTorch peer's same network in its",
+              "best configuration for the CPU, 2 threads; the median of the pairs' ratios and their range, and ours as a",
+              "share of the FMA peak the same build measures. `ISA=avx2` is the AVX2 + FMA build (`-DEVNERF_NO_AVX512=ON`)",
+              "on the same CPU, against OpenBLAS's AVX2 kernels.", "",
+              "| build | CPU | peer's kernels | width | pairs | ours / PyTorch (range) | ours samples/s | of the FMA peak |",
+              "|---|---|---|---|---|---|---|---|"]
+        for r in speed:
+            p.append(f"| {r['isa']} | {r['cpu']} | {r['peer_core']} | {r['width']} | {r['pairs']} | {r['ratio']}× ({r['ratio_min']}–{r['ratio_max']}) | "
+                     f"{int(r['ours_samples_per_s']):,} | {100 * float(r['peak_fraction']):.0f} % of {float(r['peak_gflops']):.0f} GFLOP/s |")
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
               "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it):", "",
@@ -205,7 +217,8 @@ def main():
     q = Quality(read(os.path.join(a.results, "quality.csv")))
     robust = read(os.path.join(a.results, "robustness.csv"))
     ttq = read(os.path.join(a.results, "time_to_quality.csv"))
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq)}
+    speed = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"speed_{isa}.csv"))]
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []
