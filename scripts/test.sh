@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 # ccache: a compile repeated with the same source and flags (the Python module that python.pip builds
 # through `pip install .`, a rebuild after a checkout) comes from its cache.
 scripts/deps.sh ccache python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil \
-  python3-flatbuffers python3-lz4 python3-zstandard \
+  python3-flatbuffers python3-lz4 python3-zstandard assimp-testmodels \
   pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib python3-venv libopenmpi-dev openmpi-bin
 BUILD=${BUILD:-build}
 # The Python module is built for Debian's interpreter (/usr/bin/python3), whose numpy and pytest the tests use.

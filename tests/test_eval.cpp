@@ -129,6 +129,35 @@ TEST_CASE("alignment: EventNeRF's fit recovers a known map per channel in log(x^
   CHECK(std::string(eval::to_string(eval::Alignment::EventNerf)) == "eventnerf");
 }
 
+TEST_CASE("alignment: the offset-only fit undoes a log offset per channel over the sequence, and no gain") {
+  std::vector<Image> gts, preds;
+  const double B[3] = {-0.4, -0.1, -0.25};  // b ≤ 0: the prediction stays non-negative
+  for (int f = 0; f < 2; ++f) {
+    const Image g = det(24, 16, 0.15 + 0.1 * f, 0.3);
+    Image gt(24, 16, 3), pred(24, 16, 3);
+    for (std::size_t i = 0; i < g.pixels(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        gt.data[3 * i + c] = (0.3f + 0.1f * c) * g.data[i];
+        pred.data[3 * i + c] = static_cast<float>(std::exp(std::log(gt.data[3 * i + c] + eval::kLogEps) - B[c]) - eval::kLogEps);
+      }
+    gts.push_back(gt);
+    preds.push_back(pred);
+  }
+  const auto fit = eval::fit_log_affine(preds, gts, {}, true);
+  for (int c = 0; c < 3; ++c) {
+    CHECK(fit[c].a == 1.0);
+    CHECK(fit[c].b == doctest::Approx(B[c]).epsilon(1e-4));
+  }
+  for (const auto& s : eval::score_sequence(preds, gts, eval::Alignment::GlobalLogOffset)) CHECK(s.mse < 1e-9);
+  // A gain in log space is not undone: the log-affine fit removes it, the offset-only one does not.
+  for (auto& p : preds)
+    for (auto& v : p.data) v = static_cast<float>(std::exp(0.7 * std::log(v + eval::kLogEps)) - eval::kLogEps);
+  CHECK(eval::mean(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogOffset)).mse > 1e-4);
+  CHECK(eval::mean(eval::score_sequence(preds, gts, eval::Alignment::GlobalLogAffine)).mse < 1e-6);
+  CHECK(eval::parse_alignment("global-log-offset") == eval::Alignment::GlobalLogOffset);
+  CHECK(std::string(eval::to_string(eval::Alignment::GlobalLogOffset)) == "global-log-offset");
+}
+
 TEST_CASE("HDR scoring: the truth's log range is put on [0, 1], a known map is undone, clipping is seen") {
   // Linear truth spanning 9 nats (1e-4 .. 0.8); a prediction that is a power law of it (exact in log space
   // when the offset is negligible) scores perfectly under the sequence fit, and the same prediction clipped

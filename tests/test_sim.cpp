@@ -417,3 +417,242 @@ TEST_CASE("sensor: the hot pixels planted in a moving textured scene are the one
   for (const auto& h : events::suspected_hot_pixels(hot.events)) found.insert(h.y * W + h.x);
   CHECK(found == planted);
 }
+
+#ifdef EVNERF_HAVE_MESH
+namespace {
+/// A scratch folder removed at the end of the scope.
+struct Scratch {
+  fs::path dir;
+  explicit Scratch(const std::string& name) : dir(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  ~Scratch() { fs::remove_all(dir); }
+};
+void write_text(const fs::path& p, const std::string& s) { write_file_atomic(p, s); }
+
+/// An OBJ box of half size h at c whose faces carry the analytic box's texture coordinates (face of axis k:
+/// u, v = the offsets along axes k+1 and k+2), with one normal per face.
+std::string obj_box(const Vec3& c, double h, const std::string& mtl) {
+  std::string s = mtl.empty() ? "" : "mtllib " + mtl + "\nusemtl m\n";
+  int base = 1;
+  for (int k = 0; k < 3; ++k)
+    for (int side = -1; side <= 1; side += 2) {
+      const int a = (k + 1) % 3, b = (k + 2) % 3;
+      const double corners[4][2] = {{-h, -h}, {h, -h}, {h, h}, {-h, h}};
+      for (const auto& q : corners) {
+        Vec3 p = c;
+        p[k] += side * h;
+        p[a] += q[0];
+        p[b] += q[1];
+        s += "v " + std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) + "\n";
+        s += "vt " + std::to_string(q[0]) + " " + std::to_string(q[1]) + "\n";
+      }
+      Vec3 n = Vec3::Zero();
+      n[k] = side;
+      s += "vn " + std::to_string(n.x()) + " " + std::to_string(n.y()) + " " + std::to_string(n.z()) + "\n";
+      const int f = (base - 1) / 4 + 1;
+      auto corner = [&](int i) { return std::to_string(base + i) + "/" + std::to_string(base + i) + "/" + std::to_string(f); };
+      s += "f " + corner(0) + " " + corner(1) + " " + corner(2) + "\nf " + corner(0) + " " + corner(2) + " " + corner(3) + "\n";
+      base += 4;
+    }
+  return s;
+}
+
+sim::SensorConfig mesh_sensor() {  // small_sensor at 64 x 48: a box a metre wide at 3 m spans about 24 pixels
+  auto c = small_sensor();
+  c.width = 64, c.height = 48, c.fx = c.fy = 60;
+  return c;
+}
+}  // namespace
+
+TEST_CASE("mesh: a box mesh renders the intensity and depth of the analytic box of the same size and texture") {
+  Scratch s("evnerf_meshbox");
+  // An 8x8 texture whose last row and column repeat the first (the analytic texture clamps at its edges,
+  // the mesh's repeats: the two then agree across the seam).
+  Image tex(8, 8, 3);
+  Rng rng(5);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x)
+      for (int k = 0; k < 3; ++k) tex.data[(y * 8 + x) * 3 + k] = (x == 7 || y == 7) ? tex.data[((y % 7) * 8 + x % 7) * 3 + k] : static_cast<float>(std::round(rng.uniform() * 255) / 255);
+  io::write_png(s.dir / "tex.png", tex);
+  write_text(s.dir / "box.mtl", "newmtl m\nKd 1 1 1\nmap_Kd tex.png\n");
+  const Vec3 c(0.3, 0.2, 3.0);
+  write_text(s.dir / "box.obj", obj_box(c, 0.5, "box.mtl"));
+  const std::string path = "path slider 0 0 0 0.1 0 0 0 0 1 0.5\n";
+  auto mesh = sim::parse_scene("mesh box.obj 0.3 0.2 3 " + short_number(0.5 * std::sqrt(3.0)) + " up -y\n" + path, "m.txt", s.dir);
+  auto analytic = sim::parse_scene("box 0.3 0.2 3 0.5 0.5 0.5 image tex.png 1\n" + path, "a.txt", s.dir);
+  // The mesh's texture is sRGB-encoded, the analytic one is taken as linear: linearise the analytic copy.
+  for (auto& v : analytic.scene.prims[0].tex.picture->data) v = static_cast<float>(sim::srgb_to_linear(v));
+  REQUIRE(mesh.scene.surfaces.size() == 1);
+  const auto& m = dynamic_cast<const sim::Mesh&>(*mesh.scene.surfaces[0]);
+  CHECK(m.triangles() == 12);
+  CHECK((m.lower() - Vec3(-0.2, -0.3, 2.5)).norm() < 1e-6);
+  CHECK((m.upper() - Vec3(0.8, 0.7, 3.5)).norm() < 1e-6);
+  for (double t : {0.0, 0.5}) {
+    std::vector<Vec3> a, b;
+    std::vector<float> da, db;
+    sim::Simulator(mesh, mesh_sensor()).render(t, a, &da);
+    sim::Simulator(analytic, mesh_sensor()).render(t, b, &db);
+    int both = 0, differ = 0, depth_off = 0, hit_mismatch = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (std::isfinite(da[i]) != std::isfinite(db[i])) {
+        ++hit_mismatch;
+        continue;
+      }
+      if (!std::isfinite(da[i])) continue;
+      ++both;
+      if (std::abs(da[i] - db[i]) > 1e-5 * db[i]) ++depth_off;
+      if ((a[i] - b[i]).cwiseAbs().maxCoeff() > 0.01) ++differ;
+    }
+    INFO("t = " << t << ": " << both << " pixels on the box, " << differ << " differ in intensity, " << depth_off << " in depth, "
+                << hit_mismatch << " hit one box only");
+    CHECK(both > 500);
+    CHECK(depth_off == 0);
+    CHECK(hit_mismatch <= 4);  // rays through an edge, within float precision of it
+    CHECK(differ <= both / 50);
+  }
+}
+
+TEST_CASE("mesh: a textured quad shows its texture the right way up and at the analytic depth") {
+  Scratch s("evnerf_meshquad");
+  // Texture: top-left red, top-right green, bottom half blue (row 0 is the image's top).
+  Image tex(4, 4, 3);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 4; ++x) {
+      const int k = y >= 2 ? 2 : x < 2 ? 0 : 1;
+      tex.data[(y * 4 + x) * 3 + k] = 1;
+    }
+  io::write_png(s.dir / "quad.png", tex);
+  write_text(s.dir / "quad.mtl", "newmtl m\nKd 1 1 1\nmap_Kd quad.png\n");
+  // A quad at z = 2 facing the camera; up is -y, so its top edge is at y = -0.5; texture v = 1 at the top.
+  write_text(s.dir / "quad.obj",
+             "mtllib quad.mtl\nusemtl m\nv -0.5 0.5 2\nv 0.5 0.5 2\nv 0.5 -0.5 2\nv -0.5 -0.5 2\n"
+             "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 -1\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n");
+  auto spec = sim::parse_scene("light 0 0 1 1 0\nbackground 0 0 0\nmesh quad.obj 0 0 2 " + short_number(0.5 * std::sqrt(2.0)) +
+                                   " up -y\npath slider 0 0 0 0 0 0 0 0 1 0.5\n",
+                               "q.txt", s.dir);
+  auto cfg = mesh_sensor();
+  std::vector<Vec3> rgb;
+  std::vector<float> depth;
+  sim::Simulator(spec, cfg).render(0, rgb, &depth);
+  auto px = [&](int x, int y) { return rgb[static_cast<std::size_t>(y) * cfg.width + x]; };
+  // The quad spans 30 pixels around the centre (32, 24): sample inside each quadrant.
+  CHECK(px(24, 16).x() > 0.9);
+  CHECK(px(24, 16).y() < 0.1);
+  CHECK(px(40, 16).y() > 0.9);
+  CHECK(px(24, 32).z() > 0.9);
+  CHECK(px(40, 32).z() > 0.9);
+  CHECK(px(2, 2).norm() == 0);  // background
+  // Depth: the plane z = 2 seen along unit-z rays.
+  CHECK(depth[24 * cfg.width + 32] == doctest::Approx(2.0).epsilon(1e-6));
+  CHECK(std::isinf(depth[2 * cfg.width + 2]));
+}
+
+TEST_CASE("mesh: the orbit looks at the centre at its radius and elevation, one revolution a second, and the spiral climbs") {
+  const Vec3 c(0.1, -0.2, 0.3);
+  const auto orbit = sim::orbit_path(c, 3.0, 30 * std::numbers::pi / 180, 2.0);
+  for (double t : {0.0, 0.13, 0.5, 0.77}) {
+    const auto p = orbit.pose(t);
+    const Vec3 eye = p.t, forward = p.q * Vec3::UnitZ();
+    CHECK((eye - c).norm() == doctest::Approx(3.0));
+    CHECK((forward - (c - eye).normalized()).norm() < 1e-9);
+    CHECK(-(eye - c).y() / 3.0 == doctest::Approx(0.5));  // sin 30°, above the centre (up is -y)
+    CHECK((orbit.pose(t + 1).t - eye).norm() < 1e-9);      // one revolution a second
+    CHECK((orbit.pose(t + 0.5).t - eye).norm() > 5.0);     // half a revolution: the far side
+  }
+  const auto spiral = sim::spiral_path(c, 2.0, 5 * std::numbers::pi / 180, 75 * std::numbers::pi / 180, 3, 3.0);
+  double last = -1;
+  for (double t = 0; t <= 3.0; t += 0.25) {
+    const Vec3 eye = spiral.pose(t).t;
+    CHECK((eye - c).norm() == doctest::Approx(2.0));
+    const double elevation = std::asin(-(eye - c).y() / 2.0);
+    CHECK(elevation > last);
+    last = elevation;
+  }
+  CHECK(last == doctest::Approx(75 * std::numbers::pi / 180));
+}
+
+TEST_CASE("mesh: files that cannot be a scene's mesh are refused naming the file and what is wrong") {
+  Scratch s("evnerf_mesherr");
+  const std::string path = "path slider 0 0 0 0 0 0 0 0 1 0.5\n";
+  auto refused = [&](const std::string& file) {
+    try {
+      sim::parse_scene("mesh " + file + " 0 0 2 1\n" + path, "scene.txt", s.dir);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  CHECK_CONTAINS(refused("absent.obj"), "absent.obj: no such mesh file");
+  write_text(s.dir / "garbage.xyz1", "this is not a mesh\n");
+  CHECK_CONTAINS(refused("garbage.xyz1"), "assimp cannot read it");
+  write_text(s.dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1\np 2\np 3\n");
+  CHECK_CONTAINS(refused("points.obj"), "points.obj: the file holds no triangles");
+  write_text(s.dir / "nomap.mtl", "newmtl m\nKd 1 1 1\nmap_Kd missing.png\n");
+  write_text(s.dir / "nomap.obj", "mtllib nomap.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+  CHECK_CONTAINS(refused("nomap.obj"), "texture 'missing.png' is not a file");
+  write_text(s.dir / "bad.png", "\x89PNG\r\n\x1a\n but then nothing of a PNG");
+  write_text(s.dir / "badmap.mtl", "newmtl m\nKd 1 1 1\nmap_Kd bad.png\n");
+  write_text(s.dir / "badmap.obj", "mtllib badmap.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+  CHECK_CONTAINS(refused("badmap.obj"), "texture 'bad.png': cannot decode image");
+  // A TGA (no signature: known by its name) whose header announces more pixels than the file holds.
+  std::string tga(18, '\0');
+  tga[2] = 2;                    // uncompressed true colour
+  tga[12] = 64, tga[14] = 64;    // 64 x 64
+  tga[16] = 24;
+  write_text(s.dir / "short.tga", tga + std::string(100, '\x7f'));
+  write_text(s.dir / "tga.mtl", "newmtl m\nKd 1 1 1\nmap_Kd short.tga\n");
+  write_text(s.dir / "tga.obj", "mtllib tga.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+  CHECK_CONTAINS(refused("tga.obj"), "texture 'short.tga': cannot decode image: truncated TGA (100 bytes of pixel data for 64x64 pixels)");
+  write_text(s.dir / "point.obj", "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n");
+  CHECK_CONTAINS(refused("point.obj"), "point.obj: the vertices span no volume");
+  const fs::path infinites = "/usr/share/assimp/models/glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb";
+  if (fs::exists(infinites)) {
+    CHECK_CONTAINS(refused(infinites.string()), "BoxWithInfinites.glb: mesh 0 ('Mesh'): vertex 0 has a coordinate that is not finite");
+  }
+  // The error carries the scene file's line too.
+  CHECK_CONTAINS(refused("absent.obj"), "scene.txt:1:");
+  try {
+    sim::parse_scene("mesh x.obj 0 0 2 -1\n" + path, "scene.txt", s.dir);
+    FAIL("a negative radius was accepted");
+  } catch (const Error& e) {
+    CHECK_CONTAINS(std::string(e.what()), "mesh radius must be positive");
+  }
+}
+#endif
+
+#ifdef EVNERF_HAVE_MESH
+TEST_CASE("mesh: the suite's assets from assimp-testmodels load, textured, inside their sphere") {
+  const fs::path root = "/usr/share/assimp/models";
+  if (!fs::exists(root)) {
+    MESSAGE("skipped: " << root << " is absent (Debian's assimp-testmodels)");
+    return;
+  }
+  struct Asset {
+    const char* file;
+    std::size_t textures;  // base-colour textures the materials use
+  };
+  for (const Asset& a : {Asset{"Collada/duck.dae", 1}, Asset{"glTF/CesiumMilkTruck/CesiumMilkTruck.gltf", 1},
+                         Asset{"glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb", 0}, Asset{"OBJ/spider.obj", 1}}) {
+    INFO(a.file);
+    sim::MeshPlacement where;
+    where.file = root / a.file;
+    where.centre = Vec3(0.5, 0, 4);
+    where.radius = 0.75;
+    const auto m = sim::Mesh::load(where);
+    CHECK(m->triangles() > 100);
+    std::set<int> used;
+    for (const auto& mat : m->materials())
+      if (mat.texture >= 0) used.insert(mat.texture);
+    CHECK(used.size() >= a.textures);
+    if (a.textures == 0) CHECK(m->textures().empty());
+    // The bounding sphere is the placement's: centred on the bounding box, which has no half extent above the
+    // radius and one of at least radius / sqrt(3) (a vertex lies on the sphere).
+    const Vec3 lo = m->lower() - where.centre, hi = m->upper() - where.centre;
+    CHECK((0.5 * (lo + hi)).norm() < 1e-6);
+    CHECK(0.5 * (hi - lo).maxCoeff() <= 0.75 + 1e-6);
+    CHECK(0.5 * (hi - lo).maxCoeff() >= 0.75 / std::sqrt(3.0) - 1e-6);
+  }
+}
+#endif

@@ -141,7 +141,7 @@ inline void add_settings(CLI::App* sub, train::Config& cfg) {
 
 const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
                                "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
-                               "min-max, none";
+                               "global-log-offset (E-3DGS's: one log offset per channel over the sequence, gain 1), min-max, none";
 
 }  // namespace detail
 
@@ -223,14 +223,15 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       ->capture_default_str();
 
   // simulate
-  std::string scene;
+  std::vector<std::string> scene_args;
   fs::path out;
   sim::SimulateOptions so;  // the flags fill it in
   auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
-  simulate->add_option("scene", scene,
-                       "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt) "
-                       "or a scene description file")
-      ->required();
+  simulate->add_option("scene", scene_args,
+                       "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt), "
+                       "'mesh FILE' (any 3-D file assimp reads, seen along an orbit; saved as <out>/scene.txt) or a scene description file")
+      ->required()
+      ->expected(1, 2);
   simulate->add_option("--out", out, "output folder")->required();
   simulate->add_option("--sensor", so.sensor.model,
                        "the sensor: ideal (thresholds 0.25 / 0.25, nothing else), realistic (C+ 0.22, C- 0.28, 3 % mismatch, 0.1 ms "
@@ -258,9 +259,26 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   simulate->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  simulate->add_option("--width", so.width, "sensor width (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
-  simulate->add_option("--height", so.height, "sensor height (pixels)")->capture_default_str()->check(CLI::Range(8, 8192));
+  simulate->add_option("--width", so.width, "sensor width (pixels; 240, or 346 for a mesh)")->check(CLI::Range(8, 8192));
+  simulate->add_option("--height", so.height, "sensor height (pixels; 180, or 260 for a mesh)")->check(CLI::Range(8, 8192));
   simulate->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
+  const std::string mesh_group = "Mesh capture (simulate mesh FILE)";
+  simulate->add_option("--up", so.mesh.up, "the mesh file's up axis")->check(CLI::IsMember({"+y", "+z", "-y"}))->capture_default_str()->group(mesh_group);
+  simulate->add_option("--path", so.mesh.path, "orbit (one revolution a second at --elevation) or spiral (5 to 75 degrees, one revolution a second)")
+      ->check(CLI::IsMember({"orbit", "spiral"}))
+      ->capture_default_str()
+      ->group(mesh_group);
+  simulate->add_option("--orbit-radius", so.mesh.radius, "camera distance from the object's centre (the object fills the unit sphere)")
+      ->capture_default_str()
+      ->group(mesh_group);
+  simulate->add_option("--elevation", so.mesh.elevation, "orbit elevation above the horizon, degrees")->capture_default_str()->group(mesh_group);
+  simulate->add_option("--wobble", so.mesh.wobble, "degrees the orbit's elevation swings, once over the path")->capture_default_str()->group(mesh_group);
+  simulate->add_option("--duration", so.mesh.duration, "seconds of capture")->capture_default_str()->group(mesh_group);
+  simulate->add_option("--novel-elevation", so.mesh.novel_elevation,
+                       "elevation of the held-out orbit whose views (novel/: frames and depth, never trained on) eval scores apart")
+      ->capture_default_str()
+      ->group(mesh_group);
+  simulate->add_option("--background", so.mesh.background, "behind the object")->check(CLI::IsMember({"black", "white", "grey"}))->capture_default_str()->group(mesh_group);
 
   // baselines
   std::string align = "global-log-affine";
@@ -367,6 +385,13 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
     if (*simulate) {
       std::string scene_text;
       const auto t0 = std::chrono::steady_clock::now();
+      const std::string& scene = scene_args.front();
+      if (scene == "mesh") {
+        if (scene_args.size() != 2) throw Error("simulate mesh: the mesh file is missing (simulate mesh FILE --out DIR)");
+        so.mesh.file = scene_args[1];
+      } else if (scene_args.size() != 1) {
+        throw Error("simulate: one scene expected, got '" + scene_args[0] + "' and '" + scene_args[1] + "' (a mesh file goes after 'mesh')");
+      }
       auto rec = sim::simulate(scene, so, &scene_text);
       sim::write_recording(out, rec);
       if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
@@ -377,6 +402,8 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", rec.scene_name,
                  rec.events.size(), rec.events.count_positive(), rec.duration, rec.frames.size(), rec.renders, secs,
                  out.string());
+      if (!rec.novel.poses.empty())
+        fmt::print("{} held-out views off the training path → {}/novel (eval scores them apart)\n", rec.novel.poses.size(), out.string());
       return 0;
     }
     if (*baselines) {
@@ -476,6 +503,18 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       if (!e.heldout.empty()) {
         fmt::print("held-out frames only ({}, novel views):\n", e.heldout.size());
         print_table(e.scored.primary, e.heldout);
+      }
+      if (e.novel) {
+        fmt::print("views off the training path ({}, the recording's novel/; ours only, each alignment fitted over these views):\n",
+                   e.novel_renders.size());
+        print_table(e.novel->primary);
+        for (const auto& o : e.novel->others) print_table(o);
+        if (e.json.at("novel_views").contains("depth_absrel_median_scaled"))
+          fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n", e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
+        for (std::size_t k = 0; k < e.novel_renders.size(); ++k)
+          write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], float(model.near), float(model.far * 0.6));
+        const std::size_t m = e.novel_renders.size() / 2;
+        io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
       }
       fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
                  "high-pass filter), renders/\n",

@@ -21,15 +21,18 @@ namespace evnerf::eval {
 ///   LogAffine        the same fitted per image (all channels together).
 ///   EventNerf        EventNeRF's: one affine map per channel over the sequence, in log(x^2.2 + 0.1)
 ///                    (gamma-decoded intensity with an offset) instead of log(x + ε).
+///   GlobalLogOffset  one offset in log intensity per channel over the sequence, the gain left at 1 (E-3DGS's
+///                    log correction): what is left when the model's contrast must be right on its own.
 ///   MinMax           each image, prediction and ground truth, scaled to [0, 1].
 ///   None             as rendered.
-enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None, EventNerf };
+enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None, EventNerf, GlobalLogOffset };
 inline const char* to_string(Alignment a) {
   switch (a) {
     case Alignment::GlobalLogAffine: return "global-log-affine";
     case Alignment::LogAffine: return "log-affine";
     case Alignment::MinMax: return "min-max";
     case Alignment::EventNerf: return "eventnerf";
+    case Alignment::GlobalLogOffset: return "global-log-offset";
     default: return "none";
   }
 }
@@ -39,7 +42,8 @@ inline Alignment parse_alignment(const std::string& s) {
   if (s == "min-max") return Alignment::MinMax;
   if (s == "none") return Alignment::None;
   if (s == "eventnerf") return Alignment::EventNerf;
-  throw Error("unknown alignment '" + s + "' (expected global-log-affine, log-affine, eventnerf, min-max or none)");
+  if (s == "global-log-offset") return Alignment::GlobalLogOffset;
+  throw Error("unknown alignment '" + s + "' (expected global-log-affine, log-affine, eventnerf, global-log-offset, min-max or none)");
 }
 
 /// ε of the log-domain alignments (as in the loss).
@@ -69,9 +73,10 @@ struct LogAffine {
 };
 
 /// Least-squares log-affine maps, one per channel, over every pixel of every (prediction, ground truth)
-/// pair, in `space`. A prediction with no variance in a channel gets a = 0 (its best constant).
+/// pair, in `space`. A prediction with no variance in a channel gets a = 0 (its best constant). With
+/// `offset_only`, a = 1 and b is the mean difference.
 inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts,
-                                             LogTransform space = {}) {
+                                             LogTransform space = {}, bool offset_only = false) {
   require(!preds.empty() && preds.size() == gts.size(), "fit_log_affine: need as many predictions as ground-truth images");
   const int C = preds.front().channels;
   std::vector<double> n(C, 0), sx(C, 0), sy(C, 0), sxx(C, 0), sxy(C, 0);
@@ -93,7 +98,7 @@ inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, co
   std::vector<LogAffine> fit(C);
   for (int c = 0; c < C; ++c) {
     const double var = sxx[c] - sx[c] * sx[c] / n[c];
-    fit[c].a = var > 1e-12 * n[c] ? (sxy[c] - sx[c] * sy[c] / n[c]) / var : 0.0;
+    fit[c].a = offset_only ? 1.0 : var > 1e-12 * n[c] ? (sxy[c] - sx[c] * sy[c] / n[c]) / var : 0.0;
     fit[c].b = (sy[c] - fit[c].a * sx[c]) / n[c];
     fit[c].space = space;
   }
@@ -123,6 +128,7 @@ inline std::pair<Image, Image> align(const Image& pred, const Image& gt, Alignme
   if (how == Alignment::MinMax) return {min_max(pred), min_max(gt)};
   if (how == Alignment::GlobalLogAffine) return {apply_log_affine(pred, fit_log_affine({pred}, {gt})), gt};
   if (how == Alignment::EventNerf) return {apply_log_affine(pred, fit_log_affine({pred}, {gt}, kEventNerfTransform)), gt};
+  if (how == Alignment::GlobalLogOffset) return {apply_log_affine(pred, fit_log_affine({pred}, {gt}, {}, true)), gt};
   const double eps = 1e-3;
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   const double n = static_cast<double>(pred.data.size());
@@ -201,6 +207,7 @@ inline std::vector<Scores> score_sequence_hdr(const std::vector<Image>& preds, c
   };
   if (how == Alignment::GlobalLogAffine) fit = unclipped(fit_log_affine(preds, gts, tone.space()));
   if (how == Alignment::EventNerf) fit = unclipped(fit_log_affine(preds, gts, kEventNerfTransform));
+  if (how == Alignment::GlobalLogOffset) fit = unclipped(fit_log_affine(preds, gts, tone.space(), true));
   for (std::size_t f = 0; f < preds.size(); ++f) {
     require_same_shape(preds[f], gts[f]);
     Image p, g;
@@ -220,7 +227,7 @@ inline std::vector<Scores> score_sequence_hdr(const std::vector<Image>& preds, c
   return out;
 }
 
-/// Scores a sequence frame by frame. GlobalLogAffine and EventNerf fit their maps once over all frames; the
+/// Scores a sequence frame by frame. GlobalLogAffine, EventNerf and GlobalLogOffset fit their maps once over all frames; the
 /// others align each frame on its own. `aligned`, when given, receives the aligned predictions. With `hdr`,
 /// the truth is linear radiance and the scores are score_sequence_hdr's.
 inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const std::vector<Image>& gts, Alignment how,
@@ -231,8 +238,9 @@ inline std::vector<Scores> score_sequence(const std::vector<Image>& preds, const
   if (preds.empty()) return out;
   if (hdr) return score_sequence_hdr(preds, gts, how, *hdr, aligned);
   std::vector<LogAffine> fit;
-  const bool sequence = how == Alignment::GlobalLogAffine || how == Alignment::EventNerf;
-  if (sequence) fit = fit_log_affine(preds, gts, how == Alignment::EventNerf ? kEventNerfTransform : LogTransform{});
+  const bool sequence = how == Alignment::GlobalLogAffine || how == Alignment::EventNerf || how == Alignment::GlobalLogOffset;
+  if (sequence)
+    fit = fit_log_affine(preds, gts, how == Alignment::EventNerf ? kEventNerfTransform : LogTransform{}, how == Alignment::GlobalLogOffset);
   for (std::size_t f = 0; f < preds.size(); ++f) {
     const auto [p, g] = sequence ? std::pair<Image, Image>{apply_log_affine(preds[f], fit), gts[f]} : align(preds[f], gts[f], how);
     out.push_back({mse(p, g), psnr(p, g), ssim(p, g)});

@@ -38,11 +38,13 @@ inline std::vector<std::size_t> frames_inside(const io::Dataset& d, double lo, d
   return ids;
 }
 
-/// The requested alignment first, then the others of global-log-affine, log-affine, min-max and eventnerf.
+/// The requested alignment first, then the others of global-log-affine, log-affine, min-max, eventnerf and
+/// global-log-offset.
 inline std::vector<eval::Alignment> alignments_from(const std::string& flag) {
   const auto first = eval::parse_alignment(flag);
   std::vector<eval::Alignment> all{first};
-  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax, eval::Alignment::EventNerf})
+  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::LogAffine, eval::Alignment::MinMax, eval::Alignment::EventNerf,
+                  eval::Alignment::GlobalLogOffset})
     if (al != first) all.push_back(al);
   return all;
 }
@@ -294,6 +296,11 @@ struct Evaluation {
   Scored scored;
   bool colour = false;
   std::vector<std::size_t> heldout;  ///< positions in `ids` of the never-trained frames (holdout > 0)
+  /// The recording's held-out views (Dataset::novel), the model's renders there and its scores (no baseline
+  /// renders a pose it has no events from); empty without them.
+  std::vector<Rendering> novel_renders;
+  Truth novel_truth;
+  std::optional<Scored> novel;
   double seconds_per_render = 0;
   nlohmann::json json;  ///< metrics.json
 };
@@ -345,6 +352,34 @@ inline Evaluation evaluate(const Renderable& model, const io::Dataset& d, const 
       fd["methods"][e.scored.primary.names[m]] = {{"fine_mse", b.fine_mse}};
     }
     if (!fd.empty()) e.json["error_scales"]["fine_by_depth"] = fd;
+  }
+  if (!d.novel.poses.empty()) {
+    // Held-out views: rendered at poses off the training path, scored under the same alignments, each with its
+    // own fit over the views.
+    eval::Method mine{ours.name, {}};
+    std::vector<std::vector<float>> gtd;
+    std::vector<Image> nd;
+    std::vector<std::size_t> views;
+    for (std::size_t k = 0; k < d.novel.poses.size(); ++k) {
+      e.novel_renders.push_back(model.render(d.novel.poses[k]));
+      const Image& r = e.novel_renders.back().luminance;
+      mine.images.push_back(e.colour ? r : eval::to_grey(r));
+      nd.push_back(e.novel_renders.back().depth);
+      const Image f = io::read_png(d.novel.images[k]);
+      if (f.width != d.camera.width() || f.height != d.camera.height())
+        throw Error(d.novel.images[k].string(), 0, "a held-out view of another size than the sensor's");
+      e.novel_truth.images.push_back(e.colour && f.channels >= 3 ? f : eval::to_grey(f));
+      if (k < d.novel.depth.size()) gtd.push_back(io::load_npy<float>(d.novel.depth[k]).data);
+      views.push_back(k);
+    }
+    e.novel = score_all({mine}, e.novel_truth, als, views);
+    nlohmann::json nj = e.novel->json;
+    nj["count"] = views.size();
+    if (gtd.size() == nd.size()) {
+      const double absrel = eval::depth_absrel_median_scaled(gtd, nd, model.far);
+      if (std::isfinite(absrel)) nj["depth_absrel_median_scaled"] = absrel;
+    }
+    e.json["novel_views"] = std::move(nj);
   }
   if (holdout > 0) {
     for (std::size_t k = static_cast<std::size_t>(holdout); k + 1 < desc.times.size(); k += static_cast<std::size_t>(holdout))

@@ -29,6 +29,25 @@
 
 namespace evnerf::io {
 
+/// Held-out views as sim::write_views writes them: poses.txt (`index tx ty tz qx qy qz qw`, camera to world),
+/// images/view_XXXXXXXX.png and depth/view_XXXXXXXX.npy; every view needs its image, depth is optional.
+inline Dataset::Views read_views(const fs::path& dir) {
+  Dataset::Views v;
+  const auto tr = read_poses_txt(dir / "poses.txt");
+  v.poses = tr.poses();
+  for (std::size_t k = 0; k < v.poses.size(); ++k) {
+    char name[64];
+    std::snprintf(name, sizeof name, "images/view_%08zu.png", k);
+    if (!fs::exists(dir / name)) throw Error((dir / "poses.txt").string(), 0, std::string("view ") + std::to_string(k) + ": its image " + name + " is missing");
+    v.images.push_back(dir / name);
+    std::snprintf(name, sizeof name, "depth/view_%08zu.npy", k);
+    if (fs::exists(dir / name)) v.depth.push_back(dir / name);
+  }
+  if (!v.depth.empty() && v.depth.size() != v.poses.size())
+    throw Error((dir / "depth").string(), 0, "has " + std::to_string(v.depth.size()) + " of the " + std::to_string(v.poses.size()) + " views' depth");
+  return v;
+}
+
 /// Loads an IJRR-layout folder. events.txt and calib.txt are required; groundtruth.txt, images.txt and
 /// depth/ are optional. Every parse error names file and line.
 inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
@@ -96,6 +115,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     d.linear_log_offset = sc.real("log offset");
     if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");
   }
+  if (fs::is_directory(folder / "novel")) d.novel = read_views(folder / "novel");
   return d;
 }
 

@@ -2,6 +2,7 @@
 // Depends on core/ and stb only.
 #pragma once
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -20,6 +21,34 @@ namespace evnerf::io {
 
 /// The largest image evnerf decodes, in pixels (a header announcing more is refused before decoding).
 inline constexpr long long kMaxImagePixels = 1LL << 26;
+
+namespace detail {
+/// stb_image's decode of checked bytes, refusing a header that announces more than kMaxImagePixels.
+inline Image decode_checked(std::string_view bytes, const std::string& file, int want_channels) {
+  int w = 0, h = 0, c = 0;
+  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
+  const int len = static_cast<int>(bytes.size());
+  if (!stbi_info_from_memory(data, len, &w, &h, &c))
+    throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
+  if (w <= 0 || h <= 0) throw Error(file, 0, "cannot decode image: its header gives no size");
+  if (static_cast<long long>(w) * h > kMaxImagePixels)
+    throw Error(file, 0, "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
+                             std::to_string(kMaxImagePixels) + " are accepted)");
+  Image img;
+  auto convert = [&](auto* px, float full_scale) {
+    if (!px) throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
+    const int ch = want_channels ? want_channels : c;
+    img = Image(w, h, ch);
+    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / full_scale;
+    stbi_image_free(px);
+  };
+  if (stbi_is_16_bit_from_memory(data, len))
+    convert(stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels), 65535.f);
+  else
+    convert(stbi_load_from_memory(data, len, &w, &h, &c, want_channels), 255.f);
+  return img;
+}
+}  // namespace detail
 
 /// Decodes a PNG (8 or 16 bit) held in memory as float in [0, 1] with
 /// `want_channels` channels (0 = as stored). Errors name `file`: undecodable data, or a header announcing
@@ -60,28 +89,39 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
       throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (" + std::to_string(idat) + " bytes of compressed pixels cannot " +
                                "hold the " + std::to_string(raw) + " bytes its header announces)");
   }
-  int w = 0, h = 0, c = 0;
-  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
-  const int len = static_cast<int>(bytes.size());
-  if (!stbi_info_from_memory(data, len, &w, &h, &c))
-    throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
-  if (w <= 0 || h <= 0) throw Error(file, 0, "cannot decode image: its header gives no size");
-  if (static_cast<long long>(w) * h > kMaxImagePixels)
-    throw Error(file, 0, "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
-                             std::to_string(kMaxImagePixels) + " are accepted)");
-  Image img;
-  auto convert = [&](auto* px, float full_scale) {
-    if (!px) throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
-    const int ch = want_channels ? want_channels : c;
-    img = Image(w, h, ch);
-    for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / full_scale;
-    stbi_image_free(px);
-  };
-  if (stbi_is_16_bit_from_memory(data, len))
-    convert(stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels), 65535.f);
-  else
-    convert(stbi_load_from_memory(data, len, &w, &h, &c, want_channels), 255.f);
-  return img;
+  return detail::decode_checked(bytes, file, want_channels);
+}
+
+/// Decodes a PNG (decode_png), a baseline or progressive JPEG, or (when `file` ends in .tga) a TGA, the
+/// formats mesh files' textures come in, as float in [0, 1]; `extension` stands in for the file's (".tga" for a
+/// TGA held in memory without a name). A TGA has no signature: its header is checked
+/// against the file's size first (an uncompressed image must be all there; run-length packets expand at most
+/// 128-fold), so a short file never decodes into a large image.
+inline Image decode_image(std::string_view bytes, const std::string& file, int want_channels = 0, std::string extension = {}) {
+  if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
+  if (bytes.size() >= 3 && bytes.substr(0, 3) == "\xFF\xD8\xFF") return detail::decode_checked(bytes, file, want_channels);
+  if (bytes.size() >= 8 && bytes.substr(0, 8) == "\x89PNG\r\n\x1a\n") return decode_png(bytes, file, want_channels);
+  if (extension.empty()) extension = std::filesystem::path(file).extension().string();
+  for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".tga") {
+    auto b = [&](std::size_t i) { return std::uint64_t{static_cast<unsigned char>(bytes[i])}; };
+    if (bytes.size() < 18) throw Error(file, 0, "cannot decode image: a TGA header is 18 bytes, the file has " + std::to_string(bytes.size()));
+    const std::uint64_t id = b(0), cmap = b(1), type = b(2), cmap_len = b(5) | (b(6) << 8), cmap_bits = b(7);
+    const std::uint64_t w = b(12) | (b(13) << 8), h = b(14) | (b(15) << 8), bits = b(16);
+    if (type != 1 && type != 2 && type != 3 && type != 9 && type != 10 && type != 11)
+      throw Error(file, 0, "cannot decode image: TGA image type " + std::to_string(type) + " (1-3 and 9-11 are read)");
+    if (w == 0 || h == 0 || (bits != 8 && bits != 15 && bits != 16 && bits != 24 && bits != 32))
+      throw Error(file, 0, "cannot decode image: TGA header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
+                               std::to_string(bits) + " bits");
+    const std::uint64_t head = 18 + id + (cmap ? cmap_len * ((cmap_bits + 7) / 8) : 0), pixels = w * h;
+    const std::uint64_t body = bytes.size() > head ? bytes.size() - head : 0, need = pixels * ((bits + 7) / 8);
+    if (type < 9 ? body < need : body * 128 < pixels)
+      throw Error(file, 0, "cannot decode image: truncated TGA (" + std::to_string(body) + " bytes of pixel data for " + std::to_string(w) + "x" +
+                               std::to_string(h) + " pixels)");
+    return detail::decode_checked(bytes, file, want_channels);
+  }
+  throw Error(file, 0, "cannot decode image: not a PNG, JPEG or TGA file");
 }
 
 /// Loads a PNG file (see decode_png).

@@ -61,6 +61,12 @@ struct Dataset {
   std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
   std::vector<std::filesystem::path> linear; ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
   double linear_log_offset = 0;              ///< the sensor's dark end, log(I + offset), with `linear`
+  /// Held-out views (a simulated recording's novel/): camera poses never on the training path, with their
+  /// frames (.png) and depth (.npy); eval scores them apart from the frames along the path.
+  struct Views {
+    std::vector<geometry::Pose> poses;
+    std::vector<std::filesystem::path> images, depth;
+  } novel;
   /// The recording's own clock at t = 0, in seconds: 0 for IJRR folders and HDF5 files (their times are
   /// kept); a bag's times are relative to the whole second of its first message read (ROS time).
   std::int64_t time_origin = 0;

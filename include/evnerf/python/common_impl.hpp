@@ -27,7 +27,7 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
   m.attr("__version__") = version;
   m.attr("variants") = names;
   m.attr("scenes") = sim::builtin_scenes();
-  m.attr("alignments") = std::vector<std::string>{"global-log-affine", "log-affine", "eventnerf", "min-max", "none"};
+  m.attr("alignments") = std::vector<std::string>{"global-log-affine", "log-affine", "eventnerf", "global-log-offset", "min-max", "none"};
 
   py::class_<Dataset> ds(m, "Dataset", "A recording: camera, events, poses, optional frames.", py::module_local());
   ds.def(py::init(&make_dataset), py::arg("x"), py::arg("y"), py::arg("t"), py::arg("p"), py::kw_only(), py::arg("width"),

@@ -1,13 +1,16 @@
 // sim/scene.hpp — procedural scenes for the event simulator: analytic primitives (planes, boxes, spheres)
-// with Lambertian shading under ambient + directional light, band-limited procedural textures (checker,
-// stripes, fractal noise) and PNG textures; camera paths (slider, arc, hand-held); a text description
-// format and the built-in scenes. Depends on core/, geometry/ and io/image_io.hpp only.
+// and triangle meshes (sim/mesh.hpp, where the build has assimp and Embree) with Lambertian shading under
+// ambient + directional light, band-limited procedural textures (checker, stripes, fractal noise) and PNG
+// textures; camera paths (slider, arc, hand-held, orbit, spiral); a text description format and the
+// built-in scenes. Depends on core/, geometry/ and io/image_io.hpp (and, with EVNERF_HAVE_MESH, sim/mesh.hpp).
 #pragma once
 #include <numbers>
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -114,17 +117,42 @@ struct Hit {
   Vec3 normal, albedo;
 };
 
-/// A scene: primitives, ambient + one directional light, a background albedo.
+/// A surface beside the analytic primitives, intersected a stream of rays at a time: a triangle mesh
+/// (sim/mesh.hpp's Mesh).
+struct Surface {
+  virtual ~Surface() = default;
+  /// For each ray o + t·dirs[i], the nearest hit with 1e-6 < t < hits[i].t replaces hits[i]; `pix_angle`
+  /// is the angular size of a pixel (the texture footprint).
+  virtual void intersect(const Vec3& o, std::span<const Vec3> dirs, double pix_angle, std::span<Hit> hits) const = 0;
+};
+
+/// Where a mesh goes in a scene (the `mesh` directive): scaled and moved so that its bounding sphere (centred
+/// on its bounding box) is the sphere of `radius` at `centre`, as NeRF's synthetic objects are normalised; `up`
+/// is the file's up axis (+y, +z or -y), turned to the scene's up (-y, as the camera paths use it).
+struct MeshPlacement {
+  std::filesystem::path file;
+  Vec3 centre = Vec3::Zero();
+  double radius = 1;
+  std::string up = "+y";
+};
+
+#ifdef EVNERF_HAVE_MESH
+/// Loads a mesh file (defined in sim/mesh.hpp, which this header includes at its end).
+inline std::shared_ptr<const Surface> load_mesh(const MeshPlacement& where);
+#endif
+
+/// A scene: primitives and surfaces, ambient + one directional light, a background albedo.
 struct Scene {
   std::string name;
   std::vector<Primitive> prims;
+  std::vector<std::shared_ptr<const Surface>> surfaces;  ///< meshes
   Vec3 light_dir = Vec3(-0.3, -0.8, -0.5).normalized();  ///< direction the light travels
   double ambient = 0.35, diffuse = 0.65;
   Vec3 background = Vec3(0.05, 0.05, 0.05);
 
-  /// Nearest hit of the ray o + t·d (t > 1e-6). `pix_angle` is the angular size of a pixel (footprint).
-  Hit intersect(const Vec3& o, const Vec3& d, double pix_angle) const {
-    Hit best;
+  /// Nearest hit of the ray o + t·d among the analytic primitives with 1e-6 < t < best.t (else `best`).
+  /// `pix_angle` is the angular size of a pixel (footprint).
+  Hit intersect(const Vec3& o, const Vec3& d, double pix_angle, Hit best = {}) const {
     const double dn = d.norm();
     for (const auto& pr : prims) {
       double t = INFINITY;
@@ -190,13 +218,31 @@ struct Scene {
     return best;
   }
 
-  /// Linear RGB radiance along a ray (Lambertian, ambient + directional light).
-  Vec3 shade(const Vec3& o, const Vec3& d, double pix_angle, double* depth_t = nullptr) const {
-    const Hit h = intersect(o, d, pix_angle);
-    if (depth_t) *depth_t = h.t;
+  /// Linear RGB radiance of a hit (Lambertian, ambient + directional light), the background for a miss.
+  Vec3 radiance(const Hit& h) const {
     if (!std::isfinite(h.t)) return background;
     const double lam = std::max(0.0, -h.normal.dot(light_dir));
     return h.albedo * (ambient + diffuse * lam);
+  }
+  /// Linear RGB radiance along a ray.
+  Vec3 shade(const Vec3& o, const Vec3& d, double pix_angle, double* depth_t = nullptr) const {
+    Hit h;
+    for (const auto& s : surfaces) s->intersect(o, std::span<const Vec3>(&d, 1), pix_angle, std::span<Hit>(&h, 1));
+    h = intersect(o, d, pix_angle, h);
+    if (depth_t) *depth_t = h.t;
+    return radiance(h);
+  }
+  /// Radiance (and the ray parameter t of the hit, INFINITY for a miss) of the rays o + t·dirs[i]: the surfaces
+  /// take the rays as one stream, then the analytic primitives ray by ray.
+  void shade(const Vec3& o, std::span<const Vec3> dirs, double pix_angle, std::span<Vec3> rgb, std::span<double> t) const {
+    thread_local std::vector<Hit> hits;
+    hits.assign(dirs.size(), Hit{});
+    for (const auto& s : surfaces) s->intersect(o, dirs, pix_angle, hits);
+    for (std::size_t i = 0; i < dirs.size(); ++i) {
+      const Hit h = prims.empty() ? hits[i] : intersect(o, dirs[i], pix_angle, hits[i]);
+      rgb[i] = radiance(h);
+      t[i] = h.t;
+    }
   }
 };
 
@@ -228,6 +274,25 @@ inline CameraPath arc_path(const Vec3& center, double radius, double height, dou
             return geometry::Pose::look_at(eye, center, Vec3(0, -1, 0));
           }};
 }
+/// EventNeRF's object-centric capture: an orbit around `center` at `radius`, one revolution per second, at
+/// `elevation` radians above the horizon (up is -y), looking at the centre; `wobble` (radians) swings the
+/// elevation once over the path's duration.
+inline CameraPath orbit_path(const Vec3& center, double radius, double elevation, double duration, double wobble = 0) {
+  return {duration, [=](double t) {
+            const double a = 2 * std::numbers::pi * t, e = elevation + wobble * std::sin(2 * std::numbers::pi * t / duration);
+            const Vec3 eye = center + radius * Vec3(std::cos(e) * std::sin(a), -std::sin(e), -std::cos(e) * std::cos(a));
+            return geometry::Pose::look_at(eye, center, Vec3(0, -1, 0));
+          }};
+}
+/// A spiral over the upper hemisphere: `revolutions` turns around `center` at `radius` while the elevation
+/// rises linearly from e0 to e1 (radians), looking at the centre.
+inline CameraPath spiral_path(const Vec3& center, double radius, double e0, double e1, double revolutions, double duration) {
+  return {duration, [=](double t) {
+            const double s = std::clamp(t / duration, 0.0, 1.0), a = 2 * std::numbers::pi * revolutions * s, e = e0 + s * (e1 - e0);
+            const Vec3 eye = center + radius * Vec3(std::cos(e) * std::sin(a), -std::sin(e), -std::cos(e) * std::cos(a));
+            return geometry::Pose::look_at(eye, center, Vec3(0, -1, 0));
+          }};
+}
 /// Smooth hand-held zig-zag: sideways sweeps with vertical bob and small rotations.
 inline CameraPath handheld_path(const Vec3& start, const Vec3& look, double amplitude, double duration) {
   return {duration, [=](double t) {
@@ -246,14 +311,19 @@ inline CameraPath handheld_path(const Vec3& start, const Vec3& look, double ampl
 //   plane  px py pz  nx ny nz  ux uy uz  half_u half_v  <texture>
 //   box    cx cy cz  hx hy hz  <texture>
 //   sphere cx cy cz  r  <texture>
+//   mesh   file  cx cy cz  radius  [up +y|+z|-y]    (any file assimp reads; normalised into the sphere)
 //   path   slider x0 y0 z0 x1 y1 z1 lookx looky lookz duration
 //   path   arc cx cy cz radius height angle0 angle1 duration
 //   path   handheld x y z lookx looky lookz amplitude duration
+//   path   orbit cx cy cz radius elevation_deg duration [wobble_deg]     (one revolution per second)
+//   path   spiral cx cy cz radius elevation0_deg elevation1_deg revolutions duration
+//   novel  <path>    (held-out views: frames along this path are written to novel/, never trained on)
 // <texture> = checker scale | stripes scale | noise scale octaves seed | image path scale
 //             each optionally followed by "colors ar ag ab br bg bb".
 struct SceneSpec {
   Scene scene;
   CameraPath path;
+  std::optional<CameraPath> novel;  ///< held-out views: frames along it are ground truth never trained on
 };
 
 inline Texture parse_texture(io::LineScanner& s, const std::filesystem::path& folder) {
@@ -352,30 +422,71 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
       if (p.radius <= 0) s.fail("sphere radius must be positive");
       p.tex = parse_texture(s, folder);
       spec.scene.prims.push_back(p);
-    } else if (cmd == "path") {
+    } else if (cmd == "mesh") {
+      MeshPlacement m;
+      const std::string file(s.word("mesh file"));
+      m.file = folder / file;
+      m.centre = vec("centre");
+      m.radius = s.real("radius");
+      if (!(m.radius > 0) || !std::isfinite(m.radius)) s.fail("mesh radius must be positive");
+      if (!s.at_end_of_line()) {
+        if (s.word("up") != "up") s.fail("expected 'up' after the mesh's radius");
+        m.up = std::string(s.word("up axis"));
+        if (m.up != "+y" && m.up != "+z" && m.up != "-y") s.fail("the mesh's up axis must be +y, +z or -y");
+      }
+#ifdef EVNERF_HAVE_MESH
+      try {
+        spec.scene.surfaces.push_back(load_mesh(m));
+      } catch (const Error& e) {
+        s.fail((e.file().empty() ? "" : e.file() + ": ") + e.message());
+      }
+#else
+      s.fail("this build of evnerf reads no meshes (it was built without libassimp-dev and libembree-dev)");
+#endif
+    } else if (cmd == "path" || cmd == "novel") {
+      const bool novel = cmd == "novel";
+      CameraPath p;
       const std::string kind(s.word("path kind"));
       if (kind == "slider") {
         const Vec3 a = vec("start"), b = vec("end"), look = vec("look");
-        spec.path = slider_path(a, b, look, s.real("duration"));
+        p = slider_path(a, b, look, s.real("duration"));
       } else if (kind == "arc") {
         const Vec3 c = vec("centre");
         const double r = s.real("radius"), h = s.real("height"), a0 = s.real("angle0"), a1 = s.real("angle1");
-        spec.path = arc_path(c, r, h, a0, a1, s.real("duration"));
+        p = arc_path(c, r, h, a0, a1, s.real("duration"));
       } else if (kind == "handheld") {
         const Vec3 a = vec("start"), look = vec("look");
         const double amp = s.real("amplitude");
-        spec.path = handheld_path(a, look, amp, s.real("duration"));
+        p = handheld_path(a, look, amp, s.real("duration"));
+      } else if (kind == "orbit") {
+        const Vec3 c = vec("centre");
+        const double r = s.real("radius"), e = s.real("elevation"), duration = s.real("duration");
+        const double wobble = s.at_end_of_line() ? 0.0 : s.real("wobble");
+        if (!(r > 0)) s.fail("orbit radius must be positive");
+        if (std::abs(e) + std::abs(wobble) >= 89) s.fail("the orbit's elevation (with its wobble) must stay within ±89 degrees");
+        p = orbit_path(c, r, e * std::numbers::pi / 180, duration, wobble * std::numbers::pi / 180);
+      } else if (kind == "spiral") {
+        const Vec3 c = vec("centre");
+        const double r = s.real("radius"), e0 = s.real("elevation0"), e1 = s.real("elevation1"), turns = s.real("revolutions");
+        if (!(r > 0)) s.fail("spiral radius must be positive");
+        if (std::abs(e0) >= 89 || std::abs(e1) >= 89) s.fail("the spiral's elevations must lie within ±89 degrees");
+        p = spiral_path(c, r, e0 * std::numbers::pi / 180, e1 * std::numbers::pi / 180, turns, s.real("duration"));
       } else {
-        s.fail("unknown path '" + io::LineScanner::shown(kind) + "' (slider, arc, handheld)");
+        s.fail("unknown path '" + io::LineScanner::shown(kind) + "' (slider, arc, handheld, orbit, spiral)");
       }
-      if (!(spec.path.duration > 0) || spec.path.duration > 3600) s.fail("path duration must lie in (0, 3600] seconds");
-      have_path = true;
+      if (!(p.duration > 0) || p.duration > 3600) s.fail("path duration must lie in (0, 3600] seconds");
+      if (novel) {
+        spec.novel = std::move(p);
+      } else {
+        spec.path = std::move(p);
+        have_path = true;
+      }
     } else {
       s.fail("unknown directive '" + io::LineScanner::shown(cmd) + "'");
     }
     s.expect_end();
   }
-  if (spec.scene.prims.empty()) throw Error(file, 0, "scene has no primitives");
+  if (spec.scene.prims.empty() && spec.scene.surfaces.empty()) throw Error(file, 0, "scene has no primitives");
   if (!have_path) throw Error(file, 0, "scene has no camera path ('path ...' line)");
   return spec;
 }
@@ -432,3 +543,7 @@ inline SceneSpec load_scene(const std::string& name_or_path) {
 }
 
 }  // namespace evnerf::sim
+
+#ifdef EVNERF_HAVE_MESH
+#include "mesh.hpp"
+#endif

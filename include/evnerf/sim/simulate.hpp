@@ -83,6 +83,50 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
   return c;
 }
 
+/// An object-centric capture of one mesh file (`evnerf simulate mesh FILE`): the object normalised into the
+/// unit sphere at the origin, lit as the analytic scenes are, before a plain background, seen along EventNeRF's
+/// orbit (or a hemisphere spiral) by a DAVIS346-sized sensor.
+struct MeshCapture {
+  std::filesystem::path file;
+  std::string up = "+y";           ///< the file's up axis (+y, +z or -y)
+  std::string path = "orbit";      ///< orbit (one revolution a second at `elevation`) or spiral (5° to 75°)
+  double radius = 3.0;             ///< camera distance from the object's centre
+  double elevation = 30.0;         ///< degrees above the horizon
+  double wobble = 0.0;             ///< orbit: degrees the elevation swings once over the path
+  double duration = 1.0;           ///< seconds (the orbit: one revolution each)
+  double novel_elevation = 50.0;   ///< degrees: the held-out orbit scored as novel views (NaN: none)
+  std::string background = "grey"; ///< black, white or grey (0.5)
+};
+
+/// The scene description text of a mesh capture (what `simulate mesh` saves as scene.txt). Refuses
+/// values no capture has, naming the flag.
+inline std::string mesh_scene_text(const MeshCapture& m) {
+  auto check = [](bool ok, const std::string& what) {
+    if (!ok) throw Error("simulate mesh: " + what);
+  };
+  check(!m.file.empty(), "the mesh file is missing (simulate mesh FILE)");
+  check(m.file.string().find_first_of(" \t\n#") == std::string::npos, "the mesh file's path must not hold spaces, tabs or '#' ('" + m.file.string() + "')");
+  check(m.radius > 1.05 && m.radius <= 100, "--orbit-radius must be in (1.05, 100] (the object fills the unit sphere)");
+  check(std::abs(m.elevation) + std::abs(m.wobble) < 89, "--elevation (with --wobble) must stay within ±89 degrees");
+  check(m.duration > 0 && m.duration <= 60, "--duration must be in (0, 60] seconds");
+  check(std::isnan(m.novel_elevation) || std::abs(m.novel_elevation) < 89, "--novel-elevation must lie within ±89 degrees");
+  check(m.path == "orbit" || m.path == "spiral", "--path must be orbit or spiral, not '" + m.path + "'");
+  const char* bg = m.background == "black" ? "0 0 0" : m.background == "white" ? "1 1 1" : m.background == "grey" ? "0.5 0.5 0.5" : nullptr;
+  check(bg != nullptr, "--background must be black, white or grey, not '" + m.background + "'");
+  const std::string file = std::filesystem::absolute(m.file).lexically_normal().string();
+  std::string t = "# " + std::filesystem::path(file).filename().string() + ", normalised into the unit sphere\n";
+  t += "light -0.4 0.8 0.6 0.35 0.65\n";
+  t += std::string("background ") + bg + "\n";
+  t += "mesh " + file + " 0 0 0 1 up " + m.up + "\n";
+  if (m.path == "orbit")
+    t += "path orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.elevation) + " " + short_number(m.duration) + " " + short_number(m.wobble) + "\n";
+  else
+    t += "path spiral 0 0 0 " + short_number(m.radius) + " 5 75 " + short_number(m.duration) + " " + short_number(m.duration) + "\n";
+  if (!std::isnan(m.novel_elevation))
+    t += "novel orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.novel_elevation) + " 1\n";
+  return t;
+}
+
 /// What `evnerf simulate` asks of a simulation besides the scene.
 struct SimulateOptions {
   SensorOptions sensor;    ///< the sensor's model and parameters (sensor_model)
@@ -92,20 +136,34 @@ struct SimulateOptions {
   std::filesystem::path textures;  ///< with 'random': photos (.png) to texture surfaces with
   double log_offset = SensorConfig{}.log_offset;
   double noise_ratio = 0;  ///< uniform random events added, as a fraction of the signal events
-  int width = SensorConfig{}.width, height = SensorConfig{}.height;
+  int width = 0, height = 0;  ///< pixels; 0 = the scene's default (240 × 180; 346 × 260 for a mesh capture)
   double focal = 0;  ///< pixels; 0 = scaled with the width (200 at 240)
+  MeshCapture mesh;  ///< with the scene 'mesh': the file and its capture
   bool progress = true;  ///< a progress bar on stderr
 };
 
-/// Simulates a built-in scene, 'random' (a procedural scene from the seed; its text goes to `scene_text`)
-/// or a scene description file.
-inline Recording simulate(const std::string& scene, const SimulateOptions& o, std::string* scene_text = nullptr) {
+/// Simulates a built-in scene, 'random' (a procedural scene from the seed), 'mesh' (o.mesh's capture of a
+/// mesh file) or a scene description file. The text of a generated scene goes to `scene_text`.
+inline Recording simulate(const std::string& scene, SimulateOptions o, std::string* scene_text = nullptr) {
   require(o.textures.empty() || scene == "random", "simulate: --textures goes with the 'random' scene");
+  const bool mesh = scene == "mesh";
+  if (o.width == 0) o.width = mesh ? 346 : SensorConfig{}.width;
+  if (o.height == 0) o.height = mesh ? 260 : SensorConfig{}.height;
   require(o.width >= 8 && o.width <= 8192 && o.height >= 8 && o.height <= 8192,
           "simulate: the sensor's width and height must be between 8 and 8192 pixels");
   require(o.focal >= 0 && std::isfinite(o.focal), "simulate: the focal length must be positive (or 0 for the default)");
   require(o.noise_ratio >= 0 && std::isfinite(o.noise_ratio), "simulate: --noise-ratio must not be negative");
-  auto spec = scene == "random" ? random_scene(o.seed, texture_pictures(o.textures), scene_text) : load_scene(scene);
+  SceneSpec spec;
+  if (scene == "random") {
+    spec = random_scene(o.seed, texture_pictures(o.textures), scene_text);
+  } else if (mesh) {
+    const std::string text = mesh_scene_text(o.mesh);
+    spec = parse_scene(text, o.mesh.file.filename().string() + " (simulate mesh)");
+    spec.scene.name = o.mesh.file.stem().string();
+    if (scene_text) *scene_text = text;
+  } else {
+    spec = load_scene(scene);
+  }
   SensorConfig c = sensor_model(o.sensor, o.seed);
   c.noise_ratio = o.noise_ratio;
   c.log_offset = o.log_offset;

@@ -76,6 +76,11 @@ struct Recording {
   std::string scene_name;  ///< the scene's own name
   double duration = 0;     ///< the camera path's length in time, seconds
   SensorConfig sensor;     ///< the sensor that recorded it (write_recording writes its model to sensor_model.txt)
+  /// Held-out views (the scene's `novel` path): poses never on the training path, with their frames and depth.
+  struct Views {
+    std::vector<geometry::Pose> poses;
+    std::vector<Image> frames, depth;
+  } novel;
 };
 
 /// The sensor's model as `name value` lines (sensor_model.txt): thresholds, mismatch, refractory period,
@@ -101,21 +106,26 @@ class Simulator {
   }
   const geometry::Camera& camera() const { return cam_; }
 
-  /// Linear intensity (per pixel; RGB when colour is true) and z-depth at time t.
-  void render(double t, std::vector<Vec3>& rgb, std::vector<float>* depth = nullptr) const {
-    const geometry::Pose pose = spec_.path.pose(t);
+  /// Linear intensity (per pixel, RGB) and z-depth at time t of the path.
+  void render(double t, std::vector<Vec3>& rgb, std::vector<float>* depth = nullptr) const { render_at(spec_.path.pose(t), rgb, depth); }
+  /// Linear intensity (per pixel, RGB) and z-depth seen from a pose.
+  void render_at(const geometry::Pose& pose, std::vector<Vec3>& rgb, std::vector<float>* depth = nullptr) const {
     const int W = cfg_.width, H = cfg_.height;
     rgb.resize(static_cast<std::size_t>(W) * H);
     if (depth) depth->resize(rgb.size());
     const double pix_angle = 1.0 / cfg_.fx;
     parallel_blocks(static_cast<std::size_t>(H), 8, [&](std::size_t b, std::size_t e, int) {
-      for (std::size_t y = b; y < e; ++y)
-        for (int x = 0; x < W; ++x) {
-          const Vec3 d = pose.q * Vec3((x + 0.5 - cfg_.cx) / cfg_.fx, (double(y) + 0.5 - cfg_.cy) / cfg_.fy, 1.0);
-          double tt = 0;
-          rgb[y * W + x] = spec_.scene.shade(pose.t, d, pix_angle, &tt);
-          if (depth) (*depth)[y * W + x] = static_cast<float>(tt);  // d has unit camera z: t is z-depth
-        }
+      thread_local std::vector<Vec3> dirs;
+      thread_local std::vector<double> tt;
+      dirs.resize(static_cast<std::size_t>(W));
+      tt.resize(static_cast<std::size_t>(W));
+      for (std::size_t y = b; y < e; ++y) {  // a row at a time: one stream of rays for the meshes
+        for (int x = 0; x < W; ++x)
+          dirs[static_cast<std::size_t>(x)] = pose.q * Vec3((x + 0.5 - cfg_.cx) / cfg_.fx, (double(y) + 0.5 - cfg_.cy) / cfg_.fy, 1.0);
+        spec_.scene.shade(pose.t, dirs, pix_angle, std::span<Vec3>(rgb.data() + y * W, static_cast<std::size_t>(W)), tt);
+        if (depth)
+          for (int x = 0; x < W; ++x) (*depth)[y * W + x] = static_cast<float>(tt[static_cast<std::size_t>(x)]);  // d has unit camera z: t is z-depth
+      }
     });
   }
   /// Log intensity seen by each pixel (its Bayer channel, or luminance).
@@ -223,10 +233,10 @@ class Simulator {
     rec.events.height = H;
     rec.events.reserve(evs.size());
     for (const auto& e : evs) rec.events.push_back(e.t, static_cast<int>(e.pix % W), static_cast<int>(e.pix / W), e.p);
-    // Frames and depth at the frame rate, and poses at 200 Hz.
-    for (double ft = 0; ft <= T + 1e-9; ft += 1.0 / cfg_.frame_rate) {
+    // Frames and depth at the frame rate (along the held-out path too), and poses at 200 Hz.
+    auto frame_at = [&](const geometry::Pose& pose, std::vector<Image>& frames, std::vector<Image>& depths, std::vector<Image>* linears) {
       std::vector<float> dep;
-      render(ft, rgb, &dep);
+      render_at(pose, rgb, &dep);
       const int C = cfg_.bayer ? 3 : 1;
       Image frame(W, H, C), depth(W, H, 1), linear(W, H, C);
       for (std::size_t i = 0; i < n; ++i) {
@@ -234,14 +244,27 @@ class Simulator {
           const double v = C == 3 ? rgb[i][c] : 0.299 * rgb[i][0] + 0.587 * rgb[i][1] + 0.114 * rgb[i][2];
           linear.data[C * i + c] = static_cast<float>(v);
           frame.data[C * i + c] = static_cast<float>(std::clamp(v * cfg_.exposure, 0.0, 1.0));
-          rec.clipped = rec.clipped || v * cfg_.exposure > 1.0;
+          if (linears) rec.clipped = rec.clipped || v * cfg_.exposure > 1.0;
         }
         depth.data[i] = dep[i];
       }
+      frames.push_back(std::move(frame));
+      depths.push_back(std::move(depth));
+      if (linears) linears->push_back(std::move(linear));
+    };
+    for (double ft = 0; ft <= T + 1e-9; ft += 1.0 / cfg_.frame_rate) {
+      frame_at(spec_.path.pose(ft), rec.frames, rec.depth, &rec.linear);
       rec.frame_times.push_back(ft);
-      rec.frames.push_back(std::move(frame));
-      rec.depth.push_back(std::move(depth));
-      rec.linear.push_back(std::move(linear));
+    }
+    if (spec_.novel) {
+      // Held-out views: evenly spaced along the novel path, never between the frames of the training path.
+      const double nt = spec_.novel->duration;
+      const int count = std::max(1, static_cast<int>(std::lround(nt * cfg_.frame_rate)));
+      for (int k = 0; k < count; ++k) {
+        const geometry::Pose pose = spec_.novel->pose(nt * k / count);
+        frame_at(pose, rec.novel.frames, rec.novel.depth, nullptr);
+        rec.novel.poses.push_back(pose);
+      }
     }
     std::vector<double> pt;
     std::vector<geometry::Pose> poses;
@@ -261,9 +284,30 @@ class Simulator {
   geometry::Camera cam_;
 };
 
+/// Writes held-out views as a folder: poses.txt (one `index tx ty tz qx qy qz qw` line per view, the camera-to-world
+/// pose of groundtruth.txt), images/view_XXXXXXXX.png and depth/view_XXXXXXXX.npy. Every file is written atomically.
+inline void write_views(const std::filesystem::path& dir, const Recording::Views& v) {
+  namespace fs = std::filesystem;
+  fs::create_directories(dir / "images");
+  fs::create_directories(dir / "depth");
+  std::string poses = "# index tx ty tz qx qy qz qw: held-out views, never trained on\n";
+  char buf[256];
+  for (std::size_t k = 0; k < v.poses.size(); ++k) {
+    const auto& p = v.poses[k];
+    std::snprintf(buf, sizeof buf, "%zu %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", k, p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w());
+    poses += buf;
+    char name[64];
+    std::snprintf(name, sizeof name, "images/view_%08zu.png", k);
+    io::write_png(dir / name, v.frames[k]);
+    std::snprintf(name, sizeof name, "depth/view_%08zu.npy", k);
+    io::save_npy(dir / name, v.depth[k].data.data(), {static_cast<std::size_t>(v.depth[k].height), static_cast<std::size_t>(v.depth[k].width)});
+  }
+  write_file_atomic(dir / "poses.txt", poses);
+}
+
 /// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt)
 /// plus sensor.txt, sensor_model.txt (sensor_model_text) and depth/frame_XXXXXXXX.npy; with HDR truth also linear/frame_XXXXXXXX.npy (float32,
-/// H×W or H×W×3) and linear/log_offset.txt. Every file is written atomically.
+/// H×W or H×W×3) and linear/log_offset.txt; with held-out views novel/ (write_views). Every file is written atomically.
 inline void write_recording(const std::filesystem::path& dir, const Recording& rec) {
   namespace fs = std::filesystem;
   fs::create_directories(dir / "images");
@@ -306,6 +350,7 @@ inline void write_recording(const std::filesystem::path& dir, const Recording& r
   write_file_atomic(dir / "calib.txt", buf);
   write_file_atomic(dir / "sensor.txt", std::to_string(c.width()) + " " + std::to_string(c.height()) + "\n");
   write_file_atomic(dir / "sensor_model.txt", sensor_model_text(rec.sensor));
+  if (!rec.novel.poses.empty()) write_views(dir / "novel", rec.novel);
 }
 
 }  // namespace evnerf::sim
