@@ -377,6 +377,21 @@ def test_the_sensor_of_a_simulation(tmp_path):
         evnerf.simulate("planes", width=24, height=18, refractory_period=0.001)
 
 
+
+BOX = "/usr/share/assimp/models/glTF2/BoxTextured-glTF/BoxTextured.gltf"
+
+
+@pytest.mark.skipif(not os.path.exists(BOX), reason="Debian's assimp-testmodels is not installed")
+def test_a_mesh_is_simulated_along_an_orbit_with_held_out_views(tmp_path):
+    d = evnerf.simulate("mesh", mesh=BOX, width=32, height=24, out=tmp_path / "box")
+    assert (d.width, d.height) == (32, 24) and len(d) > 100
+    assert len((tmp_path / "box" / "novel" / "poses.txt").read_text().splitlines()) == 25  # a comment, 24 views
+    assert "path orbit 0 0 0 3 30 1 0" in (tmp_path / "box" / "scene.txt").read_text()
+    with pytest.raises(evnerf.Error, match="the mesh file is missing"):
+        evnerf.simulate("mesh", width=32, height=24)
+    with pytest.raises(evnerf.Error, match="mesh= goes with the scene 'mesh'"):
+        evnerf.simulate("planes", mesh=BOX)
+
 PROPHESEE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "prophesee_evt2_sample", "evt2.raw")
 
 

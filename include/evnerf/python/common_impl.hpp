@@ -115,8 +115,10 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
   m.def(
       "simulate",
       [](const std::string& scene, std::optional<fs::path> out, const std::string& sensor, bool bayer, bool hdr, std::uint64_t seed, int width,
-         int height, double focal, double noise_ratio, const py::kwargs& sensor_parameters) {
+         int height, double focal, double noise_ratio, std::optional<fs::path> mesh, const py::kwargs& sensor_parameters) {
         sim::SimulateOptions o;
+        if (mesh) o.mesh.file = *mesh;
+        if (mesh && scene != "mesh") throw Error("simulate: mesh= goes with the scene 'mesh'");
         o.sensor = sensor_options(sensor, sensor_parameters);
         o.bayer = bayer;
         o.hdr = hdr;
@@ -135,9 +137,11 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
         return Dataset{std::make_shared<io::Dataset>(io::load(*out))};
       },
       py::arg("scene") = "planes", py::kw_only(), py::arg("out") = py::none(), py::arg("sensor") = "ideal", py::arg("bayer") = false,
-      py::arg("hdr") = false, py::arg("seed") = 1, py::arg("width") = 240, py::arg("height") = 180, py::arg("focal") = 0.0,
-      py::arg("noise_ratio") = 0.0,
-      "A simulated recording of a built-in scene (evnerf.scenes), 'random' or a scene file, as `evnerf simulate` makes it. "
+      py::arg("hdr") = false, py::arg("seed") = 1, py::arg("width") = 0, py::arg("height") = 0, py::arg("focal") = 0.0,
+      py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(),
+      "A simulated recording of a built-in scene (evnerf.scenes), 'random', 'mesh' (mesh= a 3-D file, seen along an orbit as "
+      "`evnerf simulate mesh FILE` sees it, with held-out views when written to out) or a scene file, as `evnerf simulate` makes it; "
+      "width and height 0: the scene's default (240 x 180, 346 x 260 for a mesh). "
       "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of threshold_pos, threshold_neg, mismatch, "
       "refractory, noise_rate, hot_pixels, hot_rate, jitter as keywords (evnerf.sensor_model shows the result). "
       "Without out it stays in memory (frames, no depth or linear truth); with out it is written there (IJRR layout) and loaded.");
