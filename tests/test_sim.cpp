@@ -549,6 +549,31 @@ TEST_CASE("mesh: a textured quad shows its texture the right way up and at the a
   CHECK(std::isinf(depth[2 * cfg.width + 2]));
 }
 
+TEST_CASE("scene: an environment picture is what the rays that hit nothing see, longitude across and up at its top") {
+  Scratch s("evnerf_env");
+  // 8 x 4: columns 0-1 red, 2-3 green, 4-5 blue, 6-7 white; the top row black.
+  Image env(8, 4, 3);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x)
+      for (int k = 0; k < 3; ++k) env.data[(y * 8 + x) * 3 + k] = y == 0 ? 0.f : (x / 2 == 3 || x / 2 == k) ? 1.f : 0.f;
+  io::write_png(s.dir / "env.png", env);
+  const auto spec = sim::parse_scene("background image env.png\nsphere 0 0 50 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir);
+  REQUIRE(spec.scene.environment);
+  const auto& sc = spec.scene;
+  auto near = [](const Vec3& a, const Vec3& b) { return (a - b).norm() < 1e-6; };
+  // Longitude 0 (+z) is the picture's centre: 45° towards +x is the middle of columns 4-5, 135° of 6-7,
+  // -45° of 2-3 (the horizon is between rows 1 and 2).
+  CHECK(near(sc.miss(Vec3(1, 0, 1)), Vec3(0, 0, 1)));
+  CHECK(near(sc.miss(Vec3(1, 0, -1)), Vec3(1, 1, 1)));
+  CHECK(near(sc.miss(Vec3(-1, 0, 1)), Vec3(0, 1, 0)));
+  CHECK(near(sc.miss(Vec3(0.01, -1, 0.3)), Vec3(0, 0, 0)));  // up (-y): the top row
+  double t = 0;
+  CHECK(near(sc.shade(Vec3::Zero(), Vec3(1, 0, -1), 0.01, &t), Vec3(1, 1, 1)));  // through shade, a miss
+  CHECK(std::isinf(t));
+  CHECK_THROWS_WITH(sim::parse_scene("background image absent.png\nsphere 0 0 5 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir),
+                    doctest::Contains("e.txt:1: cannot load the environment 'absent.png'"));
+}
+
 TEST_CASE("mesh: the orbit looks at the centre at its radius and elevation, one revolution a second, and the spiral climbs") {
   const Vec3 c(0.1, -0.2, 0.3);
   const auto orbit = sim::orbit_path(c, 3.0, 30 * std::numbers::pi / 180, 2.0);

@@ -278,7 +278,9 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                        "elevation of the held-out orbit whose views (novel/: frames and depth, never trained on) eval scores apart")
       ->capture_default_str()
       ->group(mesh_group);
-  simulate->add_option("--background", so.mesh.background, "behind the object")->check(CLI::IsMember({"black", "white", "grey"}))->capture_default_str()->group(mesh_group);
+  simulate->add_option("--background", so.mesh.background, "behind the object: black, white, grey or an equirectangular environment (.png, taken as linear)")
+      ->capture_default_str()
+      ->group(mesh_group);
 
   // baselines
   std::string align = "global-log-affine";

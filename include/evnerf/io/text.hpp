@@ -74,6 +74,13 @@ class LineScanner {
   }
   /// Next field as raw text.
   std::string_view word(const char* name) { return token(name); }
+  /// The next field without taking it ("" at the end of the line).
+  std::string_view peek_word() {
+    const std::size_t at = cur_, field = field_;
+    const std::string_view w = at_end_of_line() ? std::string_view{} : token("");
+    cur_ = at, field_ = field;
+    return w;
+  }
   /// The remainder of the line (trimmed), e.g. a file name that may contain spaces.
   std::string_view rest(const char* name) {
     skip_space();

@@ -149,6 +149,9 @@ struct Scene {
   Vec3 light_dir = Vec3(-0.3, -0.8, -0.5).normalized();  ///< direction the light travels
   double ambient = 0.35, diffuse = 0.65;
   Vec3 background = Vec3(0.05, 0.05, 0.05);
+  /// An environment seen by the rays that hit nothing, instead of `background`: an equirectangular picture
+  /// (longitude along its width, +z at its centre; latitude along its height, up = −y at its top row).
+  std::shared_ptr<Image> environment;
 
   /// Nearest hit of the ray o + t·d among the analytic primitives with 1e-6 < t < best.t (else `best`).
   /// `pix_angle` is the angular size of a pixel (footprint).
@@ -218,9 +221,19 @@ struct Scene {
     return best;
   }
 
-  /// Linear RGB radiance of a hit (Lambertian, ambient + directional light), the background for a miss.
-  Vec3 radiance(const Hit& h) const {
-    if (!std::isfinite(h.t)) return background;
+  /// The radiance of a ray along d that hits nothing.
+  Vec3 miss(const Vec3& d) const {
+    if (!environment) return background;
+    const Vec3 u = d.normalized();
+    Texture t;
+    t.kind = Texture::Picture;
+    t.picture = environment;
+    const double lon = std::atan2(u.x(), u.z()), lat = std::asin(std::clamp(-u.y(), -1.0, 1.0));
+    return t.albedo(lon / (2 * std::numbers::pi) + 0.5, lat / std::numbers::pi + 0.5, 0.0);
+  }
+  /// Linear RGB radiance of a hit (Lambertian, ambient + directional light) along d, the background for a miss.
+  Vec3 radiance(const Hit& h, const Vec3& d) const {
+    if (!std::isfinite(h.t)) return miss(d);
     const double lam = std::max(0.0, -h.normal.dot(light_dir));
     return h.albedo * (ambient + diffuse * lam);
   }
@@ -230,7 +243,7 @@ struct Scene {
     for (const auto& s : surfaces) s->intersect(o, std::span<const Vec3>(&d, 1), pix_angle, std::span<Hit>(&h, 1));
     h = intersect(o, d, pix_angle, h);
     if (depth_t) *depth_t = h.t;
-    return radiance(h);
+    return radiance(h, d);
   }
   /// Radiance (and the ray parameter t of the hit, INFINITY for a miss) of the rays o + t·dirs[i]: the surfaces
   /// take the rays as one stream, then the analytic primitives ray by ray.
@@ -240,7 +253,7 @@ struct Scene {
     for (const auto& s : surfaces) s->intersect(o, dirs, pix_angle, hits);
     for (std::size_t i = 0; i < dirs.size(); ++i) {
       const Hit h = prims.empty() ? hits[i] : intersect(o, dirs[i], pix_angle, hits[i]);
-      rgb[i] = radiance(h);
+      rgb[i] = radiance(h, dirs[i]);
       t[i] = h.t;
     }
   }
@@ -307,7 +320,7 @@ inline CameraPath handheld_path(const Vec3& start, const Vec3& look, double ampl
 // ---- the text description format --------------------------------------------------------------------
 // One directive per line, '#' comments:
 //   light  dx dy dz ambient diffuse
-//   background r g b
+//   background r g b  |  background image FILE.png   (an equirectangular environment, taken as linear)
 //   plane  px py pz  nx ny nz  ux uy uz  half_u half_v  <texture>
 //   box    cx cy cz  hx hy hz  <texture>
 //   sphere cx cy cz  r  <texture>
@@ -393,7 +406,21 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
       spec.scene.diffuse = s.real("diffuse");
       if (spec.scene.ambient < 0 || spec.scene.diffuse < 0) s.fail("ambient and diffuse light must not be negative");
     } else if (cmd == "background") {
-      spec.scene.background = vec("background");
+      const std::string_view first = s.peek_word();
+      if (first == "image") {
+        s.word("background");
+        const std::string path(s.word("environment image"));
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(folder / path, ec))
+          s.fail("cannot load the environment '" + io::LineScanner::shown(path) + "': not a file in " + io::LineScanner::shown(folder.string()));
+        try {
+          spec.scene.environment = std::make_shared<Image>(io::read_png(folder / path, 3));
+        } catch (const Error& e) {
+          s.fail("cannot load the environment '" + io::LineScanner::shown(path) + "': " + e.message());
+        }
+      } else {
+        spec.scene.background = vec("background");
+      }
     } else if (cmd == "plane") {
       Primitive p;
       p.kind = Primitive::Plane;

@@ -95,7 +95,7 @@ struct MeshCapture {
   double wobble = 0.0;             ///< orbit: degrees the elevation swings once over the path
   double duration = 1.0;           ///< seconds (the orbit: one revolution each)
   double novel_elevation = 50.0;   ///< degrees: the held-out orbit scored as novel views (NaN: none)
-  std::string background = "grey"; ///< black, white or grey (0.5)
+  std::string background = "grey"; ///< black, white, grey (0.5) or an equirectangular environment (.png)
 };
 
 /// The scene description text of a mesh capture (what `simulate mesh` saves as scene.txt). Refuses
@@ -111,8 +111,13 @@ inline std::string mesh_scene_text(const MeshCapture& m) {
   check(m.duration > 0 && m.duration <= 60, "--duration must be in (0, 60] seconds");
   check(std::isnan(m.novel_elevation) || std::abs(m.novel_elevation) < 89, "--novel-elevation must lie within ±89 degrees");
   check(m.path == "orbit" || m.path == "spiral", "--path must be orbit or spiral, not '" + m.path + "'");
-  const char* bg = m.background == "black" ? "0 0 0" : m.background == "white" ? "1 1 1" : m.background == "grey" ? "0.5 0.5 0.5" : nullptr;
-  check(bg != nullptr, "--background must be black, white or grey, not '" + m.background + "'");
+  std::string bg = m.background == "black" ? "0 0 0" : m.background == "white" ? "1 1 1" : m.background == "grey" ? "0.5 0.5 0.5" : "";
+  if (bg.empty()) {  // an environment picture
+    check(std::filesystem::path(m.background).extension() == ".png", "--background must be black, white, grey or an equirectangular .png, not '" + m.background + "'");
+    const std::string env = std::filesystem::absolute(m.background).lexically_normal().string();
+    check(env.find_first_of(" \t\n#") == std::string::npos, "the environment's path must not hold spaces, tabs or '#' ('" + env + "')");
+    bg = "image " + env;
+  }
   const std::string file = std::filesystem::absolute(m.file).lexically_normal().string();
   std::string t = "# " + std::filesystem::path(file).filename().string() + ", normalised into the unit sphere\n";
   t += "light -0.4 0.8 0.6 0.35 0.65\n";
