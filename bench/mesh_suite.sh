@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# The mesh suite: the field's object-centric benchmark on real 3-D assets from Debian's assimp-testmodels.
+# Each asset is recorded by `evnerf simulate mesh` (346 × 260, one revolution of EventNeRF's orbit at 30°,
+# held-out views on a second orbit at 50°), grey and through an RGGB mosaic (`--bayer`), trained at the
+# default steps (grey: the default preset; colour: the `colour` preset) and scored by `evnerf eval` on the
+# training path (against both baselines) and on the held-out views (ours only), under the global log-affine
+# fit (eval's default), EventNeRF's fit and the offset-only log correction (E-3DGS's). Writes
+# $OUT/mesh.csv, copies it to bench/results/mesh.csv with a montage per asset (bench/results/mesh/) and
+# regenerates docs/results.md (bench/results.py).
+# Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
+# Environment: MODES ("grey colour"), THREADS (2), SEED (training seed, 1), STEPS (train's default),
+#              BUILD (build), EVNERF (the binary), OUT (out/mesh), KEEP (1: an asset and mode whose
+#              metrics.json is in OUT is not run again), RESULTS (bench/results; empty: not copied).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD=${BUILD:-build}
+OUT=${OUT:-out/mesh}
+THREADS=${THREADS:-2}
+SEED=${SEED:-1}
+KEEP=${KEEP:-0}
+RESULTS=${RESULTS-bench/results}
+EV="${EVNERF:-$BUILD/examples/evnerf}"
+scripts/deps.sh assimp-testmodels python3-pil
+[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "mesh_suite: EVNERF=$EV is not an executable" >&2; exit 2; }
+[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
+M=/usr/share/assimp/models
+# key, kind, file under $M: a textured animal, a character, two vehicles, a mechanical part without
+# texture, a thin-structured object.
+ASSETS="duck animal Collada/duck.dae
+mrfixit character IQM/mrfixit.iqm
+milktruck vehicle glTF/CesiumMilkTruck/CesiumMilkTruck.gltf
+jeep vehicle MS3D/jeep1.ms3d
+engine untextured-mechanical glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb
+spider thin-legged OBJ/spider.obj"
+read -r -a MODES <<<"${MODES:-grey colour}"
+WANT=("$@")
+if grep -qw avx512f /proc/cpuinfo; then CPU=avx512; elif grep -qw avx2 /proc/cpuinfo && grep -qw fma /proc/cpuinfo; then CPU=avx2+fma; else CPU=sse; fi
+mkdir -p "$OUT"
+CSV="$OUT/mesh.csv"
+echo "asset,kind,mode,preset,steps,threads,seed,cpu,events,simulate_seconds,train_seconds,samples_per_ray,view,alignment,method,psnr,ssim" > "$CSV"
+while read -r key kind file; do
+  if [ ${#WANT[@]} -gt 0 ] && [[ ! " ${WANT[*]} " == *" $key "* ]]; then continue; fi
+  for mode in "${MODES[@]}"; do
+    dir="$OUT/$key-$mode"
+    flags=()
+    preset=fast
+    if [ "$mode" = colour ]; then flags=(--bayer); preset=colour; fi
+    if [ "$KEEP" != 1 ] || [ ! -f "$dir/eval/metrics.json" ]; then
+      rm -rf "$dir"
+      mkdir -p "$dir"
+      /usr/bin/time -f "%e" -o "$dir/simulate.seconds" "$EV" simulate mesh "$M/$file" "${flags[@]}" --out "$dir/rec" > "$dir/simulate.txt" 2>&1
+      train=(--preset "$preset" --seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
+      [ -n "${STEPS:-}" ] && train+=(--iterations "$STEPS")
+      "$EV" train "$dir/rec" --out "$dir/run" "${train[@]}" > "$dir/train.txt" 2>&1
+      "$EV" eval "$dir/run/model.ckpt" "$dir/rec" --out "$dir/eval" > "$dir/eval.txt" 2>&1
+    fi
+    python3 - "$dir" "$key" "$kind" "$mode" "$preset" "$THREADS" "$SEED" "$CPU" >> "$CSV" <<'PY'
+import json, sys
+d, key, kind, mode, preset, threads, seed, cpu = sys.argv[1:]
+m = json.load(open(f"{d}/eval/metrics.json"))
+log = [json.loads(l) for l in open(f"{d}/run/log.jsonl")]
+spr = [r["samples_per_ray"] for r in log if "samples_per_ray" in r]
+train = open(f"{d}/train.txt").read()
+steps = train.split("trained ")[1].split(": ")[1].split(" steps")[0] if "trained " in train else "nan"
+secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else "nan"
+sim = open(f"{d}/simulate.seconds").read().split()[-1]
+events = sum(1 for _ in open(f"{d}/rec/events.txt"))
+def rows(j):  # metrics.json: the primary alignment, the secondary, the others
+    yield j["alignment"], j["methods"]
+    for o in ([j["secondary"]] if "secondary" in j else []) + j.get("other_alignments", []):
+        yield o["alignment"], o["methods"]
+for view, j in (("path", m), ("novel", m["novel_views"])):
+    for al, methods in rows(j):
+        if al not in ("global-log-affine", "eventnerf", "global-log-offset"):
+            continue
+        for name, s in methods.items():
+            method = "ours" if name.startswith("evnerf") else name
+            print(f"{key},{kind},{mode},{preset},{steps},{threads},{seed},{cpu},{events},{sim},{secs},"
+                  f"{spr[-1] if spr else float('nan'):.1f},{view},{al},{method},{s['psnr']:.2f},{s['ssim']:.3f}")
+PY
+    grep "^$key,.*,$mode,.*,global-log-affine," "$CSV" | cut -d, -f13- | tr '\n' ' '
+    echo
+  done
+done <<<"$ASSETS"
+if [ -n "$RESULTS" ]; then
+  mkdir -p "$RESULTS/mesh"
+  cp "$CSV" "$RESULTS/mesh.csv"
+  for dir in "$OUT"/*-grey "$OUT"/*-colour; do
+    [ -f "$dir/eval/montage.png" ] || continue
+    n=$(basename "$dir")
+    /usr/bin/python3 - "$dir/eval/montage.png" "$dir/eval/montage_novel.png" "$RESULTS/mesh/$n.png" <<'PY'
+import sys
+from PIL import Image
+a, b = (Image.open(p).convert("RGB") for p in sys.argv[1:3])
+out = sys.argv[3]
+# The training path's truth | ours | direct integration | high-pass filter above the held-out view's truth | ours,
+# at half size: the picture stays small in the repository.
+o = Image.new("RGB", (a.width, a.height + b.height + 2), "white")
+o.paste(a, (0, 0))
+o.paste(b, (0, a.height + 2))
+o.resize((o.width // 2, o.height // 2), Image.LANCZOS).save(out, optimize=True)
+PY
+  done
+  python3 bench/results.py
+fi
