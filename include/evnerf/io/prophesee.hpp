@@ -144,32 +144,39 @@ void huge_pages(std::vector<T>& v) {
 
 /// Collects decoded events: times in microseconds (as the file holds them) into seconds, only those of the
 /// window; checks order and coordinates. `done` once a time passes the window's end. room(n) before a block
-/// that may add up to n events; finish() gives back what room() reserved beyond them.
+/// that may add up to n events; finish() gives back what room() reserved beyond them. The events go through
+/// raw pointers into the stream's arrays (sized ahead by room()), so that a store does not re-read a vector's
+/// end; the arrays hold their final size only after finish().
 class RawSink {
  public:
   RawSink(events::EventStream& ev, const LoadOptions& opt, const std::string& file, int w, int h, std::uint64_t file_bytes = 0)
       : ev_(ev), file_(file), w_(static_cast<unsigned>(w)), h_(static_cast<unsigned>(h)), t0_(opt.t_begin), t1_(opt.t_end),
-        progress_(opt.progress), bytes_(file_bytes) {}
+        progress_(opt.progress), bytes_(file_bytes), n_(ev.t.size()) {
+    bind();
+  }
   /// After a block: the file is read up to byte `offset` (LoadOptions::progress).
   void read_to(std::size_t offset) const {
     if (progress_) progress_(std::min<std::uint64_t>(offset, bytes_), bytes_);
   }
   void room(std::size_t n) {
-    if (ev_.t.size() + n <= ev_.t.capacity()) return;
-    const std::size_t size = std::max(ev_.t.size() + n, ev_.t.capacity() + ev_.t.capacity() / 2);
+    if (n_ + n <= ev_.t.size()) [[likely]]
+      return;
+    const std::size_t size = std::max(n_ + n, ev_.t.size() + ev_.t.size() / 2);
+    ev_.t.resize(n_), ev_.x.resize(n_), ev_.y.resize(n_), ev_.polarity.resize(n_);  // what follows n_ is not copied
     ev_.reserve(size);
     huge_pages(ev_.t), huge_pages(ev_.x), huge_pages(ev_.y), huge_pages(ev_.polarity);
+    ev_.t.resize(size), ev_.x.resize(size), ev_.y.resize(size), ev_.polarity.resize(size);
+    bind();
   }
   void finish() {
+    ev_.t.resize(n_), ev_.x.resize(n_), ev_.y.resize(n_), ev_.polarity.resize(n_);
     if (ev_.t.capacity() > 2 * ev_.t.size() + 4096)
       ev_.t.shrink_to_fit(), ev_.x.shrink_to_fit(), ev_.y.shrink_to_fit(), ev_.polarity.shrink_to_fit();
   }
-  void add(std::int64_t us, unsigned x, unsigned y, int on, std::size_t offset) {
-    if (us < last_) [[unlikely]]
-      bad(offset, "time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(last_) + " µs)");
-    if (x >= w_ || y >= h_) [[unlikely]]
-      bad(offset, "event at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w_) + "x" +
-                      std::to_string(h_) + " sensor");
+  // Small enough to be inlined into each decoder's loop; the messages are built out of line.
+  [[gnu::always_inline]] void add(std::int64_t us, unsigned x, unsigned y, int on, std::size_t offset) {
+    if (us < last_ || x >= w_ || y >= h_) [[unlikely]]
+      refuse(us, x, y, offset);
     last_ = us;
     ++count_;
     const double t = static_cast<double>(us) / 1e6;
@@ -178,19 +185,26 @@ class RawSink {
       return;
     }
     if (t < t0_) return;
-    // room() reserved for it: the stores do not reallocate.
-    ev_.t.push_back(t);
-    ev_.x.push_back(static_cast<std::uint16_t>(x));
-    ev_.y.push_back(static_cast<std::uint16_t>(y));
-    ev_.polarity.push_back(static_cast<std::int8_t>(on ? 1 : -1));
+    // room() sized the arrays for it. The polarity's store (a char, which may alias anything) comes last.
+    const std::size_t i = n_++;
+    t_[i] = t;
+    x_[i] = static_cast<std::uint16_t>(x);
+    y_[i] = static_cast<std::uint16_t>(y);
+    p_[i] = static_cast<std::int8_t>(on ? 1 : -1);
   }
   [[noreturn]] void bad(std::size_t offset, const std::string& what) const {
     throw Error(file_, 0, "byte " + std::to_string(offset) + ": " + what);
+  }
+  [[noreturn, gnu::noinline, gnu::cold]] void refuse(std::int64_t us, unsigned x, unsigned y, std::size_t offset) const {
+    if (us < last_) bad(offset, "time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(last_) + " µs)");
+    bad(offset, "event at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w_) + "x" +
+                    std::to_string(h_) + " sensor");
   }
   bool done() const { return done_; }
   std::size_t count() const { return count_; }
 
  private:
+  void bind() { t_ = ev_.t.data(), x_ = ev_.x.data(), y_ = ev_.y.data(), p_ = ev_.polarity.data(); }
   events::EventStream& ev_;
   std::string file_;
   unsigned w_, h_;
@@ -200,6 +214,10 @@ class RawSink {
   bool done_ = false;
   const ReadProgress& progress_;
   std::uint64_t bytes_;
+  std::size_t n_;
+  double* t_ = nullptr;
+  std::uint16_t *x_ = nullptr, *y_ = nullptr;
+  std::int8_t* p_ = nullptr;
 };
 
 /// Reads `f` from its position in blocks of whole words of `word` bytes, calling `block(words, n, offset)`
