@@ -16,6 +16,8 @@
 #include <limits>
 #include <set>
 
+#include <omp.h>
+
 #include "common.hpp"
 #include "io_helpers.hpp"
 
@@ -343,6 +345,106 @@ TEST_CASE("a whole-file read reports its progress: monotonic, in the file's byte
   CHECK(checked >= 4);
   fs::remove_all(dir);
 }
+
+#ifdef EVNERF_HAVE_AEDAT4
+TEST_CASE("AEDAT4: a file of many packets reads the same on one or two threads, whole, through windows and packet by packet") {
+  // 300 000 events: 74 of the writer's packets of 4096, several of the reader's batches of 32.
+  const auto dir = temp_dir("aedat4_batches");
+  fs::create_directories(dir);
+  constexpr int kN = 300000;
+  io::Dataset d;
+  d.camera = geometry::Camera(64, 48, 50, 50, 32, 24);
+  d.events.width = 64, d.events.height = 48;
+  auto us_of = [](int k) { return 200000 + 10 * std::int64_t(k); };
+  for (int k = 0; k < kN; ++k) d.events.push_back(static_cast<double>(us_of(k)) / 1e6, k % 64, (k / 64) % 48, k % 3 ? 1 : -1);
+  io::Aedat4Info info;
+  io::Frames frames;
+  std::int64_t origin = 0;
+  auto read = [&](const fs::path& f, io::LoadOptions o = {}) { return io::read_aedat4(f, o, info, frames, origin); };
+  auto same = [](const events::EventStream& a, const events::EventStream& b) {
+    return a.t == b.t && a.x == b.x && a.y == b.y && a.polarity == b.polarity;
+  };
+  const int threads_before = omp_get_max_threads();
+  for (const std::string c : {"lz4", "none"}) {
+    CAPTURE(c);
+    const auto f = dir / ("many_" + c + ".aedat4");
+    io::write_aedat4(f, d, c);
+    omp_set_num_threads(1);
+    const auto one = read(f);
+    omp_set_num_threads(2);
+    const auto two = read(f);
+    CHECK(same(one, d.events));
+    CHECK(same(two, d.events));
+    CHECK(info.events == std::size_t(kN));
+    CHECK(info.packets == std::size_t((kN + 4095) / 4096));
+    // Windows: exactly the whole read's events in [t0, t1), the packets outside skipped through the table.
+    for (const auto& [t0, t1] : std::vector<std::pair<double, double>>{{0.5, 1.7}, {2.0, 2.3}, {0.0, 0.21}, {3.1, 9.0}}) {
+      CAPTURE(t0);
+      io::LoadOptions o;
+      o.t_begin = t0, o.t_end = t1;
+      events::EventStream want;
+      want.width = 64, want.height = 48;
+      for (std::size_t k = 0; k < d.events.size(); ++k)
+        if (d.events.t[k] >= t0 && d.events.t[k] < t1) want.push_back(d.events.t[k], d.events.x[k], d.events.y[k], d.events.polarity[k]);
+      CHECK(same(read(f, o), want));
+      if (t0 > 0.3) CHECK(info.packets_skipped > 0);
+    }
+    // Every packet larger than a batch allows: each decompressed alone, the same events.
+    const auto limit = io::detail::aedat4_slot_body;
+    io::detail::aedat4_slot_body = 1000;
+    CHECK(same(read(f), d.events));
+    io::detail::aedat4_slot_body = limit;
+  }
+  // Bad events deep in the file: the first in file order is named, on any thread count; a window that ends
+  // before them reads.
+  const auto clean = dir / "many_none.aedat4";
+  std::string bytes;
+  {
+    std::ifstream in(clean, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  auto event_at = [&](int k) {  // the 16-byte Event of event k in the uncompressed file
+    char e[12];
+    const std::int64_t us = us_of(k);
+    const std::int16_t x = static_cast<std::int16_t>(k % 64), y = static_cast<std::int16_t>((k / 64) % 48);
+    std::memcpy(e, &us, 8), std::memcpy(e + 8, &x, 2), std::memcpy(e + 10, &y, 2);
+    const auto at = bytes.find(std::string(e, 12));
+    REQUIRE(at != std::string::npos);
+    return at;
+  };
+  auto corrupt = [&](const std::string& name, const std::vector<std::pair<int, std::int64_t>>& times, int off_sensor) {
+    std::string b = bytes;
+    for (const auto& [k, us] : times) std::memcpy(&b[event_at(k)], &us, 8);
+    if (off_sensor >= 0) {
+      const std::int16_t x = 64;
+      std::memcpy(&b[event_at(off_sensor) + 8], &x, 2);
+    }
+    write(dir / name, b);
+    return dir / name;
+  };
+  // Event 200 000 is event 3392 of packet 48, off the sensor; event 250 000 (packet 61) runs backwards.
+  const auto both = corrupt("both.aedat4", {{250000, 0}}, 200000);
+  for (int threads : {1, 2}) {
+    omp_set_num_threads(threads);
+    CHECK_CONTAINS(error_of([&] { read(both); }), "(packet of stream 0): event 3392 at x 64, y 5 outside the 64x48 sensor");
+  }
+  io::LoadOptions early;
+  early.t_begin = 0.3, early.t_end = 1.0;
+  CHECK(read(both, early).size() == std::size_t(70000));
+  // The first event of packet 61 before the last of packet 60: named as its packet's event 0.
+  const auto across = corrupt("across.aedat4", {{61 * 4096, us_of(61 * 4096 - 5)}}, -1);
+  CHECK_CONTAINS(error_of([&] { read(across); }), "(packet of stream 0): event 0: time runs backwards (" + std::to_string(us_of(61 * 4096 - 5)) +
+                                                    " µs after " + std::to_string(us_of(61 * 4096 - 1)) + " µs)");
+  // Within a packet, after the batch's first.
+  const auto within = corrupt("within.aedat4", {{40 * 4096 + 7, us_of(40 * 4096 + 5)}}, -1);
+  CHECK_CONTAINS(error_of([&] { read(within); }), "event 7: time runs backwards");
+  // Times further apart than int64 microseconds hold (a fuzzer's input): refused, not wrapped.
+  const auto far = corrupt("far.aedat4", {{0, -4899916394580000000}, {kN - 1, 6557241057451452165}}, -1);
+  CHECK_CONTAINS(error_of([&] { read(far); }), "µs is out of range from the first event's second (-4899916394580000000 µs)");
+  omp_set_num_threads(threads_before);
+  fs::remove_all(dir);
+}
+#endif
 
 TEST_CASE("inspect: a recording of one polarity is named so, not given a threshold ratio") {
   const auto dir = temp_dir("one_polarity");

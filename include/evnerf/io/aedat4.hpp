@@ -17,14 +17,16 @@
 // accessors do not check offsets unless its verifier runs, and the verifier needs flatc-generated code; four
 // small tables are read here with every offset checked, so that a corrupt file is an Error naming its byte
 // offset. LZ4 and Zstd frames go through Debian's liblz4 and libzstd. Compiled where CMake found both
-// (EVNERF_HAVE_AEDAT4). Depends on io/recording.hpp and io/prophesee.hpp (the event sink).
+// (EVNERF_HAVE_AEDAT4). Depends on io/recording.hpp and io/prophesee.hpp (huge_pages, FileCloser).
 #pragma once
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -69,6 +71,10 @@ inline constexpr std::size_t kAedat4MagicLen = 14;
 /// No packet of a camera decompresses to this much (a 1280×720 BGRA frame is 3.7 MB): a larger one is a
 /// corrupt or hostile file, refused before it is held.
 inline constexpr std::size_t kAedat4MaxPacket = std::size_t(1) << 28;
+/// The most a packet may decompress to in a batch of read_aedat4 (a larger one is decompressed alone, after
+/// the batch's others): with kBatch packets a batch holds at most 32 times this. A variable so that the tests
+/// can send every packet down the path alone.
+inline std::size_t aedat4_slot_body = std::size_t(4) << 20;
 
 /// A flatbuffer in memory, every read checked against its end; `where` names it in errors.
 class FlatBuf {
@@ -146,65 +152,104 @@ class FlatTable {
 /// The root table of a flatbuffer that starts at byte 0 of `b`.
 inline FlatTable flat_root(const FlatBuf& b, const char* what) { return FlatTable(b, b.get<std::uint32_t>(0, "the root offset"), what); }
 
-/// A size-prefixed flatbuffer in `bytes`: the buffer after its 32-bit size, checked to fit.
-inline FlatBuf size_prefixed(const std::vector<unsigned char>& bytes, const std::string& where) {
-  if (bytes.size() < 4) throw Error(where + ": " + std::to_string(bytes.size()) + " bytes hold no size-prefixed flatbuffer");
-  std::uint32_t n;
-  std::memcpy(&n, bytes.data(), 4);
-  if (n > bytes.size() - 4)
-    throw Error(where + ": its flatbuffer claims " + std::to_string(n) + " bytes, " + std::to_string(bytes.size() - 4) + " follow");
-  return FlatBuf(bytes.data() + 4, n, where);
+/// A size-prefixed flatbuffer in the `n` bytes at `p`: the buffer after its 32-bit size, checked to fit.
+inline FlatBuf size_prefixed(const unsigned char* p, std::size_t n, const std::string& where) {
+  if (n < 4) throw Error(where + ": " + std::to_string(n) + " bytes hold no size-prefixed flatbuffer");
+  std::uint32_t len;
+  std::memcpy(&len, p, 4);
+  if (len > n - 4) throw Error(where + ": its flatbuffer claims " + std::to_string(len) + " bytes, " + std::to_string(n - 4) + " follow");
+  return FlatBuf(p + 4, len, where);
 }
 
-/// A packet's body decompressed into `out` (the output grows only as bytes arrive; kAedat4MaxPacket bounds it).
-inline void aedat4_decompress(int compression, const unsigned char* src, std::size_t n, std::vector<unsigned char>& out,
-                              const std::string& where) {
-  out.clear();
-  if (compression == 0) {
-    out.assign(src, src + n);
-    return;
+/// Decompresses packet bodies, one after another, into a buffer of its own; the LZ4 and Zstd contexts and the
+/// buffer are kept from one packet to the next (one inflater per thread).
+class Aedat4Inflater {
+ public:
+  Aedat4Inflater() = default;
+  Aedat4Inflater(const Aedat4Inflater&) = delete;
+  Aedat4Inflater& operator=(const Aedat4Inflater&) = delete;
+  ~Aedat4Inflater() {
+    if (lz4_) LZ4F_freeDecompressionContext(lz4_);
+    if (zstd_) ZSTD_freeDCtx(zstd_);
   }
-  auto grow = [&](std::size_t used) {
-    if (used >= kAedat4MaxPacket) throw Error(where + ": decompresses to more than " + std::to_string(kAedat4MaxPacket >> 20) + " MiB");
-    out.resize(std::min(kAedat4MaxPacket, std::max<std::size_t>({std::size_t(1) << 16, 2 * out.size(), 4 * n})));
-  };
-  std::size_t used = 0;
-  if (compression == 1 || compression == 2) {
-    LZ4F_dctx* ctx = nullptr;
-    if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) throw Error(where + ": cannot start LZ4 decompression");
-    const std::unique_ptr<LZ4F_dctx, decltype(&LZ4F_freeDecompressionContext)> hold(ctx, &LZ4F_freeDecompressionContext);
-    std::size_t in = 0;
-    for (;;) {
-      if (used == out.size()) grow(used);
-      std::size_t dst = out.size() - used, len = n - in;
-      const std::size_t r = LZ4F_decompress(ctx, out.data() + used, &dst, src + in, &len, nullptr);
-      if (LZ4F_isError(r)) throw Error(where + ": corrupt LZ4 frame (" + LZ4F_getErrorName(r) + ")");
-      used += dst, in += len;
-      if (r == 0) break;
-      if (in == n && dst == 0) throw Error(where + ": the LZ4 frame ends early");
+  /// The `n` bytes at `src` decompressed (compression as the IOHeader gives it); false, with nothing
+  /// decompressed, where the body would be larger than `limit` bytes. `where` names the packet in errors.
+  bool inflate(int compression, const unsigned char* src, std::size_t n, std::size_t limit, const std::string& where) {
+    size_ = 0;
+    if (compression == 0) {
+      if (n > limit) return false;
+      reserve(n, 0);
+      std::memcpy(buf_.get(), src, n);
+      size_ = n;
+      return true;
     }
-    if (in != n) throw Error(where + ": " + std::to_string(n - in) + " bytes follow its LZ4 frame");
-  } else if (compression == 3 || compression == 4) {
-    ZSTD_DCtx* ctx = ZSTD_createDCtx();
-    if (!ctx) throw Error(where + ": cannot start Zstd decompression");
-    const std::unique_ptr<ZSTD_DCtx, decltype(&ZSTD_freeDCtx)> hold(ctx, &ZSTD_freeDCtx);
-    ZSTD_inBuffer in{src, n, 0};
-    for (;;) {
-      if (used == out.size()) grow(used);
-      ZSTD_outBuffer o{out.data(), out.size(), used};
-      const std::size_t r = ZSTD_decompressStream(ctx, &o, &in);
-      if (ZSTD_isError(r)) throw Error(where + ": corrupt Zstd frame (" + ZSTD_getErrorName(r) + ")");
-      const bool progressed = o.pos > used;
-      used = o.pos;
-      if (r == 0) break;
-      if (in.pos == in.size && !progressed && used < out.size()) throw Error(where + ": the Zstd frame ends early");
+    std::size_t used = 0;
+    // The output grows only as bytes arrive, up to the limit.
+    auto grow = [&] {
+      if (used >= limit) return false;
+      reserve(std::min(limit, std::max<std::size_t>({std::size_t(1) << 16, 2 * cap_, 4 * n})), used);
+      return true;
+    };
+    if (compression == 1 || compression == 2) {
+      if (!lz4_ && LZ4F_isError(LZ4F_createDecompressionContext(&lz4_, LZ4F_VERSION))) {
+        lz4_ = nullptr;
+        throw Error(where + ": cannot start LZ4 decompression");
+      }
+      LZ4F_resetDecompressionContext(lz4_);
+      std::size_t in = 0;
+      for (;;) {
+        if (used == cap_ && !grow()) return false;
+        std::size_t dst = cap_ - used, len = n - in;
+        const std::size_t r = LZ4F_decompress(lz4_, buf_.get() + used, &dst, src + in, &len, nullptr);
+        if (LZ4F_isError(r)) throw Error(where + ": corrupt LZ4 frame (" + LZ4F_getErrorName(r) + ")");
+        used += dst, in += len;
+        if (r == 0) break;
+        if (in == n && dst == 0) throw Error(where + ": the LZ4 frame ends early");
+      }
+      if (in != n) throw Error(where + ": " + std::to_string(n - in) + " bytes follow its LZ4 frame");
+    } else if (compression == 3 || compression == 4) {
+      if (!zstd_ && !(zstd_ = ZSTD_createDCtx())) throw Error(where + ": cannot start Zstd decompression");
+      ZSTD_DCtx_reset(zstd_, ZSTD_reset_session_only);
+      ZSTD_inBuffer in{src, n, 0};
+      for (;;) {
+        if (used == cap_ && !grow()) return false;
+        ZSTD_outBuffer o{buf_.get(), cap_, used};
+        const std::size_t r = ZSTD_decompressStream(zstd_, &o, &in);
+        if (ZSTD_isError(r)) throw Error(where + ": corrupt Zstd frame (" + ZSTD_getErrorName(r) + ")");
+        const bool progressed = o.pos > used;
+        used = o.pos;
+        if (r == 0) break;
+        if (in.pos == in.size && !progressed && used < cap_) throw Error(where + ": the Zstd frame ends early");
+      }
+      if (in.pos != n) throw Error(where + ": " + std::to_string(n - in.pos) + " bytes follow its Zstd frame");
+    } else {
+      throw Error(where + ": unknown compression " + std::to_string(compression));
     }
-    if (in.pos != n) throw Error(where + ": " + std::to_string(n - in.pos) + " bytes follow its Zstd frame");
-  } else {
-    throw Error(where + ": unknown compression " + std::to_string(compression));
+    if (used > limit) return false;
+    size_ = used;
+    return true;
   }
-  out.resize(used);
-}
+  /// As inflate, with kAedat4MaxPacket the limit and a larger body an Error.
+  void inflate(int compression, const unsigned char* src, std::size_t n, const std::string& where) {
+    if (!inflate(compression, src, n, kAedat4MaxPacket, where))
+      throw Error(where + ": decompresses to more than " + std::to_string(kAedat4MaxPacket >> 20) + " MiB");
+  }
+  const unsigned char* data() const { return buf_.get(); }
+  std::size_t size() const { return size_; }
+
+ private:
+  // At least n bytes, the first `keep` kept. Not value-initialised: only what a frame writes is read.
+  void reserve(std::size_t n, std::size_t keep) {
+    if (n <= cap_) return;
+    std::unique_ptr<unsigned char[]> b(new unsigned char[n]);
+    if (keep) std::memcpy(b.get(), buf_.get(), keep);
+    buf_ = std::move(b), cap_ = n;
+  }
+  LZ4F_dctx* lz4_ = nullptr;
+  ZSTD_DCtx* zstd_ = nullptr;
+  std::unique_ptr<unsigned char[]> buf_;
+  std::size_t cap_ = 0, size_ = 0;
+};
 
 /// The streams an infoNode XML description names: its `outInfo/<id>/` nodes' attributes.
 inline std::vector<Aedat4Stream> aedat4_streams(std::string_view xml, const std::string& where) {
@@ -273,6 +318,26 @@ struct Aedat4Entry {
   std::int64_t elements = 0;
 };
 
+/// One event packet of a batch (read_aedat4): its compressed body, its decompressed body and what checking
+/// its events found; kept from one batch to the next.
+struct Aedat4Slot {
+  std::uint64_t pos = 0;  ///< the packet header's byte offset
+  int stream = 0;
+  std::vector<unsigned char> raw;
+  Aedat4Inflater body;
+  const unsigned char* events = nullptr;  ///< the first 16-byte Event in `body`
+  std::uint64_t n = 0;
+  std::exception_ptr error;                  ///< decompressing or parsing failed
+  bool oversized = false;                    ///< larger than a batch allows: decompressed again alone
+  std::exception_ptr bad_event;              ///< an event out of order or off the sensor (before `examined`)
+  std::uint64_t examined = 0, lo = 0, hi = 0;  ///< events looked at; those of the window [lo, hi)
+  bool done = false;                         ///< an event at or after the window's end
+  std::size_t out = 0;                       ///< where its window's events go in the stream
+  std::string where(const std::string& file) const {
+    return file + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(stream) + ")";
+  }
+};
+
 }  // namespace detail
 
 /// Reads an AEDAT4 file: its events (only LoadOptions' time window, seconds from the whole second of its first
@@ -281,6 +346,7 @@ struct Aedat4Entry {
 inline events::EventStream read_aedat4(const std::filesystem::path& path, const LoadOptions& opt, Aedat4Info& info, Frames& frames,
                                        std::int64_t& origin_sec) {
   const std::string file = path.string();
+  info = {};
   std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
   std::error_code ec;
@@ -294,7 +360,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     if (std::fseek(f.get(), static_cast<long>(pos), SEEK_SET) != 0 || std::fread(buf.data(), 1, n, f.get()) != n)
       throw Error(file, 0, "byte " + std::to_string(pos) + ": read error");
   };
-  std::vector<unsigned char> buf, body;
+  std::vector<unsigned char> buf;
   read_at(0, std::min<std::uint64_t>(file_size, detail::kAedat4MagicLen + 4), buf, "the header");
   if (buf.size() < detail::kAedat4MagicLen || std::memcmp(buf.data(), detail::kAedat4Magic, detail::kAedat4MagicLen) != 0)
     throw Error(file, 0, "byte 0: not an AEDAT 4.0 file (it does not start with '#!AER-DAT4.0')");
@@ -338,8 +404,9 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
       if (file_size - info.table_position > detail::kAedat4MaxPacket) throw Error("larger than " + std::to_string(detail::kAedat4MaxPacket >> 20) + " MiB");
       read_at(static_cast<std::uint64_t>(info.table_position), file_size - info.table_position, buf, "the data table");
       const std::string where = "byte " + std::to_string(info.table_position) + " (the data table)";
-      detail::aedat4_decompress(info.compression, buf.data(), buf.size(), body, where);
-      const auto fb = detail::size_prefixed(body, where);
+      detail::Aedat4Inflater body;
+      body.inflate(info.compression, buf.data(), buf.size(), where);
+      const auto fb = detail::size_prefixed(body.data(), body.size(), where);
       const auto t = detail::flat_root(fb, "the data table");
       const auto [at, n] = t.vector(0, 4);
       std::uint64_t prev_end = data_start;
@@ -348,6 +415,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
         detail::Aedat4Entry e;
         e.offset = ent.scalar<std::int64_t>(0, 0);
         if (const auto ph = ent.field(1, 8)) e.stream = fb.get<std::int32_t>(ph, "a packet header"), e.size = fb.get<std::int32_t>(ph + 4, "a packet header");
+        e.elements = ent.scalar<std::int64_t>(2, 0);
         e.t_begin = ent.scalar<std::int64_t>(3, 0);
         e.t_end = ent.scalar<std::int64_t>(4, 0);
         if (e.offset < static_cast<std::int64_t>(prev_end) || e.size < 0 || static_cast<std::uint64_t>(e.offset) + 8 + e.size > data_end)
@@ -385,62 +453,187 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   }
   events::EventStream ev;
   ev.width = w, ev.height = h;
-  // Times go to the sink in microseconds from the origin, the whole second of the first event.
-  std::unique_ptr<detail::RawSink> sink;
-  bool have_origin = false;
+  // Event packets are read in file order and decoded in batches: each packet decompressed, parsed and its
+  // events checked on its own (on OpenMP's threads), then the batch's events of the window appended in order.
+  // Errors are raised in file order, so the result and every message are those of a packet-by-packet read.
+  // A batch holds up to kBatch packets of up to aedat4_slot_body bytes decompressed; a larger packet (up to
+  // kAedat4MaxPacket) is decompressed again alone.
+  constexpr std::size_t kBatch = 32;
+  const std::size_t slot_body = detail::aedat4_slot_body;
+  std::vector<detail::Aedat4Slot> slots(kBatch);
+  std::size_t m = 0, out = 0;
+  bool have_origin = false, done = false;
   std::int64_t origin_us = 0, last_us = std::numeric_limits<std::int64_t>::min();
+  std::uint64_t read_to = 0;
+  const double t0 = opt.t_begin, t1 = opt.t_end;
+  auto flush = [&] {
+    if (!m) return;
+#pragma omp parallel for schedule(dynamic, 1) if (m > 1)
+    for (std::size_t k = 0; k < m; ++k) {
+      auto& s = slots[k];
+      s.error = nullptr, s.bad_event = nullptr, s.oversized = false, s.events = nullptr, s.n = 0;
+      try {
+        const std::string where = s.where(file);
+        if (!s.body.inflate(info.compression, s.raw.data(), s.raw.size(), slot_body, where)) {
+          s.oversized = true;
+          continue;
+        }
+        const auto fb = detail::size_prefixed(s.body.data(), s.body.size(), where);
+        const auto [at, n] = detail::flat_root(fb, "an EventPacket").vector(0, 16);
+        s.events = fb.data() + at, s.n = n;
+      } catch (...) {
+        s.error = std::current_exception();
+      }
+    }
+    for (std::size_t k = 0; k < m; ++k) {
+      auto& s = slots[k];
+      if (s.oversized) try {  // alone, with the whole limit
+          const std::string where = s.where(file);
+          s.body.inflate(info.compression, s.raw.data(), s.raw.size(), where);
+          const auto fb = detail::size_prefixed(s.body.data(), s.body.size(), where);
+          const auto [at, n] = detail::flat_root(fb, "an EventPacket").vector(0, 16);
+          s.events = fb.data() + at, s.n = n;
+        } catch (...) {
+          s.error = std::current_exception();
+        }
+      if (s.error) break;
+      if (!have_origin && s.n) {
+        std::int64_t t;
+        std::memcpy(&t, s.events, 8);
+        const std::int64_t sec = t / 1000000 - (t % 1000000 < 0 ? 1 : 0);  // the whole second at or before it
+        if (sec < std::numeric_limits<std::int64_t>::min() / 1000000)
+          throw Error(s.where(file) + ": event 0: time " + std::to_string(t) + " µs is out of range");
+        origin_us = sec * 1000000;
+        origin_sec = origin_us / 1000000;
+        have_origin = true;
+      }
+    }
+    // Each packet's events checked, and its share of the window found (times are checked to run forwards
+    // within it, so the window is one range); its last packet the first with an event at or after the end.
+#pragma omp parallel for schedule(dynamic, 1) if (m > 1)
+    for (std::size_t k = 0; k < m; ++k) {
+      auto& s = slots[k];
+      s.examined = s.lo = s.hi = 0, s.done = false;
+      if (s.error) continue;
+      std::int64_t prev = std::numeric_limits<std::int64_t>::min();
+      for (std::uint64_t i = 0; i < s.n; ++i) {
+        const unsigned char* p = s.events + 16 * i;
+        std::int64_t us;
+        std::int16_t x, y;
+        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
+        if (us < prev || x < 0 || y < 0 || x >= w || y >= h) [[unlikely]] {
+          const std::string at = s.where(file) + ": event " + std::to_string(i);
+          s.bad_event = std::make_exception_ptr(
+              us < prev ? Error(at + ": time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(prev) + " µs)")
+                        : Error(at + " at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w) + "x" +
+                                std::to_string(h) + " sensor"));
+          break;
+        }
+        std::int64_t rel;
+        if (__builtin_sub_overflow(us, origin_us, &rel)) [[unlikely]] {
+          s.bad_event = std::make_exception_ptr(Error(s.where(file) + ": event " + std::to_string(i) + ": time " + std::to_string(us) +
+                                                      " µs is out of range from the first event's second (" + std::to_string(origin_us) + " µs)"));
+          break;
+        }
+        prev = us;
+        s.examined = i + 1;
+        const double t = static_cast<double>(rel) / 1e6;
+        if (t >= t1) {
+          s.done = true;
+          break;
+        }
+        if (t < t0) s.lo = i + 1;
+        s.hi = i + 1;
+      }
+    }
+    // In file order: the first error, the times across packets, the events' places.
+    std::size_t used = 0, need = out;
+    for (; used < m && !done; ++used) {
+      auto& s = slots[used];
+      if (s.error) std::rethrow_exception(s.error);
+      ++info.packets;
+      if (s.n) {
+        std::int64_t first;
+        std::memcpy(&first, s.events, 8);
+        if (first < last_us)
+          throw Error(s.where(file) + ": event 0: time runs backwards (" + std::to_string(first) + " µs after " + std::to_string(last_us) + " µs)");
+      }
+      if (s.bad_event) std::rethrow_exception(s.bad_event);
+      if (s.examined) std::memcpy(&last_us, s.events + 16 * (s.examined - 1), 8);
+      info.events += s.examined;
+      s.out = need, need += s.hi - s.lo;
+      done = s.done;
+    }
+    info.packets_skipped += m - used;
+    if (need > ev.t.capacity()) {  // growing by half at least (huge pages, as RawSink's)
+      ev.reserve(std::max(need, ev.t.capacity() + ev.t.capacity() / 2));
+      detail::huge_pages(ev.t), detail::huge_pages(ev.x), detail::huge_pages(ev.y), detail::huge_pages(ev.polarity);
+    }
+    ev.t.resize(need), ev.x.resize(need), ev.y.resize(need), ev.polarity.resize(need);
+#pragma omp parallel for schedule(dynamic, 1) if (used > 1)
+    for (std::size_t k = 0; k < used; ++k) {
+      const auto& s = slots[k];
+      for (std::uint64_t i = s.lo, o = s.out; i < s.hi; ++i, ++o) {
+        const unsigned char* p = s.events + 16 * i;
+        std::int64_t us;
+        std::uint16_t x, y;
+        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
+        ev.t[o] = static_cast<double>(us - origin_us) / 1e6;
+        ev.x[o] = x, ev.y[o] = y;
+        ev.polarity[o] = static_cast<std::int8_t>(p[12] != 0 ? 1 : -1);
+      }
+    }
+    out = need;
+    m = 0;
+    if (opt.progress) opt.progress(read_to, file_size);
+  };
+  // A whole file whose table counts its events: reserved at once, so that the stream is not copied as it
+  // grows; never more than an event a byte of its packets (16:1, more than recorded events compress), so that
+  // a table's count bounds nothing but the file does.
+  if (info.table_used && !std::isfinite(t0) && !std::isfinite(t1)) {
+    std::uint64_t count = 0;
+    for (const auto& e : entries)
+      if (e.stream == evs->id) count += std::min<std::uint64_t>(static_cast<std::uint64_t>(std::max<std::int64_t>(e.elements, 0)), std::uint64_t(e.size));
+    ev.reserve(static_cast<std::size_t>(count));
+    detail::huge_pages(ev.t), detail::huge_pages(ev.x), detail::huge_pages(ev.y), detail::huge_pages(ev.polarity);
+  }
+  std::vector<unsigned char> frame_raw;
+  detail::Aedat4Inflater frame_body;
+  std::size_t batch_bytes = 0;
   for (const auto& e : entries) {
     const bool is_ev = e.stream == evs->id, is_fr = frs && e.stream == frs->id;
     if (!is_ev && !is_fr) {
       ++info.packets_skipped;
       continue;
     }
-    if (is_ev && have_origin && info.table_used) {
-      // The table's times let a window skip the packets wholly before it, and stop after it.
-      const double b = static_cast<double>(e.t_begin - origin_us) / 1e6, en = static_cast<double>(e.t_end - origin_us) / 1e6;
-      if (en < opt.t_begin) {
-        ++info.packets_skipped;
-        continue;
-      }
-      if (b >= opt.t_end) {
-        ++info.packets_skipped;
-        continue;
-      }
-    }
     const std::uint64_t pos = static_cast<std::uint64_t>(e.offset);
+    if (is_ev) {
+      // Once an event passed the window's end no event packet is read; the table's times let a window skip
+      // the packets wholly before it, and those after it.
+      if (done || (have_origin && info.table_used &&
+                   ((static_cast<double>(e.t_end) - static_cast<double>(origin_us)) / 1e6 < t0 ||
+                    (static_cast<double>(e.t_begin) - static_cast<double>(origin_us)) / 1e6 >= t1))) {
+        ++info.packets_skipped;
+        continue;
+      }
+      auto& s = slots[m++];
+      s.pos = pos, s.stream = e.stream;
+      read_at(pos + 8, static_cast<std::size_t>(e.size), s.raw, "a packet");
+      read_to = pos + 8 + static_cast<std::uint64_t>(e.size);
+      batch_bytes += s.raw.size();
+      // The first packet alone: its first event sets the origin the table's times are compared with.
+      if (m == kBatch || batch_bytes >= slot_body || !have_origin) flush(), batch_bytes = 0;
+      continue;
+    }
+    flush(), batch_bytes = 0;  // the packets before it first: the frames stay in file order
     const std::string where = file + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(e.stream) + ")";
-    read_at(pos + 8, static_cast<std::size_t>(e.size), buf, "a packet");
-    detail::aedat4_decompress(info.compression, buf.data(), buf.size(), body, where);
-    const auto fb = detail::size_prefixed(body, where);
-    const auto t = detail::flat_root(fb, is_ev ? "an EventPacket" : "a Frame");
+    read_at(pos + 8, static_cast<std::size_t>(e.size), frame_raw, "a packet");
+    frame_body.inflate(info.compression, frame_raw.data(), frame_raw.size(), where);
+    const auto fb = detail::size_prefixed(frame_body.data(), frame_body.size(), where);
+    const auto t = detail::flat_root(fb, "a Frame");
     ++info.packets;
     if (opt.progress) opt.progress(pos + 8 + static_cast<std::uint64_t>(e.size), file_size);
-    if (is_ev) {
-      const auto [at, n] = t.vector(0, 16);
-      if (!n) continue;
-      if (!have_origin) {
-        const auto t0 = fb.get<std::int64_t>(at, "an event");
-        origin_us = t0 >= 0 ? t0 / 1000000 * 1000000 : -((-t0 + 999999) / 1000000 * 1000000);
-        origin_sec = origin_us / 1000000;
-        have_origin = true;
-        sink = std::make_unique<detail::RawSink>(ev, opt, where, w, h);
-      }
-      if (sink->done()) continue;
-      sink->room(static_cast<std::size_t>(n));
-      for (std::uint64_t k = 0; k < n; ++k) {
-        const unsigned char* p = fb.data() + at + 16 * k;
-        std::int64_t us;
-        std::int16_t x, y;
-        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
-        if (us < last_us) throw Error(where + ": event " + std::to_string(k) + ": time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(last_us) + " µs)");
-        last_us = us;
-        if (x < 0 || y < 0 || x >= w || y >= h)
-          throw Error(where + ": event " + std::to_string(k) + " at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " +
-                      std::to_string(w) + "x" + std::to_string(h) + " sensor");
-        sink->add(us - origin_us, static_cast<unsigned>(x), static_cast<unsigned>(y), p[12] != 0, pos);
-        if (sink->done()) break;
-      }
-    } else {
+    {
       const auto ts = t.scalar<std::int64_t>(0, 0);
       const auto format = t.scalar<std::int8_t>(5, 0);
       const int fw = t.scalar<std::int16_t>(6, 0), fh = t.scalar<std::int16_t>(7, 0);
@@ -464,9 +657,9 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
       ++info.frames;
     }
   }
+  flush();
   if (!have_origin) throw Error(file, 0, "no events in its event stream " + std::to_string(evs->id));
-  sink->finish();
-  info.events = sink->count();
+  if (ev.t.capacity() > 2 * ev.t.size() + 4096) ev.t.shrink_to_fit(), ev.x.shrink_to_fit(), ev.y.shrink_to_fit(), ev.polarity.shrink_to_fit();
   // Frame times in seconds from the origin, in time order.
   for (double& t : frames.t) t = (t - static_cast<double>(origin_us)) / 1e6;
   for (std::size_t k = 1; k < frames.t.size(); ++k)
