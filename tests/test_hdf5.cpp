@@ -138,6 +138,13 @@ TEST_CASE("HDF5: DSEC's Blosc-compressed events read through Debian's filter plu
   CHECK_CONTAINS(error_of([&] { io::read_hdf5(fx / "dsec_unknown_filter.h5"); }),
                  "dataset 'events/x' is compressed with HDF5 filter 32999 ('blosc'), which this HDF5 library cannot load");
   CHECK_CONTAINS(error_of([&] { io::read_hdf5(fx / "dsec_unknown_filter.h5"); }), "HDF5_PLUGIN_PATH");
+  // dsec_blosc.h5 with its layout's chunk size changed (a fuzzer's input): the Blosc plugin would decompress to
+  // the 1024 bytes its chunk header says and libhdf5 copy a whole, larger chunk out of that buffer; the chunk
+  // is refused first.
+  const auto bad = error_of([&] { io::read_hdf5(fx / "dsec_blosc_bad_chunk.h5"); });
+  CHECK_CONTAINS(bad, "dsec_blosc_bad_chunk.h5");
+  CHECK_CONTAINS(bad, "the Blosc chunk at element 0");
+  CHECK_CONTAINS(bad, "says it decompresses to 1024 bytes, not the chunk's");
 }
 
 TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wrong") {

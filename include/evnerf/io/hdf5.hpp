@@ -18,7 +18,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -142,6 +144,8 @@ class H5Vector {
       if (H5Zfilter_avail(id) <= 0)
         throw Error(where_ + " is compressed with HDF5 filter " + std::to_string(id) + (name[0] ? std::string(" ('") + name + "')" : std::string()) +
                     ", which this HDF5 library cannot load (searched " + kDebianHdf5Plugins + " and HDF5_PLUGIN_PATH): " + filter_package(id));
+      if (id == 32001) blosc_ = i;
+      else if (id != H5Z_FILTER_SHUFFLE) size_changing_ = true;
     }
     const int rank = H5Sget_simple_extent_ndims(space_.get());
     hsize_t dims[2] = {0, 0};
@@ -155,6 +159,18 @@ class H5Vector {
     floating_ = cls == H5T_FLOAT;
     const std::size_t element = H5Tget_size(type.get());  // a corrupt type can claim gigabytes per element
     if (element == 0 || element > 8) throw Error(where_ + " has elements of " + std::to_string(element) + " bytes (numbers of 1 to 8 expected)");
+    if (blosc_ >= 0 && !size_changing_) {
+      // Blosc alone (or with HDF5's shuffle, which keeps the size): each stored chunk's Blosc header must say
+      // it decompresses to a whole chunk (chunk_check).
+      hsize_t chunk[2] = {0, 0};
+      const int crank = dcpl.ok() ? H5Pget_chunk(dcpl.get(), 2, chunk) : -1;
+      if (crank == rank && chunk[0] > 0) {
+        chunk_ = chunk[0];
+        chunk_bytes_ = chunk[0] * (rank == 2 ? chunk[1] : 1) * element;
+        char path[4096] = {0};
+        if (H5Fget_name(file, path, sizeof path - 1) > 0) path_ = path;
+      }
+    }
     if (cls == H5T_ENUM) {
       const H5Id base(H5Tget_super(type.get()), H5Tclose);
       if (!base.ok() || H5Tget_size(base.get()) != 1) throw Error(where_ + " is an enumeration other than h5py's bool");
@@ -168,6 +184,7 @@ class H5Vector {
   template <class T>
   void read(std::size_t begin, std::size_t n, T* out) const {
     if (n == 0) return;
+    if (chunk_) chunk_check(begin, n);
     const hsize_t start[1] = {begin}, count[1] = {n};
     const int rank = H5Sget_simple_extent_ndims(space_.get());
     hsize_t start2[2] = {begin, 0}, count2[2] = {n, 1};
@@ -186,6 +203,34 @@ class H5Vector {
       throw Error(where_ + ": read error at elements " + std::to_string(begin) + " … " + std::to_string(begin + n) +
                   " (truncated or corrupt file?)");
   }
+  /// The Blosc chunks holding elements [begin, begin + n), checked before the library decompresses them:
+  /// Debian's Blosc filter plugin decompresses to the size its chunk's header gives, and libhdf5 1.10 then
+  /// copies a whole chunk from that buffer (a heap over-read on a corrupt header); Blosc itself reads as many
+  /// compressed bytes as the header says. A header that disagrees with the chunk is an Error.
+  void chunk_check(std::size_t begin, std::size_t n) const {
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(path_.empty() ? nullptr : std::fopen(path_.c_str(), "rb"), &std::fclose);
+    if (!f) throw Error(where_ + ": cannot open the file again to check its Blosc chunks");
+    for (std::uint64_t c = begin / chunk_; c * chunk_ < begin + n; ++c) {
+      hsize_t offset[2] = {c * chunk_, 0};
+      unsigned mask = 0;
+      haddr_t addr = HADDR_UNDEF;
+      hsize_t bytes = 0;
+      if (H5Dget_chunk_info_by_coord(set_.get(), offset, &mask, &addr, &bytes) < 0)
+        throw Error(where_ + ": the chunk at element " + std::to_string(offset[0]) + " cannot be located (corrupt chunk index?)");
+      if (addr == HADDR_UNDEF || (mask >> blosc_ & 1)) continue;  // not written (fill value), or stored without Blosc
+      unsigned char h[16];
+      const std::string at = where_ + ": the Blosc chunk at element " + std::to_string(offset[0]) + " (byte " + std::to_string(addr) + ")";
+      if (bytes < 16 || fseeko(f.get(), static_cast<off_t>(addr), SEEK_SET) != 0 || std::fread(h, 1, 16, f.get()) != 16)
+        throw Error(at + ": its 16-byte header cannot be read (" + std::to_string(bytes) + " bytes stored)");
+      const std::uint32_t nbytes = h[4] | h[5] << 8 | h[6] << 16 | static_cast<std::uint32_t>(h[7]) << 24;
+      const std::uint32_t cbytes = h[12] | h[13] << 8 | h[14] << 16 | static_cast<std::uint32_t>(h[15]) << 24;
+      if (nbytes != chunk_bytes_)
+        throw Error(at + " says it decompresses to " + std::to_string(nbytes) + " bytes, not the chunk's " + std::to_string(chunk_bytes_) +
+                    " (corrupt file?)");
+      if (cbytes > bytes)
+        throw Error(at + " says it holds " + std::to_string(cbytes) + " compressed bytes, " + std::to_string(bytes) + " are stored (corrupt file?)");
+    }
+  }
   template <class T>
   static hid_t native() {
     if constexpr (std::is_same_v<T, double>) return H5T_NATIVE_DOUBLE;
@@ -199,6 +244,10 @@ class H5Vector {
   H5Id set_, space_;
   hsize_t size_ = 0;
   bool floating_ = false, byte_enum_ = false;
+  int blosc_ = -1;               // the Blosc filter's place in the pipeline
+  bool size_changing_ = false;   // another filter that changes the size
+  hsize_t chunk_ = 0, chunk_bytes_ = 0;  // elements and bytes a chunk holds; 0: no Blosc check
+  std::string path_;
 };
 
 /// A numeric attribute of `object` with up to `max` elements, as doubles; empty when absent.
