@@ -3,7 +3,7 @@
 // in the temporary folder (in the page cache, as a re-read recording is): IJRR events.txt (the reference,
 // parsed by the fast text reader, no .npy cache), Prophesee EVT 2.0 and EVT 3.0 .raw (times on whole
 // microseconds), event_utils/HQF HDF5, and ROS bags with uncompressed, lz4 and bz2 chunks (1 ms of events per
-// dvs_msgs/EventArray, rosbag's 768 kB chunks).
+// dvs_msgs/EventArray, rosbag's 768 kB chunks), and AEDAT4 with LZ4 and Zstd packets (4096 events each).
 // bench/formats.sh runs it and prints the medians.
 #include <benchmark/benchmark.h>
 #include <evnerf/core/rng.hpp>
@@ -88,6 +88,20 @@ void BM_read_rosbag(benchmark::State& st, const std::string& compression) {
   st.counters["MB"] = static_cast<double>(fs::file_size(path)) / 1e6;
 }
 #endif
+#ifdef EVNERF_HAVE_AEDAT4
+void BM_read_aedat4(benchmark::State& st, const std::string& compression) {
+  const auto path = dir() / ("events_" + compression + ".aedat4");
+  io::Dataset us = dataset();
+  for (auto& t : us.events.t) t = std::round(t * 1e6) / 1e6;
+  io::write_aedat4(path, us, compression);
+  io::Aedat4Info info;
+  io::Frames frames;
+  std::int64_t origin = 0;
+  for (auto _ : st) benchmark::DoNotOptimize(io::read_aedat4(path, {}, info, frames, origin));
+  st.SetItemsProcessed(static_cast<std::int64_t>(st.iterations() * kEvents));
+  st.counters["MB"] = static_cast<double>(fs::file_size(path)) / 1e6;
+}
+#endif
 
 }  // namespace
 
@@ -101,5 +115,9 @@ BENCHMARK(BM_read_hdf5)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_read_rosbag, none, std::string("none"))->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_read_rosbag, lz4, std::string("lz4"))->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_read_rosbag, bz2, std::string("bz2"))->Unit(benchmark::kMillisecond)->UseRealTime();
+#endif
+#ifdef EVNERF_HAVE_AEDAT4
+BENCHMARK_CAPTURE(BM_read_aedat4, lz4, std::string("lz4"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_read_aedat4, zstd, std::string("zstd"))->Unit(benchmark::kMillisecond)->UseRealTime();
 #endif
 BENCHMARK_MAIN();

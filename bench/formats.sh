@@ -1,27 +1,52 @@
 #!/usr/bin/env bash
 # Events per second read from each recording format (bench/bench_formats.cpp: 2 M events written by evnerf's
-# writers; IJRR text is the reference), REPS repetitions interleaved by Google Benchmark, medians printed.
+# writers; IJRR text is the reference, read in the same run), REPS repetitions interleaved by Google
+# Benchmark; the medians and ranges are printed and written to bench/results/formats_ISA.csv (RESULTS; empty:
+# not copied) and docs/results.md. ISA=avx2 builds without AVX-512 (EVNERF_NO_AVX512) in build-bench-avx2.
 # Usage: bench/formats.sh [REPS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${1:-5}
 scripts/deps.sh libbenchmark-dev
-cmake -S . -B build-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
-  -DEVNERF_BUILD_EXAMPLES=OFF >/dev/null
-cmake --build build-bench --target evnerf_bench_formats -j"$(nproc)" >/dev/null
-OUT=build-bench/results
+case "${ISA:-native}" in
+  native) B=build-bench; NO512=OFF ;;
+  avx2) B=build-bench-avx2; NO512=ON ;;
+  *) echo "bench/formats.sh: ISA is native or avx2, not '$ISA'" >&2; exit 2 ;;
+esac
+cmake -S . -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
+  -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_NO_AVX512="$NO512" >/dev/null
+cmake --build "$B" --target evnerf_bench_formats -j"$(nproc)" >/dev/null
+OUT=$B/results
 mkdir -p "$OUT"
-OMP_NUM_THREADS=2 build-bench/bench/evnerf_bench_formats --benchmark_repetitions="$REPS" --benchmark_enable_random_interleaving=true \
+flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
+has() { [[ $flags == *" $1 "* ]]; }
+CPU_FEATURES="$(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA")"
+OMP_NUM_THREADS=2 "$B"/bench/evnerf_bench_formats --benchmark_repetitions="$REPS" --benchmark_enable_random_interleaving=true \
   --benchmark_format=json --benchmark_out="$OUT/formats.json" --benchmark_out_format=json >/dev/null
-python3 - "$OUT/formats.json" <<'PY'
-import json, sys
-runs = json.load(open(sys.argv[1]))["benchmarks"]
-med = {r["run_name"].replace("/real_time", ""): r for r in runs if r.get("aggregate_name") == "median"}
-order = ["BM_read_text", "BM_read_prophesee/evt2", "BM_read_prophesee/evt3", "BM_read_hdf5", "BM_read_rosbag/none", "BM_read_rosbag/lz4", "BM_read_rosbag/bz2"]
-med = {k: med[k] for k in order if k in med}
-text = med["BM_read_text"]["items_per_second"]
-print(f"{'format':<22} {'M events/s':>10} {'vs text':>8} {'file MB':>8}")
-for name, r in med.items():
-    mb = f"{r['MB']:.1f}" if "MB" in r else ""
-    print(f"{name.replace('BM_read_', ''):<22} {r['items_per_second'] / 1e6:>10.1f} {r['items_per_second'] / text:>7.2f}x {mb:>8}")
+python3 - "$OUT/formats.json" "$OUT/formats.csv" "${ISA:-native}" "$CPU_FEATURES" <<'PY'
+import csv, json, statistics, sys
+src, dst, isa, cpu = sys.argv[1:]
+runs = [r for r in json.load(open(src))["benchmarks"] if r.get("run_type") == "iteration"]
+names = list(dict.fromkeys(r["run_name"].replace("/real_time", "") for r in runs))
+rate = {n: [r["items_per_second"] for r in runs if r["run_name"].replace("/real_time", "") == n] for n in names}
+text = statistics.median(rate["BM_read_text"])
+rows = []
+print(f"{'format':<18} {'M events/s':>10} {'range':>13} {'vs text':>8} {'file MB':>8}")
+for n in names:
+    v = rate[n]
+    mb = next((r["MB"] for r in runs if r["run_name"].replace("/real_time", "") == n and "MB" in r), "")
+    row = dict(isa=isa, cpu=cpu, format=n.replace("BM_read_", ""), reps=len(v), meps=f"{statistics.median(v) / 1e6:.1f}",
+               meps_min=f"{min(v) / 1e6:.1f}", meps_max=f"{max(v) / 1e6:.1f}", vs_text=f"{statistics.median(v) / text:.2f}",
+               file_mb=f"{mb:.1f}" if mb != "" else "")
+    rows.append(row)
+    print(f"{row['format']:<18} {row['meps']:>10} {row['meps_min'] + '-' + row['meps_max']:>13} {row['vs_text']:>7}x {row['file_mb']:>8}")
+with open(dst, "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
 PY
+RESULTS=${RESULTS-bench/results}
+if [ -n "$RESULTS" ]; then
+  mkdir -p "$RESULTS" && cp "$OUT/formats.csv" "$RESULTS/formats_${ISA:-native}.csv" && echo "copied to $RESULTS/formats_${ISA:-native}.csv"
+  python3 bench/results.py
+fi

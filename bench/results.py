@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
-time_to_quality.csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, mesh.csv from bench/mesh_suite.sh), so both say the same and neither is edited by hand.
+time_to_quality.csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh,
+mesh.csv from bench/mesh_suite.sh), so both say the same and neither is edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
 --check writes nothing and fails when a page differs from what the CSV files give (ctest docs.results)."""
@@ -152,13 +153,34 @@ def mesh_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=()):
+FORMAT_ORDER = ["text", "prophesee/evt2", "prophesee/evt3", "aedat4/lz4", "aedat4/zstd", "hdf5", "rosbag/none", "rosbag/lz4", "rosbag/bz2"]
+FORMAT_NAMES = {"text": "IJRR events.txt (the reference)", "prophesee/evt2": "Prophesee EVT 2.0", "prophesee/evt3": "Prophesee EVT 3.0",
+                "aedat4/lz4": "AEDAT4, LZ4 packets", "aedat4/zstd": "AEDAT4, Zstd packets", "hdf5": "HQF HDF5 (uncompressed)",
+                "rosbag/none": "ROS bag, plain chunks", "rosbag/lz4": "ROS bag, lz4 chunks", "rosbag/bz2": "ROS bag, bz2 chunks"}
+
+
+def formats_section(rows):
+    """Reading speed per format, from bench/formats.sh."""
+    p = ["", "## Reading speed per format (`bench/formats.sh`)", "",
+         "Events per second a whole-file read delivers (`io` readers, times in seconds, checked), 2 M events of a 240 × 180",
+         "sensor written by evnerf's writers and read from the page cache, `OMP_NUM_THREADS=2` (AEDAT4 decodes its packets",
+         "on both threads; the other readers run on one); the median of the repetitions, interleaved, and their range; the",
+         "IJRR text reader read in the same run is the reference.", "",
+         "| build | CPU | format | M events/s (range) | against text | file MB |", "|---|---|---|---|---|---|"]
+    key = {n: i for i, n in enumerate(FORMAT_ORDER)}
+    for r in sorted(rows, key=lambda r: (r["isa"], key.get(r["format"], 99))):
+        p.append(f"| {r['isa']} | {r['cpu']} | {FORMAT_NAMES.get(r['format'], r['format'])} | {r['meps']} ({r['meps_min']}–{r['meps_max']}) | "
+                 f"{r['vs_text']}× | {r['file_mb']} |")
+    return p
+
+
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/mesh_suite.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -226,6 +248,8 @@ def results_page(q, robust, ttq, speed=(), mesh=()):
         for r in speed:
             p.append(f"| {r['isa']} | {r['cpu']} | {r['peer_core']} | {r['width']} | {r['pairs']} | {r['ratio']}× ({r['ratio_min']}–{r['ratio_max']}) | "
                      f"{int(r['ours_samples_per_s']):,} | {100 * float(r['peak_fraction']):.0f} % of {float(r['peak_gflops']):.0f} GFLOP/s |")
+    if formats:
+        p += formats_section(formats)
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
               "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it):", "",
@@ -254,7 +278,8 @@ def main():
     ttq = read(os.path.join(a.results, "time_to_quality.csv"))
     speed = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"speed_{isa}.csv"))]
     mesh = read(os.path.join(a.results, "mesh.csv"))
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh)}
+    formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []
