@@ -59,6 +59,7 @@ fuzz_one() {
     memory=(-malloc_limit_mb=1000000)
     asan="$ASAN_OPTIONS:allocator_may_return_null=1:max_allocation_size_mb=2048:exitcode=99"
     max_len=32768  # the h5py fixtures are 6 and 20 kB
+    export HDF5_DEFECTS="$dir/libhdf5_defects"  # the library's own defects the child contained (fuzz_hdf5.cpp)
   fi
   if [ "$h" = npz ]; then
     for z in "$ROOT"/tests/fixtures/eventnerf*/train/events/*.npz; do cp "$z" "$SEEDS/$h/$(basename "$(dirname "$(dirname "$(dirname "$z")")")").npz"; done  # numpy's
@@ -90,7 +91,9 @@ fuzz_one() {
     { echo "fuzz_$h: FAILED (exit $rc) after ${runs:-?} executions; see $dir/log.txt and $dir/crash-* etc."
       grep -m3 -E "ERROR|SUMMARY|invariant|error message" "$dir/log.txt" || true; } > "$dir/summary.txt"
   else
-    echo "fuzz_$h: ${runs:-?} executions (${secs:-?}/s), corpus $corpus inputs, no crash, leak, hang or oversized allocation" > "$dir/summary.txt"
+    defects=""
+    [ -d "$dir/libhdf5_defects" ] && defects="; libhdf5's own defects contained in the child: $(ls "$dir/libhdf5_defects" | grep -c '\.h5$') inputs in $dir/libhdf5_defects"
+    echo "fuzz_$h: ${runs:-?} executions (${secs:-?}/s), corpus $corpus inputs, no crash, leak, hang or oversized allocation$defects" > "$dir/summary.txt"
   fi
 }
 # The harnesses run side by side, one per core (JOBS, default nproc; each is single-threaded), each for

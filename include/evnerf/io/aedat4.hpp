@@ -297,7 +297,7 @@ inline std::vector<Aedat4Stream> aedat4_streams(std::string_view xml, const std:
       auto number = [&]() {
         char* e = nullptr;
         const long v = std::strtol(value.c_str(), &e, 10);
-        if (e == value.c_str() || v < 0 || v > 65535) throw Error(where + ": stream " + std::to_string(id) + "'s " + key + " is '" + value + "'");
+        if (e == value.c_str() || v < 0 || v > 65535) throw Error(where + ": stream " + std::to_string(id) + "'s " + key + " is '" + (value.size() > 40 ? value.substr(0, 40) + "…" : value) + "' (a size of 0 to 65535 expected)");
         return static_cast<int>(v);
       };
       if (!info && key == "typeIdentifier") it->type = value;
