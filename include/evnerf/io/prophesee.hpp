@@ -158,13 +158,21 @@ class RawSink {
   void read_to(std::size_t offset) const {
     if (progress_) progress_(std::min<std::uint64_t>(offset, bytes_), bytes_);
   }
+  /// Capacity for n events in all, allocated but not touched (a whole file's estimate).
+  void reserve(std::size_t n) {
+    if (n <= ev_.t.capacity()) return;
+    ev_.t.resize(n_), ev_.x.resize(n_), ev_.y.resize(n_), ev_.polarity.resize(n_);  // what follows n_ is not copied
+    ev_.reserve(n);
+    huge_pages(ev_.t), huge_pages(ev_.x), huge_pages(ev_.y), huge_pages(ev_.polarity);
+    bind();
+  }
+  /// Room for n more events: the arrays sized to hold them (only those elements are initialised, just before
+  /// the block writes them), the capacity grown by half at least where it runs out.
   void room(std::size_t n) {
     if (n_ + n <= ev_.t.size()) [[likely]]
       return;
-    const std::size_t size = std::max(n_ + n, ev_.t.size() + ev_.t.size() / 2);
-    ev_.t.resize(n_), ev_.x.resize(n_), ev_.y.resize(n_), ev_.polarity.resize(n_);  // what follows n_ is not copied
-    ev_.reserve(size);
-    huge_pages(ev_.t), huge_pages(ev_.x), huge_pages(ev_.y), huge_pages(ev_.polarity);
+    if (n_ + n > ev_.t.capacity()) reserve(std::max(n_ + n, ev_.t.capacity() + ev_.t.capacity() / 2));
+    const std::size_t size = std::min(ev_.t.capacity(), n_ + std::max<std::size_t>(n, 4096));  // a vector word's 12 fit
     ev_.t.resize(size), ev_.x.resize(size), ev_.y.resize(size), ev_.polarity.resize(size);
     bind();
   }
@@ -389,7 +397,7 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   const auto bytes = std::filesystem::file_size(path, ec);
   detail::RawSink sink(ev, opt, file, info.width, info.height, ec ? 0 : bytes);
   if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {  // the whole file: about an event per word
-    if (!ec && bytes > h.bytes) sink.room((bytes - h.bytes) / (info.kind == "dat" ? 8 : 4));  // EVT 3.0: two words an event
+    if (!ec && bytes > h.bytes) sink.reserve((bytes - h.bytes) / (info.kind == "dat" ? 8 : 4));  // EVT 3.0: two words an event
   }
   if (info.kind == "evt 2.0")
     detail::decode_evt2(f.get(), h.bytes, sink, info, file);
