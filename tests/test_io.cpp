@@ -378,7 +378,8 @@ TEST_CASE("AEDAT4: a file of many packets reads the same on one or two threads, 
     CHECK(info.events == std::size_t(kN));
     CHECK(info.packets == std::size_t((kN + 4095) / 4096));
     // Windows: exactly the whole read's events in [t0, t1), the packets outside skipped through the table.
-    for (const auto& [t0, t1] : std::vector<std::pair<double, double>>{{0.5, 1.7}, {2.0, 2.3}, {0.0, 0.21}, {3.1, 9.0}}) {
+    for (const auto& window : std::vector<std::pair<double, double>>{{0.5, 1.7}, {2.0, 2.3}, {0.0, 0.21}, {3.1, 9.0}}) {
+      const double t0 = window.first, t1 = window.second;  // not a structured binding: CAPTURE's lambda takes it
       CAPTURE(t0);
       io::LoadOptions o;
       o.t_begin = t0, o.t_end = t1;
