@@ -8,14 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 REPS=${1:-5}
 scripts/deps.sh libbenchmark-dev
-case "${ISA:-native}" in
-  native) B=build-bench; NO512=OFF ;;
-  avx2) B=build-bench-avx2; NO512=ON ;;
-  *) echo "bench/formats.sh: ISA is native or avx2, not '$ISA'" >&2; exit 2 ;;
-esac
-cmake -S . -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
-  -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_NO_AVX512="$NO512" >/dev/null
-cmake --build "$B" --target evnerf_bench_formats -j"$(nproc)" >/dev/null
+TARGET=evnerf_bench_formats . bench/isa.sh  # B: the build for ISA
 OUT=$B/results
 mkdir -p "$OUT"
 flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "

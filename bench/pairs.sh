@@ -14,14 +14,7 @@ if [ ! -f "$PEER" ]; then
   exit 1
 fi
 scripts/deps.sh libbenchmark-dev python3-torch python3-numpy libopenblas0-openmp libtcmalloc-minimal4
-case "${ISA:-native}" in
-  native) B=build-bench; NO512=OFF ;;
-  avx2) B=build-bench-avx2; NO512=ON ;;
-  *) echo "bench/pairs.sh: ISA is native or avx2, not '$ISA'" >&2; exit 2 ;;
-esac
-cmake -S . -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release -DEVNERF_BUILD_BENCH=ON -DEVNERF_BUILD_TESTS=OFF \
-  -DEVNERF_BUILD_EXAMPLES=OFF -DEVNERF_NO_AVX512="$NO512" >/dev/null
-cmake --build "$B" -j"$(nproc)" >/dev/null
+. bench/isa.sh  # B: the build for ISA
 OUT=$B/pairs; rm -rf "$OUT"; mkdir -p "$OUT"
 . bench/peer_config.sh  # BEST: the peer's flags for this CPU
 ours() {  # width, pair
