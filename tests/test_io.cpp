@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <set>
 
 #include <omp.h>
@@ -446,6 +447,120 @@ TEST_CASE("AEDAT4: a file of many packets reads the same on one or two threads, 
   fs::remove_all(dir);
 }
 #endif
+
+TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read's events, counts and errors") {
+  // Words of the test's own: time-high words across two 24-bit wraps, time-low and row words, single events,
+  // vector bases with VECT_12 and VECT_8 masks (some runs of them longer than a part), triggers and words of
+  // the types evnerf skips, and events before the first time high and row (which have no time or row, and
+  // are dropped). `want` holds the events a reader must give.
+  const auto dir = temp_dir("evt3_parts");
+  fs::create_directories(dir);
+  std::vector<std::uint16_t> words;
+  events::EventStream want;
+  want.width = 640, want.height = 480;
+  std::mt19937 rng(7);
+  auto u = [&](unsigned n) { return static_cast<unsigned>(rng() % n); };
+  words.push_back(0x2000 | 5);  // no time high and no row yet
+  words.push_back(0x8000 | 3);  // a time high, still no row
+  words.push_back(0x3000 | 10), words.push_back(0x4000 | 0x0F0);
+  std::size_t triggers = 0, other = 0;
+  std::int64_t us = 3 << 12, high = 3;
+  for (int g = 0; g < 60000; ++g) {
+    us += u(4) == 0 ? u(9000) : u(40);
+    for (; high != us >> 12; words.push_back(static_cast<std::uint16_t>(0x8000 | (high & 0xFFF))))
+      high = std::min(us >> 12, high + 0x7FF);  // steps of under half the 12-bit range
+    words.push_back(static_cast<std::uint16_t>(0x6000 | (us & 0xFFF)));
+    const unsigned y = u(480);
+    words.push_back(static_cast<std::uint16_t>(y));
+    if (u(3) == 0) {
+      const unsigned x = u(640), on = u(2);
+      words.push_back(static_cast<std::uint16_t>(0x2000 | on << 11 | x));
+      want.push_back(static_cast<double>(us) / 1e6, static_cast<int>(x), static_cast<int>(y), on ? 1 : -1);
+    } else {
+      const bool run = u(20) == 0;  // a run of vector words longer than a part of the smallest blocks
+      unsigned base = run ? u(40) : u(560);
+      const unsigned on = u(2);
+      words.push_back(static_cast<std::uint16_t>(0x3000 | on << 11 | base));
+      for (unsigned v = run ? 48 : 1 + u(4); v--;) {
+        const bool twelve = u(2) != 0;
+        const unsigned len = twelve ? 12 : 8, mask = u(1u << len);
+        words.push_back(static_cast<std::uint16_t>((twelve ? 0x4000 : 0x5000) | mask));
+        for (unsigned b = 0; b < len; ++b)
+          if (mask >> b & 1) want.push_back(static_cast<double>(us) / 1e6, static_cast<int>(base + b), static_cast<int>(y), on ? 1 : -1);
+        base += len;
+      }
+    }
+    if (u(50) == 0) words.push_back(static_cast<std::uint16_t>(0xA000 | u(4096))), ++triggers;
+    if (u(70) == 0) {  // a word of a type evnerf skips: 1, 7, 9, 11–15
+      const unsigned kinds[] = {0x1, 0x7, 0x9, 0xB, 0xC, 0xD, 0xE, 0xF};
+      words.push_back(static_cast<std::uint16_t>(kinds[u(8)] << 12 | u(4096))), ++other;
+    }
+  }
+  REQUIRE(us > 2 * (std::int64_t(1) << 24));  // two wraps
+  auto write_words = [&](const std::string& name, const std::vector<std::uint16_t>& w) {
+    std::string b = "% evt 3.0\n% format EVT3;height=480;width=640\n% end\n";
+    for (const auto v : w) b.push_back(static_cast<char>(v & 0xFF)), b.push_back(static_cast<char>(v >> 8));
+    write(dir / name, b);
+    return dir / name;
+  };
+  auto same = [](const events::EventStream& a, const events::EventStream& b) {
+    return a.t == b.t && a.x == b.x && a.y == b.y && a.polarity == b.polarity;
+  };
+  io::PropheseeInfo info;
+  const auto clean = write_words("clean.raw", words);
+  const int threads_before = omp_get_max_threads();
+  const auto block = io::detail::evt3_parallel_words;
+  io::detail::evt3_blocks_redone = 0;
+  for (const std::size_t b : {block, std::size_t(997), std::size_t(64)}) {  // the default block, then many small ones
+    CAPTURE(b);
+    io::detail::evt3_parallel_words = b;
+    for (int threads : {1, 2, 3}) {
+      CAPTURE(threads);
+      omp_set_num_threads(threads);
+      info = {};
+      CHECK(same(io::read_prophesee_events(clean, {}, info), want));
+      CHECK(info.events == want.size());
+      CHECK(info.triggers == triggers);
+      CHECK(info.other_words == other);
+      CHECK(io::detail::evt3_blocks_redone == 0);  // no block of a clean file is decoded twice
+    }
+  }
+  // Bad words deep in the file: every thread count and block size names the same byte (the serial read's).
+  auto bad_at = [&](const std::string& name, std::size_t at, std::vector<std::uint16_t> insert) {
+    auto w = words;
+    w.insert(w.begin() + static_cast<std::ptrdiff_t>(at), insert.begin(), insert.end());
+    return write_words(name, w);
+  };
+  const std::size_t n = words.size();
+  // A time-high word before the last one's (less than half the range back), an event off the sensor, and a
+  // time-low word that takes the time back, each followed by an event.
+  std::uint16_t last_high = 0;
+  for (std::size_t k = 0; k < n * 6 / 10; ++k)
+    if (words[k] >> 12 == 8) last_high = words[k];
+  const std::vector<std::pair<fs::path, std::string>> bad = {
+      {bad_at("high_back.raw", n * 6 / 10, {static_cast<std::uint16_t>(0x8000 | ((last_high - 5) & 0xFFF))}), "EVT_TIME_HIGH runs backwards"},
+      {bad_at("off_sensor.raw", n * 7 / 10, {0x2000 | 700}), "event at x 700"},
+      {bad_at("time_back.raw", n * 8 / 10, {0x6000, 0x2000 | 1, 0x6FFF, 0x2000 | 2}), "time runs backwards"},
+  };
+  for (const auto& [file, what] : bad) {
+    const std::string f = file.filename().string();
+    CAPTURE(f);
+    io::detail::evt3_parallel_words = block;
+    omp_set_num_threads(1);
+    const std::string serial = error_of([&] { io::read_prophesee_events(file, {}, info); });
+    CHECK_CONTAINS(serial, what);
+    for (const std::size_t b : {block, std::size_t(997), std::size_t(64)}) {
+      io::detail::evt3_parallel_words = b;
+      omp_set_num_threads(2);
+      io::detail::evt3_blocks_redone = 0;
+      CHECK(error_of([&] { io::read_prophesee_events(file, {}, info); }) == serial);
+      CHECK(io::detail::evt3_blocks_redone == 1);  // the block of the bad word, decoded again serially
+    }
+  }
+  io::detail::evt3_parallel_words = block;
+  omp_set_num_threads(threads_before);
+  fs::remove_all(dir);
+}
 
 TEST_CASE("inspect: a recording of one polarity is named so, not given a threshold ratio") {
   const auto dir = temp_dir("one_polarity");

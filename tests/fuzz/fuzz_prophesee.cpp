@@ -1,8 +1,14 @@
 // Prophesee files (io::read_prophesee_events: the '%' header, the sensor size it gives, EVT 2.0 and EVT 3.0
 // words, .dat records), whole and in a time window. The input is written to a file in /dev/shm (the reader
-// opens paths); a read's events must lie inside the sensor, in time order, within the window.
+// opens paths); a read's events must lie inside the sensor, in time order, within the window. A whole read on
+// one thread and on two (EVT 3.0's parallel decode, in parts of a few words) must give the same events, or the
+// same error.
+#include <algorithm>
 #include <cmath>
 #include <string>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include <evnerf/io/prophesee.hpp>
 
@@ -24,5 +30,24 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         evfuzz::expect(ev.t[i] >= o.t_begin && ev.t[i] < o.t_end, "an event outside the window");
       }
     });
+#ifdef _OPENMP
+  // Blocks of a few words, at most about 32 of them per input (each block is two parallel regions).
+  evnerf::io::detail::evt3_parallel_words = std::max<std::size_t>(8, size / 64);
+  auto read = [&](int threads) {
+    omp_set_num_threads(threads);
+    evnerf::io::PropheseeInfo info;
+    try {
+      const auto ev = evnerf::io::read_prophesee_events(path, {}, info);
+      return std::to_string(info.events) + " " + std::to_string(info.triggers) + " " + std::to_string(info.other_words) + " " +
+             std::string(reinterpret_cast<const char*>(ev.t.data()), ev.t.size() * sizeof(double)) +
+             std::string(reinterpret_cast<const char*>(ev.x.data()), ev.x.size() * 2) +
+             std::string(reinterpret_cast<const char*>(ev.y.data()), ev.y.size() * 2) +
+             std::string(reinterpret_cast<const char*>(ev.polarity.data()), ev.polarity.size());
+    } catch (const evnerf::Error& e) {
+      return std::string("error: ") + e.what();
+    }
+  };
+  evfuzz::expect(read(1) == read(2), "a read on two threads differs from the read on one");
+#endif
   return 0;
 }

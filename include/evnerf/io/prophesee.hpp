@@ -12,20 +12,26 @@
 // .dat: after the header, a byte of event type and a byte of event size (8), then records of a 32-bit
 // microsecond time and x (bits 13–0), y (27–14), polarity (31–28). Times are held as integer microseconds and
 // given in seconds; a time that runs backwards, a coordinate outside the sensor, a truncated word or an unknown
-// version is an Error naming the file and the byte offset. A recording in one file takes calib.txt and
+// version is an Error naming the file and the byte offset. A whole EVT 3.0 file is decoded on OpenMP's threads,
+// to the same events and errors as one thread (decode_evt3). A recording in one file takes calib.txt and
 // groundtruth.txt beside it (or --calib, --poses). Depends on io/recording.hpp and io/ijrr.hpp.
 #pragma once
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <sys/mman.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "ijrr.hpp"
 #include "recording.hpp"
@@ -210,6 +216,28 @@ class RawSink {
   }
   bool done() const { return done_; }
   std::size_t count() const { return count_; }
+  /// The parallel decoders' interface: whether only a time window is kept, the events held, the last time,
+  /// the sensor's size; ahead(n) the arrays' places for the next n events (written by the caller, then
+  /// taken with commit(n, the last one's time), all of them checked as add() checks each).
+  bool windowed() const { return std::isfinite(t0_) || std::isfinite(t1_); }
+  std::size_t size() const { return n_; }
+  std::int64_t last() const { return last_; }
+  std::uint64_t file_bytes() const { return bytes_; }
+  unsigned width() const { return w_; }
+  unsigned height() const { return h_; }
+  struct Arrays {
+    double* t;
+    std::uint16_t *x, *y;
+    std::int8_t* p;
+  };
+  Arrays ahead(std::size_t n) {
+    room(n);
+    return {t_ + n_, x_ + n_, y_ + n_, p_ + n_};
+  }
+  void commit(std::size_t n, std::int64_t last_us) {
+    n_ += n, count_ += n;
+    if (n) last_ = last_us;
+  }
 
  private:
   void bind() { t_ = ev_.t.data(), x_ = ev_.x.data(), y_ = ev_.y.data(), p_ = ev_.polarity.data(); }
@@ -231,10 +259,12 @@ class RawSink {
 /// Reads `f` from its position in blocks of whole words of `word` bytes, calling `block(words, n, offset)`
 /// until it returns false or the file ends (and the sink's progress after each); a file that ends inside a
 /// word is an Error.
+/// Blocks are `block_bytes` long (a multiple of the word).
 template <class Block>
-void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink, Block&& block) {
+void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink,
+                std::size_t block_bytes, Block&& block) {
   // Not value-initialised: a small file touches only the pages it reads into.
-  constexpr std::size_t kBlock = std::size_t(1) << 16;
+  const std::size_t kBlock = block_bytes;
   const std::unique_ptr<unsigned char[]> buf(new unsigned char[kBlock]);
   std::size_t keep = 0;
   for (;;) {
@@ -253,12 +283,20 @@ void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::s
   }
 }
 
+/// The block of the serial decoders: it stays in the first-level cache's reach.
+inline constexpr std::size_t kWordBlock = std::size_t(1) << 16;
+/// Words of EVT 3.0 a whole-file read on several threads decodes per block (tests lower it to cross many
+/// blocks and parts).
+inline std::size_t evt3_parallel_words = std::size_t(1) << 19;
+/// Blocks the parallel EVT 3.0 decode handed back to the serial one (a clean file has none; tests look).
+inline std::atomic<std::size_t> evt3_blocks_redone{0};
+
 inline std::uint32_t le32(const unsigned char* p) { return p[0] | p[1] << 8 | p[2] << 16 | static_cast<std::uint32_t>(p[3]) << 24; }
 inline std::uint16_t le16(const unsigned char* p) { return static_cast<std::uint16_t>(p[0] | p[1] << 8); }
 
 inline void decode_evt2(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
   std::int64_t high = -1;  // the time's bits 33–6 (with wraps past 2^34 µs added); -1 before the first
-  read_words(f, 4, offset, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+  read_words(f, 4, offset, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t w = le32(p + 4 * i);
@@ -287,54 +325,323 @@ inline void decode_evt2(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
   });
 }
 
-inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
-  std::int64_t high = -1, low = 0;  // high: bits 23–12 with the 24-bit wraps added
+/// EVT 3.0's decoding state: the time's high half (bits 23–12, with the 24-bit wraps added; -1 before the
+/// first EVT_TIME_HIGH), its low half, the row, the vector base and its polarity.
+struct Evt3State {
+  std::int64_t high = -1, low = 0;
   unsigned y = 0, base = 0;
   int pol = 0;
   bool have_y = false;
-  read_words(f, 2, offset, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
-    sink.room(n);  // one event per word; a vector word makes room for its 12
+};
+
+/// EVT 3.0's state machine over the `n` words at `p` (the first at byte `at`): out.add(us, x, y, on, offset)
+/// takes each event and returns false to stop (then so does this), out.room(12) comes before a vector word's
+/// events, out.bad(offset, what) a time-high word that runs backwards. Triggers and other words are counted.
+template <class Out>
+bool evt3_words(const unsigned char* p, std::size_t n, std::size_t at, Evt3State& state, std::size_t& triggers, std::size_t& other,
+                Out& out) {
+  // The state in locals: the words are read through a char pointer, which may alias anything held in memory.
+  Evt3State s = state;
+  std::size_t trig = 0, oth = 0;
+  const bool go = [&] {
     for (std::size_t i = 0; i < n; ++i) {
-      const unsigned w = le16(p + 2 * i), type = w >> 12;
-      const std::size_t off = at + 2 * i;
-      switch (type) {
-        case 0x0: y = w & 0x7FF, have_y = true; break;
-        case 0x2:
-          if (high < 0 || !have_y) break;
-          sink.add(high << 12 | low, w & 0x7FF, y, w >> 11 & 1, off);
-          if (sink.done()) return false;
-          break;
-        case 0x3: base = w & 0x7FF, pol = w >> 11 & 1; break;
-        case 0x4:
-        case 0x5: {
-          const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
-          sink.room(12);
-          if (high >= 0 && have_y)
-            for (unsigned m = mask; m; m &= m - 1) {
-              sink.add(high << 12 | low, base + static_cast<unsigned>(__builtin_ctz(m)), y, pol, off);
-              if (sink.done()) return false;
-            }
-          base += len;
-          break;
-        }
-        case 0x6: low = w & 0xFFF; break;
-        case 0x8: {
-          std::int64_t h = w & 0xFFF;
-          if (high >= 0) {
-            h += high >> 12 << 12;
-            if (h < high) {
-              if (high - h < 0x800) sink.bad(off, "EVT_TIME_HIGH runs backwards");
-              h += 0x1000;  // the 24-bit time wrapped (every 16.8 s)
-            }
-          }
-          high = h;
-          break;
-        }
-        case 0xA: ++info.triggers; break;
-        default: ++info.other_words;
+    const unsigned w = le16(p + 2 * i), type = w >> 12;
+    switch (type) {
+      case 0x0: s.y = w & 0x7FF, s.have_y = true; break;
+      case 0x2:
+        if (s.high < 0 || !s.have_y) break;
+        if (!out.add(s.high << 12 | s.low, w & 0x7FF, s.y, w >> 11 & 1, at + 2 * i)) return false;
+        break;
+      case 0x3: s.base = w & 0x7FF, s.pol = w >> 11 & 1; break;
+      case 0x4:
+      case 0x5: {
+        const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
+        out.room(12);
+        if (s.high >= 0 && s.have_y)
+          for (unsigned m = mask; m; m &= m - 1)
+            if (!out.add(s.high << 12 | s.low, s.base + static_cast<unsigned>(__builtin_ctz(m)), s.y, s.pol, at + 2 * i)) return false;
+        s.base += len;
+        break;
       }
+      case 0x6: s.low = w & 0xFFF; break;
+      case 0x8: {
+        std::int64_t h = w & 0xFFF;
+        if (s.high >= 0) {
+          h += s.high >> 12 << 12;
+          if (h < s.high) {
+            if (s.high - h < 0x800) {
+              out.bad(at + 2 * i, "EVT_TIME_HIGH runs backwards");
+              return false;
+            }
+            h += 0x1000;  // the 24-bit time wrapped (every 16.8 s)
+          }
+        }
+        s.high = h;
+        break;
+      }
+      case 0xA: ++trig; break;
+      default: ++oth;
+    }
     }
     return true;
+  }();
+  state = s, triggers += trig, other += oth;
+  return go;
+}
+
+/// What a run of EVT 3.0 words does to any state it starts from (the first pass of the parallel decode): the
+/// events it gives, and the state it leaves, as functions of the state it is given.
+struct Evt3Summary {
+  bool has_high = false, has_low = false, has_y = false, has_base = false, bad = false;
+  std::int64_t first_high = 0, last_high = 0;  // the first time-high word's 12 bits; the last high, from it
+  unsigned low = 0, y = 0, base = 0;           // base: after the last VECT_BASE_X, or the vectors' sum of lengths
+  int pol = 0;
+  std::size_t events = 0;                 // events once the run has given a time high and a row of its own
+  std::size_t before[2][2] = {{0, 0}, {0, 0}};  // events before that, by [time high given][row given]
+  std::size_t triggers = 0, other = 0;
+
+  /// Sums up the `n` words at `p`.
+  void scan(const unsigned char* p, std::size_t n) {
+    Evt3Summary u = *this;  // in locals: see evt3_words
+    u.scan_here(p, n);
+    *this = u;
+  }
+  void scan_here(const unsigned char* p, std::size_t n) {
+    // Up to the run's own time high and row: word by word, as the state machine goes.
+    std::size_t i = 0;
+    for (; i < n && !(has_high && has_y); ++i) {
+      const unsigned w = le16(p + 2 * i), type = w >> 12;
+      if (type == 0x0) has_y = true;
+      else if (type == 0x2) count(1);
+      else if (type == 0x4) count(static_cast<unsigned>(__builtin_popcount(w & 0xFFF)));
+      else if (type == 0x5) count(static_cast<unsigned>(__builtin_popcount(w & 0xFF)));
+      else if (type == 0x8) time_high(w);
+      else if (type == 0xA) ++triggers;
+      else if (type != 0x3 && type != 0x6) ++other;
+    }
+    // Then in chunks, without a branch on a word's type (which stalls the state machine), so that the compiler
+    // can vectorise it: the events each word gives (a popcount of the vector words' masks), the words skipped,
+    // the vector bases and lengths; a chunk that holds time-high words is gone through again for them.
+    std::size_t bases = 0, lens = 0;
+    for (std::size_t j = 0; j < i; ++j) {
+      const unsigned type = le16(p + 2 * j) >> 12;
+      bases += type == 0x3, lens += type == 0x4 ? 12 : type == 0x5 ? 8 : 0;
+    }
+    constexpr std::size_t kChunk = 512;
+    for (std::size_t len = 0; i < n; i += len) {
+      len = std::min(kChunk, n - i);
+      const unsigned char* q = p + 2 * i;
+      unsigned ev = 0, trig = 0, oth = 0, nb = 0, nl = 0, highs = 0;
+      for (std::size_t j = 0; j < len; ++j) {
+        const unsigned w = le16(q + 2 * j), type = w >> 12;
+        unsigned c = w & (type == 0x4 ? 0xFFFu : type == 0x5 ? 0xFFu : 0u);
+        c = c - (c >> 1 & 0x5555u);
+        c = (c & 0x3333u) + (c >> 2 & 0x3333u);
+        c = (c + (c >> 4)) & 0x0F0Fu;
+        c = (c + (c >> 8)) & 0x1Fu;
+        ev += c + (type == 0x2);
+        trig += type == 0xA;
+        oth += 0xFA82u >> type & 1u;  // types 1, 7, 9 and 11–15
+        nb += type == 0x3;
+        nl += type == 0x4 ? 12u : type == 0x5 ? 8u : 0u;
+        highs += type == 0x8;
+      }
+      events += ev, triggers += trig, other += oth, bases += nb, lens += nl;
+      if (highs)
+        for (std::size_t j = 0; j < len; ++j)
+          if (le16(q + 2 * j) >> 12 == 0x8) time_high(le16(q + 2 * j));
+    }
+    // The last row, time low and vector base, from the end (the base moved on by the vectors after it).
+    for (std::size_t j = n; j-- > 0;)
+      if (const unsigned w = le16(p + 2 * j); w >> 12 == 0x0) {
+        y = w & 0x7FF, has_y = true;
+        break;
+      }
+    for (std::size_t j = n; j-- > 0;)
+      if (const unsigned w = le16(p + 2 * j); w >> 12 == 0x6) {
+        low = w & 0xFFF, has_low = true;
+        break;
+      }
+    unsigned moved = 0;
+    for (std::size_t j = n; j-- > 0 && bases;) {
+      const unsigned w = le16(p + 2 * j), type = w >> 12;
+      if (type == 0x3) {
+        base = (w & 0x7FF) + moved, pol = w >> 11 & 1, has_base = true;
+        break;
+      }
+      moved += type == 0x4 ? 12 : type == 0x5 ? 8 : 0;
+    }
+    if (!has_base) base = static_cast<unsigned>(lens);  // the vectors' lengths, all of them
+  }
+  void time_high(unsigned w) {
+    std::int64_t h = w & 0xFFF;
+    if (!has_high) {
+      first_high = last_high = h, has_high = true;
+      return;
+    }
+    h += last_high >> 12 << 12;
+    if (h < last_high) {
+      if (last_high - h < 0x800) bad = true;
+      h += 0x1000;
+    }
+    last_high = h;
+  }
+  [[gnu::always_inline]] void count(unsigned k) {
+    if (has_high && has_y) [[likely]] {
+      events += k;
+      return;
+    }
+    for (int hi = 0; hi < 2; ++hi)
+      for (int yy = 0; yy < 2; ++yy)
+        if ((hi || has_high) && (yy || has_y)) before[hi][yy] += k;
+  }
+  /// The events the run gives from state `s`, and `s` moved to the run's end; false where the run's first
+  /// time-high word runs backwards from s's (the serial decode names it).
+  bool apply(Evt3State& s, std::size_t& n) const {
+    n = events + before[s.high >= 0][s.have_y];
+    if (has_high) {
+      std::int64_t h = first_high;
+      if (s.high >= 0) {
+        h += s.high >> 12 << 12;
+        if (h < s.high) {
+          if (s.high - h < 0x800) return false;
+          h += 0x1000;
+        }
+      }
+      s.high = h + (last_high - first_high);
+    }
+    if (has_low) s.low = low;
+    if (has_y) s.y = y, s.have_y = true;
+    if (has_base)
+      s.base = base, s.pol = pol;
+    else
+      s.base += base;
+    return true;
+  }
+};
+
+/// Writes one part's events of the parallel decode into arrays sized for them; any event out of order or
+/// outside the sensor marks the part, whose block is then decoded again by the serial path (which names it).
+struct Evt3PartOut {
+  double* t;
+  std::uint16_t *x, *y;
+  std::int8_t* p;
+  std::size_t n = 0, cap = 0;
+  unsigned w = 0, h = 0;
+  std::int64_t first = 0, last = std::numeric_limits<std::int64_t>::min();
+  bool wrong = false;
+  [[gnu::always_inline]] bool add(std::int64_t us, unsigned xx, unsigned yy, int on, std::size_t) {
+    if (us < last || xx >= w || yy >= h || n == cap) [[unlikely]] {
+      wrong = true;
+      return false;
+    }
+    if (n == 0) first = us;
+    last = us;
+    std::memcpy(t + n, &us, sizeof us);  // the microseconds: seconds() turns them into seconds, all at once
+    x[n] = static_cast<std::uint16_t>(xx);
+    y[n] = static_cast<std::uint16_t>(yy);
+    p[n] = static_cast<std::int8_t>(on ? 1 : -1);
+    ++n;
+    return true;
+  }
+  void room(std::size_t) {}
+  void bad(std::size_t, const char*) { wrong = true; }
+  /// The times written as microseconds, in seconds: a loop the compiler vectorises, where a scalar division
+  /// per event would hold up the decoding loop.
+  void seconds() const {
+    for (std::size_t i = 0; i < n; ++i) {
+      std::int64_t us;
+      std::memcpy(&us, t + i, sizeof us);
+      t[i] = static_cast<double>(us) / 1e6;
+    }
+  }
+};
+
+/// The serial path's output: the sink, which checks each event against the window and names any error.
+struct Evt3SinkOut {
+  RawSink& sink;
+  [[gnu::always_inline]] bool add(std::int64_t us, unsigned x, unsigned y, int on, std::size_t off) {
+    sink.add(us, x, y, on, off);
+    return !sink.done();
+  }
+  void room(std::size_t n) { sink.room(n); }
+  [[noreturn]] void bad(std::size_t off, const char* what) { sink.bad(off, what); }
+};
+
+/// EVT 3.0. A whole-file read on more than one thread decodes each block of words in two passes: the first
+/// sums up what each part of the block does to the state (Evt3Summary), which gives every part its starting
+/// state and its place in the arrays; the second decodes the parts side by side. A block in which any part
+/// finds something wrong is decoded again by the serial state machine, from the same state, so that the
+/// events, the counts and every error are those of a serial read.
+inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, PropheseeInfo& info, const std::string& file) {
+  Evt3State s;
+  Evt3SinkOut serial{sink};
+  int threads = 1;
+#ifdef _OPENMP
+  threads = omp_get_max_threads();
+#endif
+  const bool parallel = threads > 1 && !sink.windowed() && evt3_parallel_words > 0;
+  if (!parallel) {
+    read_words(f, 2, offset, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+      sink.room(n);  // one event per word; a vector word makes room for its 12
+      return evt3_words(p, n, at, s, info.triggers, info.other_words, serial);
+    });
+    return;
+  }
+  const int parts = std::min(threads, 64);
+  std::vector<Evt3Summary> sum(static_cast<std::size_t>(parts));
+  std::vector<Evt3State> from(static_cast<std::size_t>(parts));
+  std::vector<std::size_t> first(static_cast<std::size_t>(parts) + 1);
+  std::vector<Evt3PartOut> out(static_cast<std::size_t>(parts));
+  // Blocks of a sixteenth of the file at least, so that progress is reported as often as in the serial read.
+  const std::size_t block =
+      std::min<std::uint64_t>(2 * evt3_parallel_words, std::max<std::uint64_t>(kWordBlock, sink.file_bytes() / 16 & ~std::uint64_t(1)));
+  read_words(f, 2, offset, file, sink, block, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+    const std::size_t step = (n + static_cast<std::size_t>(parts) - 1) / static_cast<std::size_t>(parts);
+    auto lo = [&](int k) { return std::min(n, step * static_cast<std::size_t>(k)); };
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+    for (int k = 0; k < parts; ++k) {
+      sum[k] = {};
+      sum[k].scan(p + 2 * lo(k), lo(k + 1) - lo(k));
+    }
+    bool ok = true;
+    Evt3State at_end = s;
+    first[0] = sink.size();
+    for (int k = 0; k < parts && ok; ++k) {
+      from[k] = at_end;
+      std::size_t m = 0;
+      ok = !sum[k].bad && sum[k].apply(at_end, m);
+      first[k + 1] = first[k] + m;
+    }
+    if (ok) {
+      const auto a = sink.ahead(first[parts] - first[0]);
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+      for (int k = 0; k < parts; ++k) {
+        const std::size_t i = first[k] - first[0];
+        // In locals, and each part's result in out[k] only at its end: see evt3_words.
+        Evt3PartOut o{a.t + i, a.x + i, a.y + i, a.p + i, 0, first[k + 1] - first[k], sink.width(), sink.height()};
+        Evt3State st = from[k];
+        std::size_t trig = 0, other = 0;
+        evt3_words(p + 2 * lo(k), lo(k + 1) - lo(k), at + 2 * lo(k), st, trig, other, o);
+        if (o.n != o.cap) o.wrong = true;
+        o.seconds();
+        out[k] = o;
+      }
+      std::int64_t last = sink.last();
+      for (int k = 0; k < parts && ok; ++k) {
+        if (out[k].wrong || (out[k].n && out[k].first < last)) ok = false;
+        if (out[k].n) last = out[k].last;
+      }
+      if (ok) {
+        sink.commit(first[parts] - first[0], last);
+        for (const auto& u : sum) info.triggers += u.triggers, info.other_words += u.other;
+        s = at_end;
+        return true;
+      }
+    }
+    ++evt3_blocks_redone;
+    sink.room(n);
+    return evt3_words(p, n, at, s, info.triggers, info.other_words, serial);
   });
 }
 
@@ -345,7 +652,7 @@ inline void decode_dat(std::FILE* f, std::size_t offset, RawSink& sink, const st
     throw Error(file, 0, "byte " + std::to_string(offset + 1) + ": event size " + std::to_string(ts[1]) +
                              " (a .dat file of CD events has 8-byte records)");
   std::int64_t wraps = 0, last = -1;
-  read_words(f, 8, offset + 2, file, sink, [&](const unsigned char* p, std::size_t n, std::size_t at) {
+  read_words(f, 8, offset + 2, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);
     for (std::size_t i = 0; i < n; ++i) {
       std::int64_t t = le32(p + 8 * i);
