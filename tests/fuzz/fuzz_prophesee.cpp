@@ -31,8 +31,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
     });
 #ifdef _OPENMP
-  // Blocks of a few words, at most about 32 of them per input (each block is two parallel regions).
-  evnerf::io::detail::evt3_parallel_words = std::max<std::size_t>(8, size / 64);
+  // Blocks of a few words, at most about 8 of them per input (each block is two parallel regions, whose
+  // start and end cost more than decoding a small input).
+  evnerf::io::detail::evt3_parallel_words = std::max<std::size_t>(8, size / 16);
   auto read = [&](int threads) {
     omp_set_num_threads(threads);
     evnerf::io::PropheseeInfo info;
