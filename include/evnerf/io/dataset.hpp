@@ -153,8 +153,8 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
 /// LoadOptions names, or calib.txt and groundtruth.txt beside it. Frames, when the file has them, are
 /// kept in memory.
 inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
-  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height, opt.t_begin, opt.t_end)
-                                     : read_hdf5(path, opt.width, opt.height, opt.t_begin, opt.t_end);
+  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height, opt.t_begin, opt.t_end, opt.progress)
+                                     : read_hdf5(path, opt.width, opt.height, opt.t_begin, opt.t_end, opt.progress);
   check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
   Dataset d;
   d.frames.t = std::move(rec.frame_times);

@@ -5,7 +5,9 @@
 //   DSEC:               events/x, events/y, events/t (µs, added to the root dataset `t_offset` when present),
 //                       events/p; `ms_to_idx` (the first event of every millisecond) is checked when present.
 // Events are read in blocks of kHdf5Block, converted and checked as they come, into vectors sized once from
-// the dataset's extent: the peak memory is the stream itself plus one block, whatever the file's size.
+// the dataset's extent: the peak memory is the stream itself plus one block, whatever the file's size. A
+// whole-file read reports its progress after each dataset's part of a block, as the share of the events'
+// elements read times the file's size (the datasets are not laid out in the file in reading order).
 // Compressed datasets are read through HDF5's filter plugins: DSEC ships its events compressed with Blosc
 // (filter 32001), which Debian's hdf5-filter-plugin-blosc-serial provides; a filter the library cannot load
 // is an Error naming it and the package. Every error names the file and the dataset. Compiled only where
@@ -277,8 +279,9 @@ inline bool is_hdf5(const std::filesystem::path& path) {
 
 /// Reads an event HDF5 file of either layout. `width`/`height` (when > 0) bound the pixel coordinates;
 /// otherwise the file's `sensor_resolution` or first frame does, else the largest coordinate + 1.
+/// `progress` (where set) hears of the events read, in bytes of the file (see the header's comment).
 inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0, int height = 0, double t_begin = -INFINITY,
-                               double t_end = INFINITY) {
+                               double t_end = INFINITY, const ReadProgress& progress = {}) {
   const std::string file = path.string();
   const detail::H5Quiet quiet;
   if (!std::filesystem::is_regular_file(path)) throw Error(file, 0, "cannot open file (missing or not a file)");
@@ -417,11 +420,20 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   std::int64_t max_x = -1, max_y = -1;
   const std::int64_t lim_x = rec.width > 0 ? rec.width : 65535, lim_y = rec.height > 0 ? rec.height : 65535;
   double last = -INFINITY;
+  // After `parts` of the block at b (four datasets each), the share of the elements read, in the file's bytes.
+  auto report = [&](std::size_t b, std::size_t m, int parts) {
+    if (!progress || count == 0) return;
+    const double share = (4.0 * static_cast<double>(b - i0) + parts * static_cast<double>(m)) / (4.0 * static_cast<double>(count));
+    progress(static_cast<std::uint64_t>(share * static_cast<double>(bytes)), bytes);
+  };
   for (std::size_t b = i0; b < i1; b += kHdf5Block) {
     const std::size_t m = std::min(kHdf5Block, i1 - b);
     xs.read(b, m, bx.data());
+    report(b, m, 1);
     ys.read(b, m, by.data());
+    report(b, m, 2);
     ps.read(b, m, bp.data());
+    report(b, m, 3);
     if (ts.floating()) {
       ts.read(b, m, bt.data());
     } else {  // integer timestamps (DSEC's µs): read exactly, then scale
@@ -429,6 +441,7 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
       ts.read(b, m, ti.data());
       for (std::size_t i = 0; i < m; ++i) bt[i] = static_cast<double>(ti[i]);
     }
+    report(b, m, 4);
     for (std::size_t i = 0; i < m; ++i) {
       const std::size_t k = b + i;
       const double t = (bt[i] + t_offset) * t_scale;
@@ -488,9 +501,10 @@ inline void (*&hdf5_probe_hook())() {
 /// the file is refused with an Error saying so, and this process is untouched; when the child refuses the
 /// file, its Error is rethrown here; when it reads the file, this process reads it again (the same calls on
 /// the same bytes). The cost is a second read of the file; the child's memory is gone before this one's
-/// read begins, so the peak memory is unchanged.
+/// read begins, so the peak memory is unchanged. `progress` hears of both reads, each as half the file's
+/// bytes (the child's through the pipe); where it throws, the child is stopped and the read abandoned.
 inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int width = 0, int height = 0, double t_begin = -INFINITY,
-                                       double t_end = INFINITY) {
+                                       double t_end = INFINITY, const ReadProgress& progress = {}) {
   const std::string file = path.string();
   int fds[2];
   if (::pipe(fds) != 0) throw Error(file, 0, "cannot create a pipe to check the HDF5 file in a child process");
@@ -506,17 +520,29 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
     // A fault ends the child by its signal, whatever handlers the program installed (a fuzzer's, a
     // sanitizer's): the parent reads the signal from the exit status.
     for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) std::signal(sig, SIG_DFL);
+    // What the child sends: 'P' and the bytes done (8 bytes, this machine's order) for each progress report,
+    // then 'E' and an Error's message, if it refuses the file.
+    auto send = [&](const char* data, std::size_t n) {
+      for (std::size_t off = 0; off < n;) {
+        const ssize_t w = ::write(fds[1], data + off, n - off);
+        if (w <= 0) return;
+        off += static_cast<std::size_t>(w);
+      }
+    };
+    ReadProgress report;
+    if (progress)
+      report = [&](std::uint64_t done, std::uint64_t) {
+        char r[9] = {'P'};
+        std::memcpy(r + 1, &done, 8);
+        send(r, 9);
+      };
     int code = 0;
     try {
       if (detail::hdf5_probe_hook()) detail::hdf5_probe_hook()();
-      read_hdf5(path, width, height, t_begin, t_end);
+      read_hdf5(path, width, height, t_begin, t_end, report);
     } catch (const Error& e) {
-      const std::string m = e.what();
-      for (std::size_t off = 0; off < m.size();) {
-        const ssize_t w = ::write(fds[1], m.data() + off, m.size() - off);
-        if (w <= 0) break;
-        off += static_cast<std::size_t>(w);
-      }
+      const std::string m = std::string("E") + e.what();
+      send(m.data(), m.size());
       code = 3;
     } catch (...) {
       code = 4;
@@ -524,12 +550,36 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
     ::_exit(code);
   }
   ::close(fds[1]);
-  std::string message;
+  std::error_code size_error;
+  const std::uint64_t total = std::filesystem::file_size(path, size_error);
+  std::string in, message;
+  bool refused = false;  // after 'E': the rest is the message
   char buf[4096];
-  for (ssize_t k; (k = ::read(fds[0], buf, sizeof buf)) != 0;) {
-    if (k < 0 && errno == EINTR) continue;
-    if (k < 0) break;
-    message.append(buf, static_cast<std::size_t>(k));
+  try {
+    for (ssize_t k; (k = ::read(fds[0], buf, sizeof buf)) != 0;) {
+      if (k < 0 && errno == EINTR) continue;
+      if (k < 0) break;
+      (refused ? message : in).append(buf, static_cast<std::size_t>(k));
+      std::size_t at = 0;
+      for (; !refused && at < in.size(); at += 9) {
+        if (in[at] == 'E') {
+          refused = true;
+          message = in.substr(at + 1);
+          break;
+        }
+        if (in.size() - at < 9) break;
+        std::uint64_t done = 0;
+        std::memcpy(&done, in.data() + at + 1, 8);
+        if (progress) progress(std::min(done, total) / 2, total);
+      }
+      in.erase(0, refused ? in.size() : at);
+    }
+  } catch (...) {  // the caller's progress function abandons the read
+    ::kill(pid, SIGKILL);
+    ::close(fds[0]);
+    while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+    }
+    throw;
   }
   ::close(fds[0]);
   int status = 0;
@@ -544,7 +594,9 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
     throw Error(file, 0, "reading this HDF5 file in a child process ended with exit status " +
                              std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
                              " (a crash a sanitizer reported, or out of memory); nothing was loaded");
-  return read_hdf5(path, width, height, t_begin, t_end);
+  ReadProgress second;
+  if (progress) second = [&](std::uint64_t done, std::uint64_t) { progress(total / 2 + std::min(done, total) / 2 + (total & done & 1), total); };
+  return read_hdf5(path, width, height, t_begin, t_end, second);
 }
 
 /// Writes events (and frames, 8-bit, with their times) as an event_utils/HQF HDF5 file: events/xs, ys

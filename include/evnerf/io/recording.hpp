@@ -47,8 +47,8 @@ struct LoadOptions {
   /// Dataset::uncalibrated instead of an Error (inspect describes such a file; training needs --calib).
   bool calibration_optional = false;
   /// Called as a whole-file read goes on (bytes read of the file's size; see ReadProgress): events.txt,
-  /// Prophesee .raw / .dat, AEDAT4 and ROS bags report; HDF5 reads its datasets whole and does not. The
-  /// command-line tool prints it for a read that takes more than a second.
+  /// Prophesee .raw / .dat, AEDAT4, ROS bags and HDF5 (both its reads, each as half the file: io/hdf5.hpp)
+  /// report. The command-line tool prints it for a read that takes more than a second.
   ReadProgress progress;
 };
 
