@@ -2,7 +2,8 @@
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
 time_to_quality.csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh,
-mesh.csv from bench/mesh_suite.sh), so both say the same and neither is edited by hand.
+mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh), so both say the same and neither is
+edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
 --check writes nothing and fails when a page differs from what the CSV files give (ctest docs.results)."""
@@ -174,13 +175,28 @@ def formats_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=()):
+def factors_section(rows):
+    """One effect of a real sensor at a time, from bench/sensor_factors.sh."""
+    scenes = sorted({r["scene_seed"] for r in rows})
+    p = ["", "## One sensor effect at a time (`bench/sensor_factors.sh`)", "",
+         f"Random scene {', '.join(scenes)} recorded by an ideal sensor with one effect of the random sensor added, then by the",
+         "realistic and the random sensor whole; the default preset and steps, training seed 1, 2 threads, global-log-affine.",
+         "Rows with `train --refractory` give training the sensor's refractory period (the counts it limits bound the",
+         "change from one side: `docs/method.md`).", "",
+         "| sensor | train | events | ours | direct integration | high-pass filter |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        p.append(f"| {r['what'].replace(', train --refractory', '')} | {('`' + r['train_flags'] + '`') if r['train_flags'] else 'default'} | "
+                 f"{int(r['events']) / 1e6:.2f} M | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | {r['hpf_psnr']} / {r['hpf_ssim']} |")
+    return p
+
+
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -235,6 +251,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=()):
             rs = [r for r in robust if r["sensor"] == sensor]
             p.append(f"- {sensor} sensor: {sum(r['pass'] == '1' for r in rs)} of {len(rs)} pass, mean {statistics.mean(float(r['psnr']) for r in rs):.2f} dB / "
                      f"{statistics.mean(float(r['ssim']) for r in rs):.3f}; the collapse check fired on {sum(r['collapse_fired'] == '1' for r in rs)}.")
+    if factors:
+        p += factors_section(factors)
     if mesh:
         p += mesh_section(mesh)
     if speed:
@@ -279,7 +297,8 @@ def main():
     speed = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"speed_{isa}.csv"))]
     mesh = read(os.path.join(a.results, "mesh.csv"))
     formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats)}
+    factors = read(os.path.join(a.results, "sensor_factors.csv"))
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []

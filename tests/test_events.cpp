@@ -47,6 +47,43 @@ TEST_CASE("slicing counts positive and negative events per pixel exactly like a 
   CHECK(set.slices[1].total == 0);  // an empty slice between two close boundaries
 }
 
+TEST_CASE("slicing with a refractory period marks the counts of a pixel that fired as fast as it could, in the slices of both events") {
+  // Pixel 0 fires ON at 0.10 and 0.1012 (1.2 ms apart: within 1.5 periods of 1 ms) across the boundary 0.101;
+  // pixel 1 fires OFF three times 2 ms apart (slow); pixel 2 fires OFF then ON 0.5 ms apart in slice 2; pixel
+  // 3's one event has nothing before it.
+  EventStream ev;
+  ev.width = 4, ev.height = 1;
+  ev.push_back(0.0995, 1, 0, -1);
+  ev.push_back(0.1000, 0, 0, 1);
+  ev.push_back(0.1005, 3, 0, 1);
+  ev.push_back(0.1012, 0, 0, 1);
+  ev.push_back(0.1015, 1, 0, -1);
+  ev.push_back(0.1030, 2, 0, -1);
+  ev.push_back(0.1035, 1, 0, -1);
+  ev.push_back(0.1035, 2, 0, 1);
+  const std::vector<double> b{0.099, 0.101, 0.103, 0.104};
+  const auto plain = slice_events(ev, b);
+  for (const auto& s : plain.slices) CHECK(s.limited.empty());
+  const auto set = slice_events(ev, b, 1e-3);
+  REQUIRE(set.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    CAPTURE(i);
+    CHECK(set.slices[i].pos == plain.slices[i].pos);  // the counts themselves do not change
+    CHECK(set.slices[i].neg == plain.slices[i].neg);
+    REQUIRE(set.slices[i].limited.size() == 4);
+  }
+  CHECK(set.slices[0].limited == std::vector<std::uint8_t>{1, 0, 0, 0});
+  CHECK(set.slices[1].limited == std::vector<std::uint8_t>{1, 0, 0, 0});
+  CHECK(set.slices[2].limited == std::vector<std::uint8_t>{0, 0, 1, 0});  // only the ON event came fast
+  // A period under every interval marks nothing; a longer one marks pixel 1's OFF counts too.
+  for (const auto& s : slice_events(ev, b, 1e-4).slices) CHECK(s.limited == std::vector<std::uint8_t>(4, 0));
+  const auto slow = slice_events(ev, b, 1.5e-3);
+  CHECK(slow.slices[0].limited == std::vector<std::uint8_t>{1, 2, 0, 0});
+  CHECK(slow.slices[1].limited == std::vector<std::uint8_t>{1, 2, 0, 0});
+  CHECK(slow.slices[2].limited == std::vector<std::uint8_t>{0, 2, 1, 0});
+  CHECK_THROWS_WITH(slice_events(ev, b, -1.0), doctest::Contains("refractory period must be positive"));
+}
+
 TEST_CASE("uniform boundaries and bad boundaries") {
   auto b = uniform_boundaries(1.0, 2.0, 4);
   CHECK(b.size() == 5);

@@ -113,10 +113,24 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
   return r;
 }
 
+/// `refractory` > 0: the fixture's counts sliced with that refractory period (some of them rate-limited).
 template <class Model>
 void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any,
-                 double tv_share = 1) {
-  const evtest::Fixture f;
+                 double tv_share = 1, double refractory = 0) {
+  evtest::Fixture f;
+  if (refractory > 0) {
+    f.cfg.refractory = refractory;
+    f.td = train::prepare(f.d, f.cfg);
+    std::size_t limited = 0, active = 0;
+    for (const auto& s : f.td.slices.slices) {
+      active += s.active.size();
+      for (const auto b : s.limited) limited += b != 0;
+    }
+    CAPTURE(limited);
+    CAPTURE(active);
+    REQUIRE(limited * 5 > active);  // a good share of the counts open one end of their interval, not all
+    REQUIRE(limited * 5 < active * 4);
+  }
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   m.set_distortion(distortion);
   if (auto* term = m.template term<loss::TvTerm>()) {
@@ -211,6 +225,12 @@ TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every 
                    OccupancyModel<3>, LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>,
                    CustomParts) {
   check_model<Model>();
+}
+
+// Rate-limited counts (a refractory period given): the windows that hold one lose an end of their interval.
+TEST_CASE_TEMPLATE("whole training loss with rate-limited counts: finite differences in double", Model, StratifiedModel<1>,
+                   WindowHierarchicalModel<1>) {
+  check_model<Model>(0, 0, false, loss::TvNeighbours::Any, 1, 8e-3);  // about half the counts marked
 }
 
 TEST_CASE("samples spaced in log depth: a box with near <= 0 is refused when the model is made, not inside a render") {

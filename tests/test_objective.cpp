@@ -12,25 +12,31 @@ using namespace evnerf;
 
 namespace {
 /// Loss of one pixel over a window with x = (l0, l1, B⁺_0, B⁻_0, …, B⁺_{L-1}, B⁻_{L-1}).
+/// `lim`: the slices' rate-limited bits (SliceCounts::limited), empty for none.
 template <class Bound>
-double window_value(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn) {
+double window_value(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn,
+                    const std::vector<std::uint8_t>& lim = {}) {
   const int L = static_cast<int>(np.size());
   std::vector<double> bp(L), bm(L), g1(L), g2(L);
   for (int k = 0; k < L; ++k) {
     bp[k] = x[2 + 2 * k];
     bm[k] = x[3 + 2 * k];
   }
-  return loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data()).value;
+  return loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3,
+                                        lim.empty() ? nullptr : lim.data())
+      .value;
 }
 template <class Bound>
-std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn) {
+std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn,
+                                const std::vector<std::uint8_t>& lim = {}) {
   const int L = static_cast<int>(np.size());
   std::vector<double> bp(L), bm(L), g1(L, 0.0), g2(L, 0.0);
   for (int k = 0; k < L; ++k) {
     bp[k] = x[2 + 2 * k];
     bm[k] = x[3 + 2 * k];
   }
-  const auto r = loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data());
+  const auto r = loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3,
+                                                lim.empty() ? nullptr : lim.data());
   std::vector<double> g{r.dl0, r.dl1};
   for (int k = 0; k < L; ++k) {
     g.push_back(g1[k]);
@@ -56,10 +62,13 @@ TEST_CASE_TEMPLATE("window objective: finite differences in double match the gra
       x.push_back(0.15 + 0.4 * rng.uniform());
       x.push_back(-0.15 - 0.4 * rng.uniform());
     }
-    const auto g = window_grad<Bound>(x, np, nn);
-    const double err = evtest::max_fd_error([&](const std::vector<double>& v) { return window_value<Bound>(v, np, nn); }, x, g);
+    std::vector<std::uint8_t> lim;  // every fourth window with rate-limited counts (one end open)
+    if (trial % 4 == 1)
+      for (int k = 0; k < L; ++k) lim.push_back(static_cast<std::uint8_t>(k == 0 ? 1 + rng.below(2) : 0));
+    const auto g = window_grad<Bound>(x, np, nn, lim);
+    const double err = evtest::max_fd_error([&](const std::vector<double>& v) { return window_value<Bound>(v, np, nn, lim); }, x, g);
     // The hinge has kinks; a draw within h of one is skipped by the value check below.
-    const double v = window_value<Bound>(x, np, nn);
+    const double v = window_value<Bound>(x, np, nn, lim);
     if (v > 1e-3) {
       ++checked_nonzero;
       CAPTURE(trial);
@@ -91,6 +100,25 @@ TEST_CASE("window objective: one slice is spec §2's EventBounds exactly, the wi
   // Beyond the upper end (centre + B⁺_eff, B⁺_eff = (2·0.2 + 0.4)/3) by 0.1.
   const double hi = centre + (2 * 0.2 + 0.4) / 3 + 0.1, b2 = std::exp(hi) * (a + 1e-3) - 1e-3;
   CHECK(loss::window_pixel_loss<loss::SplitCounts<1>>(a, b2, 2, np2, nn2, bp2, bm2, gp, gm).value == doctest::Approx(0.1));
+}
+
+TEST_CASE("window objective: a rate-limited count opens its end of the interval and leaves the other end as it was") {
+  // Two slices, 3 ON and 1 OFF event; B± = ±0.25. The interval (half slack) is μ ± 0.125, μ = 0.5.
+  const int np[2] = {2, 1}, nn[2] = {0, 1};
+  const double bp[2] = {0.25, 0.25}, bm[2] = {-0.25, -0.25}, l0 = 0.3;
+  auto cost = [&](double change, std::vector<std::uint8_t> lim) {
+    double gp[2] = {0, 0}, gm[2] = {0, 0};
+    const double l1 = std::exp(change) * (l0 + 1e-3) - 1e-3;
+    return loss::window_pixel_loss<loss::HalfSlackCounts>(l0, l1, 2, np, nn, bp, bm, gp, gm, 1e-3, lim.empty() ? nullptr : lim.data()).value;
+  };
+  CHECK(cost(1.5, {}) == doctest::Approx(1.5 - 0.625));
+  CHECK(cost(-0.5, {}) == doctest::Approx(0.375 + 0.5));
+  CHECK(cost(1.5, {0, 1}) == 0.0);  // ON limited in the window's second slice: no upper end
+  CHECK(cost(-0.5, {0, 1}) == doctest::Approx(0.875));  // the lower end as before
+  CHECK(cost(-0.5, {2, 0}) == 0.0);  // OFF limited: no lower end
+  CHECK(cost(1.5, {2, 0}) == doctest::Approx(0.875));
+  CHECK(cost(9.0, {3, 0}) == 0.0);
+  CHECK(cost(0.5, {0, 0}) == 0.0);  // inside: nothing either way
 }
 
 TEST_CASE("total variation of log-luminance: Cauchy penalty of the log step, symmetric, its gradient matches finite differences") {

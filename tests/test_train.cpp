@@ -134,6 +134,47 @@ TEST_CASE("training data: suspected hot pixels are never drawn, keep_hot_pixels 
   CHECK(kept.sites.all());
 }
 
+TEST_CASE("training data: with the sensor's refractory period, the counts it limits are marked and every step draws their marks") {
+  sim::SimulateOptions so;
+  so.width = 64;
+  so.height = 48;
+  so.progress = false;
+  so.sensor.refractory = 2e-3;
+  const auto d = sim::to_dataset(sim::simulate("planes", so));
+  train::Config cfg;
+  const auto plain = train::prepare(d, cfg);
+  for (const auto& s : plain.slices.slices) CHECK(s.limited.empty());
+  cfg.refractory = 2e-3;
+  const auto td = train::prepare(d, cfg);
+  std::size_t marked = 0, active = 0;
+  for (const auto& s : td.slices.slices) {
+    REQUIRE(s.limited.size() == s.pixels());
+    active += s.active.size();
+    for (std::size_t p = 0; p < s.pixels(); ++p) {
+      marked += s.limited[p] != 0;
+      if (s.limited[p] & 1) CHECK(s.pos[p] > 0);  // a mark on a polarity with events of that polarity
+      if (s.limited[p] & 2) CHECK(s.neg[p] > 0);
+    }
+  }
+  CHECK(marked > 0);
+  CHECK(marked < active);
+  Rng rng(3);
+  loss::StepDraw draw;
+  bool seen = false;
+  for (int step = 0; step < 20; ++step) {
+    loss::draw_step<loss::WindowInterval<24>>(td.slices, td.slice_enabled, td.prefix, 0.0, 256, rng, draw, &td.sites);
+    REQUIRE(draw.limited.size() == draw.pixels.size() * draw.len);
+    for (std::size_t i = 0; i < draw.pixels.size(); ++i)
+      for (std::size_t k = 0; k < draw.len; ++k) {
+        CHECK(draw.limited[i * draw.len + k] == td.slices.slices[draw.first + k].limited[draw.pixels[i]]);
+        seen = seen || draw.limited[i * draw.len + k] != 0;
+      }
+  }
+  CHECK(seen);
+  loss::draw_step<loss::WindowInterval<24>>(plain.slices, plain.slice_enabled, plain.prefix, 0.0, 256, rng, draw, &plain.sites);
+  CHECK(draw.limited.empty());
+}
+
 TEST_CASE("noise injection inside training draws a fresh noise map per step") {
   Fixture f;
   TrainingData td = f.td;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "../core/error.hpp"
@@ -18,6 +19,10 @@ struct SliceCounts {
   std::vector<std::int16_t> pos, neg;   ///< n⁺ and n⁻ (both non-negative)
   std::vector<std::uint32_t> active;    ///< pixel indices with at least one event, increasing
   std::size_t total = 0;                ///< events counted (Σ n⁺ + n⁻)
+  /// Counts that are lower bounds (slice_events with a refractory period; empty otherwise): bit 0 the
+  /// pixel's n⁺, bit 1 its n⁻, set where the pixel fired at the rate its refractory period allows, which
+  /// swallows threshold crossings (the sensor's reference level moves on without an event).
+  std::vector<std::uint8_t> limited;
 
   std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
   int signed_count(std::size_t pix) const { return pos[pix] - neg[pix]; }
@@ -38,9 +43,39 @@ inline std::vector<double> uniform_boundaries(double t0, double t1, std::size_t 
   return b;
 }
 
+/// A pixel's event that comes within this many refractory periods of its previous event marks the counts
+/// of its polarity, in its slice and in the previous event's, as rate-limited: such an interval is what a
+/// burst of crossings faster than the pixel may fire leaves behind.
+inline constexpr double kRateLimitedPeriods = 1.5;
+
+/// Sets SliceCounts::limited of `set`'s slices from the stream's events (SliceCounts::limited).
+inline void mark_rate_limited(const EventStream& ev, SliceSet& set, double refractory) {
+  require(std::isfinite(refractory) && refractory > 0, "slice_events: the refractory period must be positive");
+  const std::size_t hw = static_cast<std::size_t>(ev.width) * ev.height;
+  const auto& b = set.boundaries;
+  for (auto& s : set.slices) s.limited.assign(hw, 0);
+  // The slice of time t, or -1 outside [T_0, T_N).
+  auto slice_of = [&](double t) -> long {
+    if (t < b.front() || t >= b.back()) return -1;
+    return static_cast<long>(std::upper_bound(b.begin(), b.end(), t) - b.begin()) - 1;
+  };
+  const double gap = kRateLimitedPeriods * refractory;
+  std::vector<double> last(hw, -std::numeric_limits<double>::infinity());
+  for (std::size_t k = 0; k < ev.size(); ++k) {
+    const std::size_t pix = static_cast<std::size_t>(ev.y[k]) * ev.width + ev.x[k];
+    const double prev = last[pix];
+    last[pix] = ev.t[k];
+    if (ev.t[k] - prev >= gap) continue;
+    const std::uint8_t bit = ev.polarity[k] > 0 ? 1 : 2;
+    for (const long i : {slice_of(prev), slice_of(ev.t[k])})
+      if (i >= 0) set.slices[static_cast<std::size_t>(i)].limited[pix] |= bit;
+  }
+}
+
 /// Counts events per slice and pixel. Events before T_0 or at/after T_N are ignored; the boundaries must
-/// increase strictly. Counts saturate at int16 max with an error rather than wrapping.
-inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& boundaries) {
+/// increase strictly. Counts saturate at int16 max with an error rather than wrapping. With `refractory` > 0
+/// (seconds), SliceCounts::limited marks the counts a rate-limited pixel leaves (kRateLimitedPeriods).
+inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& boundaries, double refractory = 0) {
   require(boundaries.size() >= 2, "slice_events: need at least two boundaries");
   for (std::size_t i = 1; i < boundaries.size(); ++i)
     require(boundaries[i] > boundaries[i - 1], "slice_events: boundaries must increase strictly");
@@ -69,6 +104,7 @@ inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& b
     for (std::size_t p = 0; p < hw; ++p)
       if (s.pos[p] || s.neg[p]) s.active.push_back(static_cast<std::uint32_t>(p));
   }
+  if (refractory != 0) mark_rate_limited(ev, set, refractory);
   return set;
 }
 

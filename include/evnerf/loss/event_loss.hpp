@@ -11,15 +11,18 @@ namespace evnerf::loss {
 
 /// Bound of the log change for n⁺ positive and n⁻ negative events with thresholds B⁺ > 0 > B⁻:
 /// μ = n⁺B⁺ + n⁻B⁻, interval [μ + k⁻·B⁻, μ + k⁺·B⁺] (k± = slack in thresholds; spec §2, default 1).
-/// Hinge L1 outside the interval, zero inside. eps keeps log(ℓ + eps) finite (spec: 1e-3).
+/// Hinge L1 outside the interval, zero inside. eps keeps log(ℓ + eps) finite (spec: 1e-3). An open end
+/// (open_pos: the ON count is only a lower bound, so the change may rise above the interval; open_neg the
+/// same below) adds nothing.
 struct EventBounds {
   double n_pos, n_neg, k_neg = 1.0, k_pos = 1.0, eps = 1e-3;
+  bool open_neg = false, open_pos = false;
   /// Arguments: luminance at T_i, luminance at T_i+1, B⁺, B⁻ (spec §2).
   template <class L0, class L1, class BP, class BM>
   auto operator()(const L0& l0, const L1& l1, const BP& bp, const BM& bm) const {
     const auto change = ad::log(l1 + eps) - ad::log(l0 + eps);
     const auto mu = n_pos * bp + n_neg * bm;
-    return ad::relu((mu + k_neg * bm) - change) + ad::relu(change - (mu + k_pos * bp));
+    return (open_neg ? 0.0 : 1.0) * ad::relu((mu + k_neg * bm) - change) + (open_pos ? 0.0 : 1.0) * ad::relu(change - (mu + k_pos * bp));
   }
   /// Value and gradient w.r.t. (ℓ0, ℓ1, B⁺, B⁻).
   std::array<double, 5> evaluate(double l0, double l1, double bp, double bm) const {

@@ -52,13 +52,20 @@ struct PixelLoss {
 /// thresholds B±_eff = Σ_k n±_k B±_k / N± (the plain mean where N± = 0), so its centre is exactly
 /// Σ_k n⁺_k B⁺_k + Σ_k n⁻_k B⁻_k and its slack is in units of the thresholds that fired. Adds dloss/dB±_k
 /// to gbp[k], gbm[k]. With L = 1 this is spec §2's loss, computed exactly as EventBounds does. `log_eps` is
-/// the ε of log(ℓ + ε) (the field's radiance policy's; the spec's 1e-3 by default).
+/// the ε of log(ℓ + ε) (the field's radiance policy's; the spec's 1e-3 by default). `limited`, where not
+/// null, holds the slices' SliceCounts::limited bits: a window with a rate-limited n⁺ has no upper end, one
+/// with a rate-limited n⁻ no lower end (the pixel may have changed more than it could fire).
 template <BoundPolicy Bound>
 PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const int* nneg, const double* bp, const double* bm,
-                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps) {
-  auto bounds = [log_eps](int np, int nm) {
+                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps, const std::uint8_t* limited = nullptr) {
+  unsigned open = 0;
+  if (limited)
+    for (int k = 0; k < L; ++k) open |= limited[k];
+  auto bounds = [log_eps, open](int np, int nm) {
     auto b = Bound::make(np, nm);
     b.eps = log_eps;
+    b.open_pos = b.open_pos || (open & 1u);
+    b.open_neg = b.open_neg || (open & 2u);
     return b;
   };
   if (L == 1) {
@@ -165,7 +172,7 @@ struct IntervalScore {
       std::fill(s.gbp.begin(), s.gbp.end(), 0.0);
       std::fill(s.gbm.begin(), s.gbm.end(), 0.0);
       const auto r = window_pixel_loss<Bound>(v.at(2 * i, c), v.at(2 * i + 1, c), L, t.npos(i), t.nneg(i), th.pos, th.neg, s.gbp.data(),
-                                              s.gbm.data(), t.log_eps);
+                                              s.gbm.data(), t.log_eps, t.limited(i));
       total += r.value / t.batch;
       v.add(2 * i, c, r.dl0 / t.batch);
       v.add(2 * i + 1, c, r.dl1 / t.batch);

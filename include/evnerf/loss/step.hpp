@@ -27,6 +27,7 @@ struct StepDraw {
   std::size_t first = 0, len = 1;
   std::vector<std::uint32_t> pixels;
   std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
+  std::vector<std::uint8_t> limited;  ///< P × len, as npos: SliceCounts::limited (empty where the slices have none)
   std::vector<events::NoiseEvent> noise;
   std::vector<std::size_t> starts;
   std::vector<std::uint8_t> taken;
@@ -86,11 +87,14 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
   require(P > 0, "train_step: no pixel to train on");
   d.npos.resize(static_cast<std::size_t>(P) * L);
   d.nneg.resize(static_cast<std::size_t>(P) * L);
+  const bool limits = !slices.slices[first].limited.empty();
+  d.limited.resize(limits ? static_cast<std::size_t>(P) * L : 0);
   for (int i = 0; i < P; ++i)
     for (std::size_t k = 0; k < L; ++k) {
       const auto& c = slices.slices[first + k];
       d.npos[static_cast<std::size_t>(i) * L + k] = c.pos[d.pixels[i]];
       d.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[d.pixels[i]];
+      if (limits) d.limited[static_cast<std::size_t>(i) * L + k] = c.limited[d.pixels[i]];
     }
   if (!d.noise.empty()) {
     if (d.slot.size() != hw) d.slot.assign(hw, -1);
@@ -129,6 +133,10 @@ struct TileView {
   /// Tile pixel i's counts in the window's slices (len() of each).
   const int* npos(int i) const { return &draw->npos[static_cast<std::size_t>(p0 + i) * draw->len]; }
   const int* nneg(int i) const { return &draw->nneg[static_cast<std::size_t>(p0 + i) * draw->len]; }
+  /// Tile pixel i's rate-limited bits in the window's slices (SliceCounts::limited), or null where there are none.
+  const std::uint8_t* limited(int i) const {
+    return draw->limited.empty() ? nullptr : &draw->limited[static_cast<std::size_t>(p0 + i) * draw->len];
+  }
   /// The channel tile pixel i's events see: 0 for a grey field, else its colour in the mosaic.
   int channel(int i) const {
     if (channels == 1) return 0;

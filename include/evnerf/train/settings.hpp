@@ -40,6 +40,7 @@ struct Config {
   int holdout = 0;
   bool clamp_poses = false;
   bool keep_hot_pixels = false;
+  double refractory = 0;
   bool density_per_box = false;
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
@@ -178,6 +179,9 @@ inline const std::vector<Setting>& settings() {
       {"clamp_poses", &Config::clamp_poses, -inf, inf, false, false, "slice boundaries outside the poses take the nearest pose"},
       {"keep_hot_pixels", &Config::keep_hot_pixels, -inf, inf, false, false,
        "draw the suspected hot pixels too (pixels firing far above their neighbours, as inspect lists them; left out by default)"},
+      {"refractory", &Config::refractory, 0, 1, false, false,
+       "the sensor's refractory period in seconds: where a pixel fired that fast, its count bounds the change only from one side "
+       "(0 = off)"},
       {"density_per_box", &Config::density_per_box, -inf, inf, false, false,
        "density per unit of the normalised scene box, not per world unit"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
