@@ -60,13 +60,14 @@ for spec in "${ROWS[@]}"; do
     "$EV" eval "$dir/run/model.ckpt" "$scene" --out "$dir/eval" > "$dir/eval.txt" 2>&1
   fi
   python3 - "$dir" "$scene" "$SCENE" "$name" "$what" "${EXTRA[*]}" >> "$CSV" <<'PY'
-import json, sys
+import csv, json, sys
 d, scene, n, name, what, flags = sys.argv[1:]
 m = json.load(open(f"{d}/eval/metrics.json"))["methods"]
 ours = m[next(k for k in m if k.startswith("evnerf"))]
 di, hpf = m["direct_integration"], m["high_pass_filter"]
 events = sum(1 for _ in open(f"{scene}/events.txt"))
-print(f"{n},{name},{what},{flags},{events},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},{hpf['psnr']:.2f},{hpf['ssim']:.3f}")
+csv.writer(sys.stdout, lineterminator="\n").writerow([n, name, what, flags, events, f"{ours['psnr']:.2f}", f"{ours['ssim']:.3f}", f"{di['psnr']:.2f}",
+                                                   f"{di['ssim']:.3f}", f"{hpf['psnr']:.2f}", f"{hpf['ssim']:.3f}"])
 PY
   tail -n 1 "$CSV"
 done
