@@ -13,16 +13,13 @@
 #              metrics.json is in OUT is not run again), RESULTS (bench/results; empty: not copied).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=${BUILD:-build}
 OUT=${OUT:-out/mesh}
 THREADS=${THREADS:-2}
 SEED=${SEED:-1}
 KEEP=${KEEP:-0}
 RESULTS=${RESULTS-bench/results}
-EV="${EVNERF:-$BUILD/examples/evnerf}"
+. bench/evnerf_bin.sh  # EV
 scripts/deps.sh assimp-testmodels python3-pil
-[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "mesh_suite: EVNERF=$EV is not an executable" >&2; exit 2; }
-[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 M=/usr/share/assimp/models
 # key, kind, file under $M: a textured animal, a character, two vehicles, a mechanical part without
 # texture, a thin-structured object.

@@ -20,16 +20,13 @@
 #              TRAIN_FLAGS (more train options for every row, split at spaces).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=${BUILD:-build}
 OUT=${OUT:-out/quality}
 THREADS=${THREADS:-2}
 KEEP=${KEEP:-0}
 RESULTS=${RESULTS-bench/results}
-EV="${EVNERF:-$BUILD/examples/evnerf}"
-[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "quality: EVNERF=$EV is not an executable" >&2; exit 2; }
+. bench/evnerf_bin.sh  # EV
 read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 scripts/deps.sh python3-pil
-[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 DEFAULT=(planes:1,2,3 object:1,2,3 room:1 hdr:1 noise0.9:1 slider:1,2,3 blocks:1,2 blocks-per-channel:1,2 no-joint:1,2,3 no-noise:1,2,3
          fast-no-tv:1,2,3)
 ROWS=("$@")

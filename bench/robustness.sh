@@ -14,13 +14,10 @@
 #              (more train options, split at spaces: to compare a binary or an option against the default).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=${BUILD:-build}
 OUT=${OUT:-out/robustness}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
-EV="${EVNERF:-$BUILD/examples/evnerf}"
-[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "robustness: EVNERF=$EV is not an executable" >&2; exit 2; }
-[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
+. bench/evnerf_bin.sh  # EV
 read -r -a SENSORS <<<"${SENSORS:-ideal random}"
 SEEDS=("$@")
 [ ${#SEEDS[@]} -gt 0 ] || SEEDS=(1 2 3 4 5 6 7 8 9 10)

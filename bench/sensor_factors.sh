@@ -13,14 +13,11 @@
 #              EVNERF (the binary: $BUILD/examples/evnerf), KEEP=1 (reuse rows whose evaluation exists).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=${BUILD:-build}
 OUT=${OUT:-out/sensor_factors}
 SCENE=${SCENE:-2}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
-EV="${EVNERF:-$BUILD/examples/evnerf}"
-[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "sensor_factors: EVNERF=$EV is not an executable" >&2; exit 2; }
-[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
+. bench/evnerf_bin.sh  # EV
 # Each row: name | what it is | simulate's sensor flags | train's extra flags ('@' stands for the recording's
 # own refractory period, from its sensor_model.txt).
 ROWS=(

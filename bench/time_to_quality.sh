@@ -9,18 +9,15 @@
 # EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS (more train options, split at spaces).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD=${BUILD:-build}
 OUT=${OUT:-out/time_to_quality}
 PRESET=${PRESET:-fast}
 STEPS=${STEPS:-6000}
 EVERY=${EVERY:-500}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
-EV="${EVNERF:-$BUILD/examples/evnerf}"
-[ -z "${EVNERF:-}" ] || [ -x "$EV" ] || { echo "time_to_quality: EVNERF=$EV is not an executable" >&2; exit 2; }
+. bench/evnerf_bin.sh  # EV
 read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 scripts/deps.sh python3-matplotlib
-[ -x "$EV" ] || { cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; cmake --build "$BUILD" -j"$(nproc)" --target evnerf_cli; }
 SCENES=("$@")
 [ ${#SCENES[@]} -gt 0 ] || SCENES=(planes room object)
 mkdir -p "$OUT"
