@@ -542,7 +542,9 @@ TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read
       {bad_at("off_sensor.raw", n * 7 / 10, {0x2000 | 700}), "event at x 700"},
       {bad_at("time_back.raw", n * 8 / 10, {0x6000, 0x2000 | 1, 0x6FFF, 0x2000 | 2}), "time runs backwards"},
   };
-  for (const auto& [file, what] : bad) {
+  for (const auto& entry : bad) {
+    const fs::path file = entry.first;  // not a structured binding: clang's lambdas below cannot capture one
+    const std::string& what = entry.second;
     const std::string f = file.filename().string();
     CAPTURE(f);
     io::detail::evt3_parallel_words = block;
