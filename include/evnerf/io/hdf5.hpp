@@ -551,7 +551,8 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
   }
   ::close(fds[1]);
   std::error_code size_error;
-  const std::uint64_t total = std::filesystem::file_size(path, size_error);
+  std::uint64_t total = std::filesystem::file_size(path, size_error);
+  if (size_error) total = 0;
   std::string in, message;
   bool refused = false;  // after 'E': the rest is the message
   char buf[4096];
@@ -595,7 +596,8 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
                              std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
                              " (a crash a sanitizer reported, or out of memory); nothing was loaded");
   ReadProgress second;
-  if (progress) second = [&](std::uint64_t done, std::uint64_t) { progress(total / 2 + std::min(done, total) / 2 + (total & done & 1), total); };
+  // The child's read filled [0, total / 2]; this one fills the rest, ending at total.
+  if (progress) second = [&](std::uint64_t done, std::uint64_t) { progress(total - (total - std::min(done, total)) / 2, total); };
   return read_hdf5(path, width, height, t_begin, t_end, second);
 }
 
