@@ -564,6 +564,45 @@ TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read
   fs::remove_all(dir);
 }
 
+TEST_CASE("EVT 3.0: runs of vector words, then single events, fill the arrays exactly") {
+  // A vector word gives up to 12 events for one word, so the room a block makes (one event a word) runs out
+  // inside it: a block of full VECT_12 masks followed by single-event words needs the vectors' room to
+  // count the words after them. Every event must arrive (none lost, none written past the arrays).
+  const auto dir = temp_dir("evt3_vectors");
+  fs::create_directories(dir);
+  std::string b = "% evt 3.0\n% format EVT3;height=16;width=2048\n% end\n";
+  auto word = [&](unsigned w) { b.push_back(static_cast<char>(w & 0xFF)), b.push_back(static_cast<char>(w >> 8)); };
+  events::EventStream want;
+  word(0x8000 | 1), word(0x6000 | 7), word(0x0000 | 3);  // time high 1, time low 7, row 3
+  const double t = ((1 << 12) | 7) / 1e6;
+  for (int g = 0; g < 12; ++g) {
+    const int vectors = 40 + 60 * g, singles = 500 + 400 * g;
+    word(0x3000 | 0x800 | 0);  // vector base x 0, ON
+    for (int v = 0; v < vectors; ++v) {
+      word(0x4000 | 0xFFF);
+      for (int q = 0; q < 12; ++q) want.push_back(t, 12 * v + q, 3, 1);
+      if (12 * (v + 1) % 2040 == 0) break;
+    }
+    for (int k = 0; k < singles; ++k) {
+      word(0x2000 | static_cast<unsigned>(k % 2048));
+      want.push_back(t, k % 2048, 3, -1);
+    }
+  }
+  write(dir / "vectors.raw", b);
+  for (int threads : {1, 2}) {
+    CAPTURE(threads);
+    omp_set_num_threads(threads);
+    io::PropheseeInfo info;
+    const auto got = io::read_prophesee_events(dir / "vectors.raw", {}, info);
+    REQUIRE(got.size() == want.size());
+    CHECK(got.t == want.t);
+    CHECK(got.x == want.x);
+    CHECK(got.polarity == want.polarity);
+  }
+  omp_set_num_threads(1);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("inspect: a recording of one polarity is named so, not given a threshold ratio") {
   const auto dir = temp_dir("one_polarity");
   fs::create_directories(dir);

@@ -335,8 +335,9 @@ struct Evt3State {
 };
 
 /// EVT 3.0's state machine over the `n` words at `p` (the first at byte `at`): out.add(us, x, y, on, offset)
-/// takes each event and returns false to stop (then so does this), out.room(12) comes before a vector word's
-/// events, out.bad(offset, what) a time-high word that runs backwards. Triggers and other words are counted.
+/// takes each event and returns false to stop (then so does this), out.room(k) comes before a vector word's
+/// events (k: its 12 and one for each word after it in the run), out.bad(offset, what) a time-high word that
+/// runs backwards. Triggers and other words are counted.
 template <class Out>
 bool evt3_words(const unsigned char* p, std::size_t n, std::size_t at, Evt3State& state, std::size_t& triggers, std::size_t& other,
                 Out& out) {
@@ -356,7 +357,7 @@ bool evt3_words(const unsigned char* p, std::size_t n, std::size_t at, Evt3State
       case 0x4:
       case 0x5: {
         const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
-        out.room(12);
+        out.room(12 + (n - i - 1));  // its 12, and one for each word after it (the block's room() counted one a word)
         if (s.high >= 0 && s.have_y)
           for (unsigned m = mask; m; m &= m - 1)
             if (!out.add(s.high << 12 | s.low, s.base + static_cast<unsigned>(__builtin_ctz(m)), s.y, s.pol, at + 2 * i)) return false;
@@ -583,7 +584,7 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
   const bool parallel = threads > 1 && !sink.windowed() && evt3_parallel_words > 0;
   if (!parallel) {
     read_words(f, 2, offset, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
-      sink.room(n);  // one event per word; a vector word makes room for its 12
+      sink.room(n);  // one event per word; a vector word makes room for its 12 and the words after it
       return evt3_words(p, n, at, s, info.triggers, info.other_words, serial);
     });
     return;
