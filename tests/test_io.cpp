@@ -524,6 +524,18 @@ TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read
       CHECK(info.other_words == other);
       CHECK(io::detail::evt3_blocks_redone == 0);  // no block of a clean file is decoded twice
     }
+    for (int parts : {5, 64}) {  // more parts than threads: one thread decodes several, in order
+      CAPTURE(parts);
+      io::detail::evt3_parallel_parts = parts;
+      for (int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        info = {};
+        CHECK(same(io::read_prophesee_events(clean, {}, info), want));
+        CHECK(info.triggers == triggers);
+        CHECK(io::detail::evt3_blocks_redone == 0);
+      }
+      io::detail::evt3_parallel_parts = 0;
+    }
   }
   // Bad words deep in the file: every thread count and block size names the same byte (the serial read's).
   auto bad_at = [&](const std::string& name, std::size_t at, std::vector<std::uint16_t> insert) {

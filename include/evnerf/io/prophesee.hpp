@@ -288,6 +288,9 @@ inline constexpr std::size_t kWordBlock = std::size_t(1) << 16;
 /// Words of EVT 3.0 a whole-file read on several threads decodes per block (tests lower it to cross many
 /// blocks and parts).
 inline std::size_t evt3_parallel_words = std::size_t(1) << 19;
+/// Parts the parallel EVT 3.0 decode cuts a block into: 0 for one a thread. Tests and the fuzzer set it to run
+/// the two-pass decode, in that many parts, on one thread.
+inline int evt3_parallel_parts = 0;
 /// Blocks the parallel EVT 3.0 decode handed back to the serial one (a clean file has none; tests look).
 inline std::atomic<std::size_t> evt3_blocks_redone{0};
 
@@ -581,7 +584,9 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
 #ifdef _OPENMP
   threads = omp_get_max_threads();
 #endif
-  const bool parallel = threads > 1 && !sink.windowed() && evt3_parallel_words > 0;
+  const int parts = std::min(evt3_parallel_parts > 0 ? evt3_parallel_parts : threads, 64);
+  [[maybe_unused]] const int team = std::min(parts, threads);  // the threads that decode the parts
+  const bool parallel = parts > 1 && !sink.windowed() && evt3_parallel_words > 0;
   if (!parallel) {
     read_words(f, 2, offset, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
       sink.room(n);  // one event per word; a vector word makes room for its 12 and the words after it
@@ -589,7 +594,6 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
     });
     return;
   }
-  const int parts = std::min(threads, 64);
   std::vector<Evt3Summary> sum(static_cast<std::size_t>(parts));
   std::vector<Evt3State> from(static_cast<std::size_t>(parts));
   std::vector<std::size_t> first(static_cast<std::size_t>(parts) + 1);
@@ -600,7 +604,7 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
   read_words(f, 2, offset, file, sink, block, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     const std::size_t step = (n + static_cast<std::size_t>(parts) - 1) / static_cast<std::size_t>(parts);
     auto lo = [&](int k) { return std::min(n, step * static_cast<std::size_t>(k)); };
-#pragma omp parallel for schedule(static, 1) num_threads(parts)
+#pragma omp parallel for schedule(static, 1) num_threads(team)
     for (int k = 0; k < parts; ++k) {
       sum[k] = {};
       sum[k].scan(p + 2 * lo(k), lo(k + 1) - lo(k));
@@ -616,7 +620,7 @@ inline void decode_evt3(std::FILE* f, std::size_t offset, RawSink& sink, Prophes
     }
     if (ok) {
       const auto a = sink.ahead(first[parts] - first[0]);
-#pragma omp parallel for schedule(static, 1) num_threads(parts)
+#pragma omp parallel for schedule(static, 1) num_threads(team)
       for (int k = 0; k < parts; ++k) {
         const std::size_t i = first[k] - first[0];
         // In locals, and each part's result in out[k] only at its end: see evt3_words.
