@@ -1,7 +1,7 @@
 // nn/detail/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
 // in place through strides, so a layer's weights, their transpose or a tile's gradients go straight into the
 // kernel (the AVX2 kernel copies a row panel of A side by side first where many column blocks read it). On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
-// which the gradient checks use) Eigen does the work. Also the 16×16-block transpose that gives the
+// which the gradient checks use) Eigen does the work. Also the transpose in register blocks (16×16, or 8×8 on AVX2) that gives the
 // backward pass Wᵀ. Depends on Eigen and nn/activation.hpp only.
 //
 // Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
@@ -486,8 +486,9 @@ inline void transpose16(__m512 (&r)[16]) {
 #endif
 
 /// dst = srcᵀ: src is rows × cols, column-major with leading dimension ld (element (i, j) at
-/// src[i + j·ld]); dst is cols × rows, column-major with leading dimension ldd. On AVX-512 (float) in
-/// 16×16 blocks in registers, with masked edges; elsewhere element by element.
+/// src[i + j·ld]); dst is cols × rows, column-major with leading dimension ldd. For float in blocks held in
+/// registers, with masked edges: 16×16 on AVX-512, 8×8 on AVX2 (element by element, a 256-wide layer's
+/// weights are 64 k single-float stores 1 KB apart, each to another cache line); elsewhere element by element.
 template <class T>
 void transpose(const T* src, int rows, int cols, std::ptrdiff_t ld, T* dst, std::ptrdiff_t ldd) {
 #if defined(__AVX512F__)
@@ -503,6 +504,30 @@ void transpose(const T* src, int rows, int cols, std::ptrdiff_t ld, T* dst, std:
           r[c] = c < nj ? _mm512_maskz_loadu_ps(imask, src + i0 + (j0 + c) * ld) : _mm512_setzero_ps();
         detail::transpose16(r);  // r[k] = src row i0 + k, columns j0..j0+15
         for (int k = 0; k < ni; ++k) _mm512_mask_storeu_ps(dst + j0 + (i0 + k) * ldd, jmask, r[k]);
+      }
+    }
+    return;
+  }
+#elif defined(EVNERF_GEMM_AVX2)
+  if constexpr (std::is_same_v<T, float>) {
+    for (int j0 = 0; j0 < cols; j0 += 8) {
+      const int nj = cols - j0 < 8 ? cols - j0 : 8;
+      const __m256i jmask = detail::lanes_below(nj);
+      for (int i0 = 0; i0 < rows; i0 += 8) {
+        const int ni = rows - i0 < 8 ? rows - i0 : 8;
+        const bool full = ni == 8 && nj == 8;
+        const __m256i imask = detail::lanes_below(ni);
+        __m256 r[8];  // r[c] = src column j0 + c, rows i0..i0+7
+        for (int c = 0; c < 8; ++c) {
+          const float* col = src + i0 + static_cast<std::ptrdiff_t>(j0 + c) * ld;
+          r[c] = full ? _mm256_loadu_ps(col) : c < nj ? _mm256_maskload_ps(col, imask) : _mm256_setzero_ps();
+        }
+        detail::transpose8(r);  // r[k] = src row i0 + k, columns j0..j0+7
+        for (int k = 0; k < ni; ++k) {
+          float* row = dst + j0 + static_cast<std::ptrdiff_t>(i0 + k) * ldd;
+          if (full) _mm256_storeu_ps(row, r[k]);
+          else _mm256_maskstore_ps(row, jmask, r[k]);
+        }
       }
     }
     return;
