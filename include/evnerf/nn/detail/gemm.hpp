@@ -287,20 +287,24 @@ inline __m256i lanes_below(int r) {
 }
 
 /// One (8·V) × NR block of C, as the AVX-512 block(): accumulators from C (or zero), one FMA per k in order,
-/// the epilogue, a (masked) store. Masked rows are neither read nor written.
+/// the epilogue, a (masked) store. Masked rows are neither read nor written. A masked panel of two vectors
+/// has its first 8 rows whole (row_panels8), so only its second vector is loaded and stored through the mask:
+/// with both masks held in registers, the 12 accumulators, A's two vectors and B's broadcast are 17 ymm
+/// registers, and GCC keeps one accumulator on the stack, stored and loaded again on every k.
 template <int V, int NR, bool Accumulate, bool Full, class Epi>
 inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
                    std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __m256i (&mask)[2], const Epi& epi, int i0,
                    int j0) {
   // Every loop over the accumulators is unrolled, so that each is a register: a loop GCC leaves rolled
   // indexes the array, which then lives on the stack and is stored to on every k.
+  auto whole = [](int v) { return Full || (V == 2 && v == 0); };
   __m256 acc[V][NR];
 #pragma GCC unroll 8
   for (int j = 0; j < NR; ++j)
 #pragma GCC unroll 2
     for (int v = 0; v < V; ++v) {
       if constexpr (Accumulate)
-        acc[v][j] = Full ? _mm256_loadu_ps(c + j * ldc + 8 * v) : _mm256_maskload_ps(c + j * ldc + 8 * v, mask[v]);
+        acc[v][j] = whole(v) ? _mm256_loadu_ps(c + j * ldc + 8 * v) : _mm256_maskload_ps(c + j * ldc + 8 * v, mask[v]);
       else
         acc[v][j] = _mm256_setzero_ps();
     }
@@ -308,7 +312,7 @@ inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const f
     const float* ak = a + k * lda;
     __m256 av[V];
 #pragma GCC unroll 2
-    for (int v = 0; v < V; ++v) av[v] = Full ? _mm256_loadu_ps(ak + 8 * v) : _mm256_maskload_ps(ak + 8 * v, mask[v]);
+    for (int v = 0; v < V; ++v) av[v] = whole(v) ? _mm256_loadu_ps(ak + 8 * v) : _mm256_maskload_ps(ak + 8 * v, mask[v]);
     const float* bp = b + k * bk;
 #pragma GCC unroll 8
     for (int j = 0; j < NR; ++j) {
@@ -323,7 +327,7 @@ inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const f
     for (int v = 0; v < V; ++v) {
       __m256 r = acc[v][j];
       if constexpr (Epi::active) r = epi(r, i0 + 8 * v, j0 + j, mask[v]);
-      if constexpr (Full) _mm256_storeu_ps(c + j * ldc + 8 * v, r);
+      if (whole(v)) _mm256_storeu_ps(c + j * ldc + 8 * v, r);
       else _mm256_maskstore_ps(c + j * ldc + 8 * v, mask[v], r);
     }
 }
