@@ -180,6 +180,21 @@ TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wr
     H5Fclose(f);
   }
   CHECK_CONTAINS(err(dir / "float.h5"), "dataset 'events/xs' holds floating-point values");
+  // Found by tests/fuzz (fuzz_hdf5): integers with padding bits (a corrupt type put 16 bits at bit 246 of a
+  // 2-byte element), which libhdf5 converted to other values in a time window's read than in the whole read.
+  {
+    const hid_t f = H5Fcreate((dir / "padded.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t padded = H5Tcopy(H5T_STD_U16LE);
+    H5Tset_precision(padded, 8);
+    H5Tset_offset(padded, 4);
+    h5_put(f, "events/xs", H5T_NATIVE_INT16, std::vector<std::int16_t>{1});
+    h5_put(f, "events/ys", padded, std::vector<std::uint16_t>{1 << 4});
+    h5_put(f, "events/ts", H5T_NATIVE_DOUBLE, std::vector<double>{0.1});
+    h5_put(f, "events/ps", H5T_NATIVE_INT8, std::vector<std::int8_t>{1});
+    H5Tclose(padded);
+    H5Fclose(f);
+  }
+  CHECK_CONTAINS(err(dir / "padded.h5"), "dataset 'events/ys' has integers of 8 bits at bit 4 of 2-byte elements (whole-byte integers expected)");
   // Found by tests/fuzz (fuzz_hdf5): a sensor_resolution of 6.3e16 was cast to int (undefined behaviour).
   h5_events(dir / "res.h5", {1}, {1}, {0.1}, {1});
   {

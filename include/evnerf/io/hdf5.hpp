@@ -161,6 +161,16 @@ class H5Vector {
     floating_ = cls == H5T_FLOAT;
     const std::size_t element = H5Tget_size(type.get());  // a corrupt type can claim gigabytes per element
     if (element == 0 || element > 8) throw Error(where_ + " has elements of " + std::to_string(element) + " bytes (numbers of 1 to 8 expected)");
+    if (cls == H5T_INTEGER) {
+      // Padding bits (fewer significant bits than the element holds, or an offset) are legal HDF5 that no event
+      // file uses; on a corrupt type (16 bits at bit 246 of a 2-byte element) libhdf5 1.10 converts the same
+      // elements to other values for another selection of them.
+      const std::size_t bits = H5Tget_precision(type.get());
+      const int at = H5Tget_offset(type.get());
+      if (at != 0 || bits != 8 * element)
+        throw Error(where_ + " has integers of " + std::to_string(bits) + " bits at bit " + std::to_string(at) + " of " +
+                    std::to_string(element) + "-byte elements (whole-byte integers expected)");
+    }
     if (blosc_ >= 0 && !size_changing_) {
       // Blosc alone (or with HDF5's shuffle, which keeps the size): each stored chunk's Blosc header must say
       // it decompresses to a whole chunk (chunk_check).
