@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
-time_to_quality.csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh,
+time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh,
 mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh), so both say the same and neither is
 edited by hand.
 
@@ -270,10 +270,11 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=()):
         p += formats_section(formats)
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
-              "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it):", "",
-              "| scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|"]
+              "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it);",
+              "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`) on the same CPU:", "",
+              "| build | scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|"]
         for r in ttq:
-            p.append(f"| {r['scene']} | {r['steps']} | {float(r['train_seconds']):.0f} | {float(r['psnr']):.2f} / {float(r['ssim']):.3f} | "
+            p.append(f"| {r['isa']} | {r['scene']} | {r['steps']} | {float(r['train_seconds']):.0f} | {float(r['psnr']):.2f} / {float(r['ssim']):.3f} | "
                      f"{float(r['best_baseline_psnr']):.2f} / {float(r['best_baseline_ssim']):.3f} |")
     return "\n".join(p) + "\n"
 
@@ -293,7 +294,8 @@ def main():
     a = ap.parse_args()
     q = Quality(read(os.path.join(a.results, "quality.csv")))
     robust = read(os.path.join(a.results, "robustness.csv"))
-    ttq = read(os.path.join(a.results, "time_to_quality.csv"))
+    ttq = [dict(r, isa=isa) for isa, name in (("native", "time_to_quality"), ("avx2", "time_to_quality_avx2"))
+           for r in read(os.path.join(a.results, f"{name}.csv"))]
     speed = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"speed_{isa}.csv"))]
     mesh = read(os.path.join(a.results, "mesh.csv"))
     formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]

@@ -1,15 +1,21 @@
 #!/usr/bin/env bash
 # Time to quality: trains a preset on built-in scenes and scores it every EVERY steps (train --resume is
-# bit-identical to an uninterrupted run, so the curve is that of one run). Writes
-# $OUT/time_to_quality.csv (scene, steps, training seconds, samples per ray forward/backward, PSNR and
-# SSIM of ours and of the best baseline under eval's default alignment, global-log-affine) and a PNG plot.
+# bit-identical to an uninterrupted run, so the curve is that of one run). Writes $OUT/time_to_quality.csv
+# (scene, steps, training seconds, samples per ray forward/backward, PSNR and SSIM of ours and of the best
+# baseline under eval's default alignment, global-log-affine) and a PNG plot.
 # Usage: bench/time_to_quality.sh [scenes…]   (default: planes room object)
 # Environment: PRESET (fast), STEPS (6000), EVERY (500), SEED (1), THREADS (2: a run's bits depend on its
 # thread count, so curves compare across machines only at one count), OUT (out/time_to_quality), BUILD (build),
-# EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS (more train options, split at spaces).
+# EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS (more train options, split at spaces), ISA (native;
+# avx2: the AVX2 + FMA path on a CPU with AVX-512, built in build-avx2, the files named time_to_quality_avx2.*).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-OUT=${OUT:-out/time_to_quality}
+case "${ISA:-native}" in
+  native) NAME=time_to_quality ;;
+  avx2) NAME=time_to_quality_avx2; NO512=ON; BUILD=${BUILD:-build-avx2} ;;
+  *) echo "time_to_quality: ISA is native or avx2, not '$ISA'" >&2; exit 2 ;;
+esac
+OUT=${OUT:-out/$NAME}
 PRESET=${PRESET:-fast}
 STEPS=${STEPS:-6000}
 EVERY=${EVERY:-500}
@@ -21,7 +27,7 @@ scripts/deps.sh python3-matplotlib
 SCENES=("$@")
 [ ${#SCENES[@]} -gt 0 ] || SCENES=(planes room object)
 mkdir -p "$OUT"
-CSV="$OUT/time_to_quality.csv"
+CSV="$OUT/$NAME.csv"
 echo "scene,preset,seed,steps,train_seconds,samples_per_ray,backward_samples_per_ray,psnr,ssim,best_baseline_psnr,best_baseline_ssim" > "$CSV"
 for sc in "${SCENES[@]}"; do
   dir="$OUT/$sc"
@@ -47,7 +53,7 @@ PY
     tail -1 "$CSV"
   done
 done
-/usr/bin/python3 - "$CSV" "$OUT/time_to_quality.png" <<'PY'
+/usr/bin/python3 - "$CSV" "$OUT/$NAME.png" <<'PY'
 import csv, sys
 import matplotlib
 matplotlib.use("Agg")
@@ -70,4 +76,4 @@ print("wrote", sys.argv[2])
 PY
 # The current curve is kept in the repository (RESULTS, default bench/results; empty: not copied).
 RESULTS=${RESULTS-bench/results}
-if [ -n "$RESULTS" ]; then mkdir -p "$RESULTS" && cp "$CSV" "$OUT/time_to_quality.png" "$RESULTS/" && echo "copied to $RESULTS/"; fi
+if [ -n "$RESULTS" ]; then mkdir -p "$RESULTS" && cp "$CSV" "$OUT/$NAME.png" "$RESULTS/" && echo "copied to $RESULTS/"; fi
