@@ -84,8 +84,9 @@ fuzz_one() {
       -timeout=10 -rss_limit_mb=2048 "${memory[@]}" -max_len=$max_len -print_final_stats=1 > log.txt 2>&1)
   rc=$?
   set -e
-  runs=$(grep -a -m1 '^stat::number_of_executed_units' "$dir/log.txt" | awk '{print $2}' || true)
-  secs=$(grep -a -m1 '^stat::average_exec_per_sec' "$dir/log.txt" | awk '{print $2}' || true)
+  # The last figures are the run's: fuzz_hdf5's forked children print theirs into the same log first.
+  runs=$(grep -a '^stat::number_of_executed_units' "$dir/log.txt" | tail -1 | awk '{print $2}' || true)
+  secs=$(grep -a '^stat::average_exec_per_sec' "$dir/log.txt" | tail -1 | awk '{print $2}' || true)
   corpus=$(ls "$dir/corpus" | wc -l)
   if [ $rc -ne 0 ]; then
     { echo "fuzz_$h: FAILED (exit $rc) after ${runs:-?} executions; see $dir/log.txt and $dir/crash-* etc."
