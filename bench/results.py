@@ -271,7 +271,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=()):
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
               "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it);",
-              "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`) on the same CPU:", "",
+              "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`; `time_to_quality_avx2.png`), from a run of its own:",
+              "training seconds of separate runs on this shared machine compare only roughly (`bench/README.md`).", "",
               "| build | scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|"]
         for r in ttq:
             p.append(f"| {r['isa']} | {r['scene']} | {r['steps']} | {float(r['train_seconds']):.0f} | {float(r['psnr']):.2f} / {float(r['ssim']):.3f} | "
