@@ -41,10 +41,12 @@ int kernel_mismatches() {
   for (int m : {1, 7, 8, 9, 16, 17, 31, 64, 65})
     for (int n : {1, 3, 4, 6, 7, 12, 13, 45})
       for (int k : {0, 1, 31, 150})
-        for (bool transposed : {false, true}) {
-          // m = 64 with a leading dimension of 256: the AVX2 kernel packs such row panels first.
-          const std::ptrdiff_t lda = m == 64 ? 256 : m + 3, ldc = m + 1, bk = transposed ? n : 1, bn = transposed ? 1 : k;
-          std::vector<float> a(static_cast<std::size_t>(lda) * k), b(static_cast<std::size_t>(k) * (n + 1)), bias(m),
+        for (int layout : {0, 1, 2}) {
+          // B column-major (k along a column, as a layer's input), row-major (a weight gradient's Xᵀ) or with
+          // neither stride 1: the AVX2 kernel has a form for each. m = 64 with a leading dimension of 256.
+          const std::ptrdiff_t lda = m == 64 ? 256 : m + 3, ldc = m + 1;
+          const std::ptrdiff_t bk = layout == 0 ? 1 : layout == 1 ? n : 2, bn = layout == 0 ? k : layout == 1 ? 1 : 2 * k + 1;
+          std::vector<float> a(static_cast<std::size_t>(lda) * k), b(static_cast<std::size_t>(2 * k + 1) * (n + 1)), bias(m),
               y(static_cast<std::size_t>(m) * n), c0(static_cast<std::size_t>(ldc) * n);
           for (auto* v : {&a, &b, &bias, &y, &c0})
             for (auto& e : *v) e = static_cast<float>(rng.uniform(-1, 1));
