@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
-time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh,
+time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh, step_profile_ISA.csv from bench/step_profile.sh,
 mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh), so both say the same and neither is
 edited by hand.
 
@@ -190,13 +190,13 @@ def factors_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=()):
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -266,6 +266,17 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=()):
         for r in speed:
             p.append(f"| {r['isa']} | {r['cpu']} | {r['peer_core']} | {r['width']} | {r['pairs']} | {r['ratio']}× ({r['ratio_min']}–{r['ratio_max']}) | "
                      f"{int(r['ours_samples_per_s']):,} | {100 * float(r['peak_fraction']):.0f} % of {float(r['peak_gflops']):.0f} GFLOP/s |")
+    if profile:
+        isas = list(dict.fromkeys(r["isa"] for r in profile))
+        share = {(r["isa"], r["part"]): float(r["share"]) for r in profile}
+        parts = sorted(dict.fromkeys(r["part"] for r in profile), key=lambda q: -max(share.get((i, q), 0) for i in isas))
+        p += ["", "## Where a training step's time goes (`bench/step_profile.sh`)", "",
+              "The `fast` preset's training step (1024 pixels at two poses, a warmed model) sampled by `perf` on one thread,",
+              "each sample given to the part of the step whose code it was in; shares of the step's samples per build",
+              f"(CPU: {profile[0]['cpu']}).", "",
+              "| part | " + " | ".join(isas) + " |", "|---|" + "---|" * len(isas)]
+        for q in parts:
+            p.append(f"| {q} | " + " | ".join(f"{100 * share.get((i, q), 0):.1f} %" for i in isas) + " |")
     if formats:
         p += formats_section(formats)
     if ttq:
@@ -301,7 +312,8 @@ def main():
     mesh = read(os.path.join(a.results, "mesh.csv"))
     formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]
     factors = read(os.path.join(a.results, "sensor_factors.csv"))
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors)}
+    profile = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"step_profile_{isa}.csv"))]
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []
