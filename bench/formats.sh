@@ -11,9 +11,7 @@ scripts/deps.sh libbenchmark-dev
 TARGET=evnerf_bench_formats . bench/isa.sh  # B: the build for ISA
 OUT=$B/results
 mkdir -p "$OUT"
-flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
-has() { [[ $flags == *" $1 "* ]]; }
-CPU_FEATURES="$(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA")"
+. bench/cpu.sh  # has, CPU_FEATURES
 OMP_NUM_THREADS=2 "$B"/bench/evnerf_bench_formats --benchmark_repetitions="$REPS" --benchmark_enable_random_interleaving=true \
   --benchmark_format=json --benchmark_out="$OUT/formats.json" --benchmark_out_format=json >/dev/null
 python3 - "$OUT/formats.json" "$OUT/formats.csv" "${ISA:-native}" "$CPU_FEATURES" <<'PY'

@@ -4,11 +4,8 @@
 # alone. Sets OPENBLAS_CORE, BEST (the peer's flags) and CPU_FEATURES and says which it chose; exits with a reason on a
 # CPU without AVX, where neither side's fast kernels run. ISA=avx2 measures the AVX2 + FMA paths on a CPU
 # with AVX-512: the peer then takes the AVX2 kernels too.
-cpu_flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
+. bench/cpu.sh  # has, CPU_FEATURES (the CPU's own, named in the results)
 cpu_vendor=$(grep -m1 '^vendor_id' /proc/cpuinfo | awk '{print $3}')
-has() { [[ $cpu_flags == *" $1 "* ]]; }
-# The CPU's own features, named in the results.
-CPU_FEATURES="$(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA")"
 if [ "${ISA:-}" = avx2 ]; then
   cpu_flags=${cpu_flags// avx512f / }
 fi

@@ -12,9 +12,7 @@ scripts/deps.sh libbenchmark-dev linux-perf
 TARGET=evnerf_bench . bench/isa.sh  # B: the build for ISA
 OUT=$B/results
 mkdir -p "$OUT"
-flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
-has() { [[ $flags == *" $1 "* ]]; }
-CPU_FEATURES="$(has avx512f && echo AVX-512 || echo "no AVX-512")$(has avx2 && echo ", AVX2")$(has fma && echo " + FMA")"
+. bench/cpu.sh  # has, CPU_FEATURES
 # perf needs leave to read the counters of its own processes (kernel.perf_event_paranoid ≤ 2 by default).
 OMP_NUM_THREADS=1 perf record -q -g -F 997 -o "$OUT/step.perf" -- "$B"/bench/evnerf_bench \
   --benchmark_filter='BM_train_step<presets::Fast>/' --benchmark_min_time="$SECS" >"$OUT/step_bench.txt" 2>&1 || {
