@@ -13,7 +13,7 @@ TARGET=evnerf_bench . bench/isa.sh  # B: the build for ISA
 OUT=$B/results
 mkdir -p "$OUT"
 . bench/cpu.sh  # has, CPU_FEATURES
-# perf needs leave to read the counters of its own processes (kernel.perf_event_paranoid ≤ 2 by default).
+# perf samples its own processes where kernel.perf_event_paranoid ≤ 2 (the kernel's default).
 OMP_NUM_THREADS=1 perf record -q -g -F 997 -o "$OUT/step.perf" -- "$B"/bench/evnerf_bench \
   --benchmark_filter='BM_train_step<presets::Fast>/' --benchmark_min_time="$SECS" >"$OUT/step_bench.txt" 2>&1 || {
   echo "step_profile: perf record failed (see $OUT/step_bench.txt; in a container perf may need kernel.perf_event_paranoid ≤ 2)" >&2
@@ -35,6 +35,7 @@ def plain(name):
         elif depth == 0:
             out.append(ch)
     return "".join(out)
+REST = "MLP: the rest (bias gradients, transposes, one-row products)"
 # Matrix products by their kernel's template arguments (the innermost gemm frame); the rest by name.
 GEMM = [
     ("MLP products: weight gradients (dW += dZ·Xᵀ)", re.compile(r"^evnerf::nn::gemm::\S*(product(_unchecked)?<true|block8<\d, \d, true)")),
@@ -44,7 +45,7 @@ GEMM = [
 PARTS = [
     ("hash grid: encode", re.compile(r"HashGrid::(forward|encode)")),
     ("hash grid: backward", re.compile(r"HashGrid::(backward|flush|scatter)")),
-    ("MLP: the rest (bias gradients, transposes, one-row products)", re.compile(r"evnerf::nn::(Mlp|gemm)")),
+    (REST, re.compile(r"evnerf::nn::(Mlp|gemm)")),
     ("Adam", re.compile(r"Adam")),
     ("sampling and compositing", re.compile(r"evnerf::render::|Field::")),
     ("objective (windows, thresholds, regularisers)", re.compile(r"evnerf::loss::|evnerf::model::|EvNerf::")),
@@ -62,7 +63,7 @@ for block in open(src).read().split("\n\n"):
     part = "other"
     for f in ours:
         if f.startswith("evnerf::nn::gemm::"):
-            part = next((name for name, rx in GEMM if rx.search(f)), "MLP: the rest (bias gradients, transposes, one-row products)")
+            part = next((name for name, rx in GEMM if rx.search(f)), REST)
             break
         name = plain(f)
         part = next((n for n, rx in PARTS if rx.search(name)), "other")

@@ -43,7 +43,8 @@ int kernel_mismatches() {
       for (int k : {0, 1, 31, 150})
         for (int layout : {0, 1, 2}) {
           // B column-major (k along a column, as a layer's input), row-major (a weight gradient's Xᵀ) or with
-          // neither stride 1: the AVX2 kernel has a form for each. m = 64 with a leading dimension of 256.
+          // neither stride 1 (the kernels take any strides). m = 64 with a leading dimension of 256: the AVX2
+          // kernel packs such row panels first.
           const std::ptrdiff_t lda = m == 64 ? 256 : m + 3, ldc = m + 1;
           const std::ptrdiff_t bk = layout == 0 ? 1 : layout == 1 ? n : 2, bn = layout == 0 ? k : layout == 1 ? 1 : 2 * k + 1;
           std::vector<float> a(static_cast<std::size_t>(lda) * k), b(static_cast<std::size_t>(2 * k + 1) * (n + 1)), bias(m),
