@@ -105,7 +105,7 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   for (int s = 0; s < 2; ++s) a.train_step(f.td, 128, 3);
   const std::string good = a.serialize("tiny", f.run());
   const std::size_t n = a.params().size();
-  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + (8 + Tiny::loss_description().size()) +
+  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + (8 + Tiny::loss_description().size()) +
                              (8 + Tiny::architecture().size());
   // Values as 4-byte floats: the parameters, Adam's m and v, then the average's count and decay, its values.
   auto with = [&](std::size_t at, float value) {
@@ -163,6 +163,20 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   }
   CHECK(t.params().values == a.params().values);
   CHECK(t.box().density_length == box.scale);
+  CHECK_FALSE(t.box().background.has_value());
+  // A background comes back too, and renders are the same.
+  {
+    train::Config cb = f.cfg;
+    cb.background = 0.37;
+    Tiny with(f.td.slices.size(), train::scene_box(f.td, cb), 7), back_bg;
+    with.train_step(f.td, 128, 3);
+    back_bg.deserialize(with.serialize("tiny", run), "b.ckpt");
+    REQUIRE(back_bg.box().background.has_value());
+    CHECK(*back_bg.box().background == 0.37);
+    const auto dirs = render::pixel_directions(f.td.camera);
+    CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
+          with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
+  }
   CHECK(Tiny::loss_description() == "bounds split 1, thresholds joint, noise 50 per mille");
   // A model saved outside a run records none; it loads, and render and eval refuse it (evaluation::load_model).
   CHECK(t.deserialize(a.serialize("tiny", {}), "m.ckpt").times.empty());
@@ -173,12 +187,12 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   };
   const std::string body = good.substr(0, good.size() - 8);
   // Another format version, older or newer, is refused with the one this build reads.
-  for (std::uint64_t version : {std::uint64_t{6}, std::uint64_t{8}}) {
+  for (std::uint64_t version : {std::uint64_t{7}, std::uint64_t{9}}) {
     std::string other = body;
     std::memcpy(other.data() + 8, &version, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(other), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: format version " + std::to_string(version) +
-                                         "; this build reads version 7 only").c_str()));
+                                         "; this build reads version 8 only").c_str()));
   }
   // A nonsensical density length.
   const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
@@ -186,6 +200,13 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   const double zero = 0.0;
   std::memcpy(bad.data() + at, &zero, 8);
   CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"), doctest::Contains("density length is not a positive number"));
+  // A background that is no luminance (NaN stands for none).
+  for (const double v : {-1.0, -std::numeric_limits<double>::min(), std::numeric_limits<double>::infinity()}) {
+    bad = body;
+    std::memcpy(bad.data() + at + 8, &v, 8);
+    CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
+                      doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: the background luminance is " + short_number(v)).c_str()));
+  }
   // A model trained with other bounds refuses the file, naming both losses.
   using TinyHalfSlack = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
   TinyHalfSlack other;
@@ -231,7 +252,7 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   // The refused loads left the model as the good file made it.
   CHECK(t.params().values == a.params().values);
   // A file whose average does not match the model, or whose decay is out of range, is refused.
-  const std::size_t header = at + 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());
+  const std::size_t header = at + 8 + 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());  // density length, background
   const std::size_t moments_end = header + 12 * a.params().size();
   Tiny avg(f.td.slices.size(), box, 7);
   avg.set_average(0.9);

@@ -3,6 +3,7 @@
 // sampler (Stratified, Hierarchical, OccupancySkipping with an active grid) and for 1 and 3 (RGGB) channels.
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <evnerf/evnerf.hpp>
 
@@ -114,10 +115,12 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 }
 
 /// `refractory` > 0: the fixture's counts sliced with that refractory period (some of them rate-limited).
+/// `background`: the scene box's background luminance (train::Config::background), unset for none.
 template <class Model>
 void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any,
-                 double tv_share = 1, double refractory = 0) {
+                 double tv_share = 1, double refractory = 0, std::optional<double> background = {}) {
   evtest::Fixture f;
+  f.cfg.background = background;
   if (refractory > 0) {
     f.cfg.refractory = refractory;
     f.td = train::prepare(f.d, f.cfg);
@@ -559,4 +562,22 @@ TEST_CASE("colour models: each pixel's channel follows the recording's Bayer pat
 TEST_CASE_TEMPLATE("whole training loss with training rays that stop early: finite differences in double", Model, LongOccupancyModel<1>,
                    LongOccupancyModel<3>) {
   check_model<Model>(0, 0, true);
+}
+
+// A background of known luminance behind the samples (train::Config::background): the rays' leftover
+// transmittance weighs it in every pass, and the whole loss still matches finite differences, with rays that
+// stop early too.
+TEST_CASE_TEMPLATE("whole training loss before a known background: finite differences in double", Model, StratifiedModel<1>,
+                   HierarchicalModel<3>, OccupancyModel<1>, LongOccupancyModel<3>) {
+  const bool terminate = std::is_same_v<Model, LongOccupancyModel<3>>;
+  check_model<Model>(0, 0, terminate, loss::TvNeighbours::Any, 1, 0, 0.4);
+  // The background is part of the loss: the same step without it differs.
+  evtest::Fixture f;
+  train::Config plain = f.cfg;
+  f.cfg.background = 0.4;
+  Model with(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5), without(f.td.slices.size(), train::scene_box(f.td, plain), 5);
+  without.set_ray_termination(terminate);
+  with.set_ray_termination(terminate);
+  REQUIRE(with.box().background == 0.4);
+  CHECK(with.gradients(f.td, 16, 1, 4).loss != without.gradients(f.td, 16, 1, 4).loss);
 }

@@ -44,6 +44,61 @@ TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densit
   CHECK(r.opacity <= 1.0 + 1e-9);
 }
 
+TEST_CASE_TEMPLATE("compositing before a background: finite differences, an empty ray shows the background, an opaque one hides it", Act,
+                   nn::ReLU, nn::TruncExp) {
+  const int S = 9, C = 3;
+  Rng rng(4);
+  std::vector<double> sigma(S), raw(S * C), t(S), noise(S), dcolor(C), bg = {0.3, 0.5, 0.9};
+  for (int k = 0; k < S; ++k) {
+    sigma[k] = rng.uniform(-0.5, 1.0);
+    t[k] = 0.5 + 0.3 * k + 0.1 * rng.uniform();
+    noise[k] = 0.3 * rng.normal();
+  }
+  for (auto& v : raw) v = rng.uniform(-2, 2);
+  for (auto& v : dcolor) v = rng.uniform(-1, 1);
+  auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
+    render::RayComposite<double> r;
+    render::composite_forward<double, Act>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r, nullptr, bg.data());
+    double s = 0;
+    for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
+    return s;
+  };
+  render::RayComposite<double> r;
+  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r, nullptr, bg.data());
+  // The last interval is closed: light is left for the background, and the colour is the samples' plus its share.
+  REQUIRE(r.rest > 0.01);
+  CHECK(r.opacity + r.rest == doctest::Approx(1.0));
+  for (int c = 0; c < C; ++c) {
+    double samples = 0;
+    for (int k = 0; k < S; ++k) samples += r.weight[k] * r.lum[k * C + c];
+    CHECK(r.color[c] == doctest::Approx(samples + r.rest * bg[c]).epsilon(1e-12));
+  }
+  std::vector<double> ds(S), dr(S * C);
+  render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(sigma, v); }, raw, dr) < 1e-6);
+  // Without a background the same samples differ (the last interval is open) and r.rest is 0.
+  render::RayComposite<double> open;
+  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), open);
+  CHECK(open.rest == 0);
+  CHECK(open.color[0] != r.color[0]);
+  // A ray through empty space is the background, exactly where the activation is 0 (ReLU below 0).
+  if constexpr (std::is_same_v<Act, nn::ReLU>) {
+    std::vector<double> empty(S, -3.0);
+    render::RayComposite<double> e;
+    render::composite_forward<double, Act>(S, C, empty.data(), 1, raw.data(), t.data(), 1.2, nullptr, e, nullptr, bg.data());
+    for (int c = 0; c < C; ++c) CHECK(e.color[c] == doctest::Approx(bg[c]).epsilon(1e-9));
+    CHECK(e.opacity == 0);
+  }
+  // An opaque first sample hides the background.
+  std::vector<double> wall = sigma;
+  wall[0] = 100;  // α = 1 − e^{−36} under ReLU (δ 0.36), truncated to e^{15}·δ under TruncExp
+  render::RayComposite<double> h;
+  render::composite_forward<double, Act>(S, C, wall.data(), 1, raw.data(), t.data(), 1.2, nullptr, h, nullptr, bg.data());
+  CHECK(h.rest < 1e-9);
+  for (int c = 0; c < C; ++c) CHECK(h.color[c] == doctest::Approx(h.lum[c]).epsilon(1e-6));
+}
+
 TEST_CASE("distortion regulariser: equals the double sum, its weight gradient and its density gradient match finite differences") {
   const int S = 11;
   Rng rng(7);

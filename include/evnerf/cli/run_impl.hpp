@@ -313,7 +313,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                      "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
       ->check(CLI::IsMember({"first", "both"}))
       ->capture_default_str();
-  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near and far)");
+  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
   trainc->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
 
   // render

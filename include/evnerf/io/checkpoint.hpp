@@ -1,6 +1,7 @@
 // io/checkpoint.hpp — the checkpoint format and its one parser. A checkpoint is
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
-//   f64×6 box (centre, scale, near, far) | f64 density length | str loss | str architecture |
+//   f64×6 box (centre, scale, near, far) | f64 density length | f64 background (NaN: none) |
+//   str loss | str architecture |
 //   f32 parameters | f32 Adam m | f32 Adam v |
 //   u64 average count (0 or the parameter count) + f64 its decay + f32 average |
 //   str sampler state (the occupancy grid) |
@@ -19,6 +20,7 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -30,7 +32,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 7;
+inline constexpr std::uint64_t kCheckpointVersion = 8;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -88,6 +90,7 @@ struct CheckpointHeader {
   std::int64_t step = 0;
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
   double density_length = 1.0;
+  double background = std::numeric_limits<double>::quiet_NaN();  ///< the box's background luminance, NaN for none
   std::string loss;
   std::string architecture;
 };
@@ -117,6 +120,9 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
   r.get(h.box, sizeof h.box);
   h.density_length = r.f64();
   if (!(h.density_length > 0) || !std::isfinite(h.density_length)) r.fail("density length is not a positive number");
+  h.background = r.f64();
+  if (!std::isnan(h.background) && !(h.background >= 0 && std::isfinite(h.background)))
+    r.fail("the background luminance is " + short_number(h.background) + " (a number >= 0, or NaN for none)");
   h.loss = r.str();
   h.architecture = r.str();
   return h;
@@ -194,6 +200,7 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put(&h.step, 8);
   put(h.box, sizeof h.box);
   put_f64(h.density_length);
+  put_f64(h.background);
   put_str(h.loss);
   put_str(h.architecture);
   put(body.params, body.n * 4);

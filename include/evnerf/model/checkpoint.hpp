@@ -1,10 +1,12 @@
 // model/checkpoint.hpp — EvNerf (model/model.hpp) as a checkpoint and back: the format is io/checkpoint.hpp;
-// here the model's part of it (box, parameters, Adam's moments, the parameter average, the sampler's
-// state) and the checks a load makes (architecture, loss, counts, finite values) before the model changes.
+// here the model's part of it (box and background, parameters, Adam's moments, the parameter average, the
+// sampler's state) and the checks a load makes (architecture, loss, counts, finite values) before the model
+// changes.
 // Included by model/model.hpp.
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -28,6 +30,7 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
   const double boxv[6] = {bx.center.x(), bx.center.y(), bx.center.z(), bx.scale, bx.near, bx.far};
   std::copy(boxv, boxv + 6, h.box);
   h.density_length = bx.density_length;
+  h.background = bx.background.value_or(std::numeric_limits<double>::quiet_NaN());
   h.loss = loss_description();
   h.architecture = architecture();
   return io::write_checkpoint(h,
@@ -96,6 +99,7 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   bx.near = h.box[4];
   bx.far = h.box[5];
   bx.density_length = h.density_length;
+  if (!std::isnan(h.background)) bx.background = h.background;
   renderer_ = renderer_type(bx, std::move(sampler));
   n_slices_ = h.n_slices;
   params_ = std::move(params);

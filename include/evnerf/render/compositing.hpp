@@ -1,7 +1,7 @@
 // render/compositing.hpp — volume rendering along one ray: alpha from density, transmittance, expected
-// luminance, depth and opacity, forward and backward. The per-sample pieces (alpha from raw density,
-// luminance from raw output) are written once with ad/; the transmittance scan's backward is a reverse
-// suffix sum. Depends on ad/ only.
+// luminance (optionally before a known background), depth and opacity, forward and backward. The
+// per-sample pieces (alpha from raw density, luminance from raw output) are written once with ad/; the
+// transmittance scan's backward is a reverse suffix sum. Depends on ad/ only.
 #pragma once
 #include <cmath>
 #include <vector>
@@ -36,18 +36,35 @@ struct LuminanceOfRaw {
   }
 };
 
+/// The length of sample k's interval in density units: to the next sample; the last one's is open
+/// (kOpenInterval), or as long as the one before it when a background lies behind (open for S = 1).
+template <class T>
+double interval_length(int S, int k, const T* t, double dir_norm, bool background) {
+  if (k + 1 < S) return double(t[k + 1] - t[k]) * dir_norm;
+  return background && S > 1 ? double(t[k] - t[k - 1]) * dir_norm : kOpenInterval;
+}
+
 /// Per-ray result and what its backward needs.
 template <class T>
 struct RayComposite {
   std::vector<T> alpha, dalpha_dsigma, trans, weight, lum, dlum_draw;  // per sample (lum: C per sample)
   std::vector<T> color;                                               // C
   T depth = 0, opacity = 0;
+  /// With a background: the transmittance left behind the last sample (the background's weight in color)
+  /// and the background's C values (the caller's, kept alive until the backward); else 0 and null.
+  T rest = 0;
+  const T* background = nullptr;
 };
 
 /// Composites S samples of one ray with C channels. sigma[k·sigma_stride] raw density, raw[k·C + c] raw
 /// luminance, t[k] distance along the ray (in units of dir, z-depth for our rays), dir_norm = |d| in
 /// the units density is measured in (EvNerf: |d| / box().density_length), noise[k] density noise (or
-/// null). The last interval is open (δ = kOpenInterval), as in NeRF.
+/// null). The last interval is open (δ = kOpenInterval), as in NeRF: what a ray meets last stops it.
+///
+/// `background` (optional, C values): the luminance behind the samples, as when an object is seen before a
+/// backdrop of known brightness (EventNeRF's object scenes). The last interval is then as long as the one
+/// before it (open when S = 1), and the transmittance left behind the last sample, r.rest, weighs the
+/// background: color = Σ w_k lum_k + rest · background. Depth and opacity are the samples' alone.
 ///
 /// `skipped` (optional): the raw density that the renderer gives samples it did not evaluate (raw luminance
 /// 0). Where act(skipped) and its derivative are both 0, every such sample with no noise (or noise 0) has
@@ -55,7 +72,7 @@ struct RayComposite {
 /// same bits.
 template <class T, class DensityAct = nn::ReLU, class RadianceAct = nn::Sigmoid>
 void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
-                       const T* noise, RayComposite<T>& r, const T* skipped = nullptr) {
+                       const T* noise, RayComposite<T>& r, const T* skipped = nullptr, const T* background = nullptr) {
   r.alpha.resize(S);
   r.dalpha_dsigma.resize(S);
   r.trans.resize(S);
@@ -85,7 +102,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
       r.alpha[k] = alpha_skip;
       r.dalpha_dsigma[k] = dalpha_skip;
     } else {
-      const double delta = k + 1 < S ? double(t[k + 1] - t[k]) * dir_norm : kOpenInterval;
+      const double delta = interval_length(S, k, t, dir_norm, background != nullptr);
       const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0}, std::array<double, 1>{double(sk)});
       r.alpha[k] = static_cast<T>(a.value);
       r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
@@ -109,16 +126,23 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
     r.opacity += w;
     trans *= T(1) - r.alpha[k] + T(kTransmittanceEpsilon);
   }
+  r.background = background;
+  r.rest = background ? trans : T(0);
+  if (background)
+    for (int c = 0; c < C; ++c) r.color[c] += r.rest * background[c];
 }
 
 /// Backward of composite_forward for dL/dcolor (C values): writes dL/dsigma (stride sigma_stride) and
-/// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j) / (1 − α_k + kTransmittanceEpsilon).
+/// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j + rest · b) / (1 − α_k + kTransmittanceEpsilon),
+/// with b = Σ_c dcolor_c · background_c (0 without a background).
 /// `dweight` (S values, or null) adds a loss's gradient w.r.t. the weights w_k themselves (a regulariser
 /// such as distortion_loss): colour is Σ w_k lum_k, so dL/dw_k enters exactly where dcolor · lum_k does.
 template <class T>
 void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor, T* dsigma, int sigma_stride, T* draw,
                         const T* dweight = nullptr) {
-  T suffix = 0;  // Σ_{j>k} w_j c_j with c_j = Σ_c dcolor_c · lum_jc (+ dL/dw_j)
+  T suffix = 0;  // Σ_{j>k} w_j c_j with c_j = Σ_c dcolor_c · lum_jc (+ dL/dw_j), and the background's share
+  if (r.background)
+    for (int c = 0; c < C; ++c) suffix += r.rest * dcolor[c] * r.background[c];
   for (int k = S - 1; k >= 0; --k) {
     T ck = dweight ? dweight[k] : T(0);
     for (int c = 0; c < C; ++c) {

@@ -55,6 +55,8 @@ class Renderer {
     std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
     std::vector<std::uint64_t> noise_key, noise_at;  ///< per ray: where its density noise is drawn (draw_noise)
     std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
+    std::array<T, channels> background{};    ///< the box's background in every channel (comp's point here)
+    std::array<T, channels> black{};         ///< what lies behind a ray that stopped early (zeros)
   };
   /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
   struct Workspace {
@@ -399,7 +401,7 @@ class Renderer {
         for (int k = k0; k < k1; ++k) {
           const std::size_t i = static_cast<std::size_t>(r) * S + k;
           const T nz = training ? p.noise[i] : T(0);
-          const double delta = k + 1 < S ? double(p.t[i + 1] - p.t[i]) * dn : kOpenInterval;
+          const double delta = interval_length(S, k, p.t.data() + static_cast<std::size_t>(r) * S, dn, box_.background.has_value());
           const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity && nz == T(0)
                                    ? 0.0
                                    : 1.0 - std::exp(-(FieldT::density_activation::f(training ? p.sig_full[i] + nz : p.sig_full[i]) * delta));
@@ -459,12 +461,21 @@ class Renderer {
     const bool skipped = !training || sampler_.skipping();  // samples may sit at kSkippedDensity
     if (training && !terminating) draw_noise(R, sampler_.skipping() && noise_vanishes_when_skipped(), p);
     p.comp.resize(R);
+    // The box's background lies behind a ray's samples, unless the ray stopped early: then what lies behind
+    // its stop is not known and adds nothing (less than the cut's share; the same intervals as the stop's).
+    const T* background = nullptr;
+    if (box_.background) {
+      p.background.fill(static_cast<T>(*box_.background));
+      background = p.background.data();
+    }
+    const T cut = training ? w.training_cut : kEvalTransmittance;
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
+      const bool stopped = terminating && p.ray_trans[static_cast<std::size_t>(r)] <= cut;
       composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
                                                                 p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
                                                                 training ? p.noise.data() + o : nullptr, p.comp[r],
-                                                                skipped ? &kSkippedDensity : nullptr);
+                                                                skipped ? &kSkippedDensity : nullptr, stopped && background ? p.black.data() : background);
     }
     p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
     p.dweight.clear();

@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "../core/types.hpp"
@@ -13,11 +14,15 @@ namespace evnerf::render {
 /// Maps world points to the network's [−1, 1]³: p_n = (p − center) / scale. `density_length` is the
 /// world length over which density is measured: 1 (per world unit, the default) or `scale` (per unit of
 /// the normalised box, which makes the untrained field's opacity and the N(0, 1) density noise
-/// independent of the recording's units).
+/// independent of the recording's units). `background`, when set, is the luminance (the same in every
+/// channel) a ray sees where it leaves the samples unstopped: a backdrop of known brightness behind an
+/// object, as EventNeRF's object scenes assume (render::composite_forward). Unset, the last sample stops
+/// every ray (NeRF's open interval) and the field itself must paint what lies behind.
 struct SceneBox {
   Vec3 center = Vec3::Zero();
   double scale = 1.0, near = 0.1, far = 5.0;
   double density_length = 1.0;
+  std::optional<double> background;
 
   /// The box that holds every point at depth ≤ far seen from any of the camera centres.
   static SceneBox from_cameras(const std::vector<Vec3>& centres, double near, double far) {

@@ -126,12 +126,13 @@ inline nn::AdamConfig adam_config(const Config& cfg) {
   ac.decay_steps = cfg.lr_decay_steps;
   return ac;
 }
-/// Scene box from the boundary poses and near/far.
+/// Scene box from the boundary poses and near/far, with the Config's density unit and background.
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
   for (auto& p : td.boundary_poses) c.push_back(p.t);
   auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
   if (cfg.density_per_box) box.density_length = box.scale;
+  box.background = cfg.background;
   return box;
 }
 

@@ -42,6 +42,7 @@ struct Config {
   bool keep_hot_pixels = false;
   double refractory = 0;
   bool density_per_box = false;
+  std::optional<double> background;  ///< unset: no background (the last sample stops every ray)
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
   int shards = 0;
@@ -184,6 +185,9 @@ inline const std::vector<Setting>& settings() {
        "(0 = off)"},
       {"density_per_box", &Config::density_per_box, -inf, inf, false, false,
        "density per unit of the normalised scene box, not per world unit"},
+      {"background", &Config::background, 0, inf, false, false,
+       "luminance of a backdrop behind the scene, in the frames' linear units, where rays pass all samples unstopped "
+       "(an object before a plain background of known brightness; unset: none, the last sample stops every ray)"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
        "steps between collapse checks (renders almost constant, or the event loss not falling; a multiple of 50; 0 = never)"},
       {"collapse_check_from", &Config::collapse_check_from, 0, inf, false, false, "the first step of a collapse check (a multiple of 50)"},

@@ -349,7 +349,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
 }
 
 /// A training run of `Model` as one object: the Config is its only source of settings (scene box from
-/// near/far and density_per_box, Adam from lr and its decay, seed, threads, steps, checkpoint period), the
+/// near/far, density_per_box and background, Adam from lr and its decay, seed, threads, steps, checkpoint period), the
 /// output folder holds log.jsonl and model.ckpt. The training data must outlive the trainer.
 template <class Model>
 class Trainer {
@@ -391,13 +391,14 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
-  /// A resumed model keeps its checkpoint's scene box (near, far and its density unit), whatever this call's
-  /// Config says; the Config takes them over, so that settings.json records what the run uses.
+  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and background), whatever
+  /// this call's Config says; the Config takes them over, so that settings.json records what the run uses.
   void follow_box() {
     const auto& b = model_.box();
     cfg_.near = b.near;
     cfg_.far = b.far;
     cfg_.density_per_box = b.density_length != 1.0;
+    cfg_.background = b.background;
   }
 
   const TrainingData& td_;
