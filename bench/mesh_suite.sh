@@ -9,7 +9,10 @@
 # regenerates docs/results.md (bench/results.py).
 # Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
 # Environment: MODES ("grey colour"), THREADS (2), SEED (training seed, 1), STEPS (train's default),
-#              BUILD (build), EVNERF (the binary), OUT (out/mesh), KEEP (1: an asset and mode whose
+#              BACKGROUND (0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs know theirs;
+#              empty: train without one), DEPTHS ("1.5 4.5": train's near and far, where the object can lie
+#              seen from the orbit, radius 3 ± 1.5; empty: train's defaults), BUILD (build), EVNERF (the
+#              binary), OUT (out/mesh), KEEP (1: an asset and mode whose
 #              metrics.json is in OUT is not run again), RESULTS (bench/results; empty: not copied).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +21,8 @@ THREADS=${THREADS:-2}
 SEED=${SEED:-1}
 KEEP=${KEEP:-0}
 RESULTS=${RESULTS-bench/results}
+BACKGROUND=${BACKGROUND-0.5}
+DEPTHS=${DEPTHS-1.5 4.5}
 . bench/evnerf_bin.sh  # EV
 scripts/deps.sh assimp-testmodels python3-pil
 M=/usr/share/assimp/models
@@ -34,7 +39,7 @@ WANT=("$@")
 if grep -qw avx512f /proc/cpuinfo; then CPU=avx512; elif grep -qw avx2 /proc/cpuinfo && grep -qw fma /proc/cpuinfo; then CPU=avx2+fma; else CPU=sse; fi
 mkdir -p "$OUT"
 CSV="$OUT/mesh.csv"
-echo "asset,kind,mode,preset,steps,threads,seed,cpu,events,simulate_seconds,train_seconds,samples_per_ray,view,alignment,method,psnr,ssim" > "$CSV"
+echo "asset,kind,mode,preset,steps,threads,seed,background,near,far,cpu,events,simulate_seconds,train_seconds,samples_per_ray,view,alignment,method,psnr,ssim" > "$CSV"
 while read -r key kind file; do
   if [ ${#WANT[@]} -gt 0 ] && [[ ! " ${WANT[*]} " == *" $key "* ]]; then continue; fi
   for mode in "${MODES[@]}"; do
@@ -48,12 +53,16 @@ while read -r key kind file; do
       /usr/bin/time -f "%e" -o "$dir/simulate.seconds" "$EV" simulate mesh "$M/$file" "${flags[@]}" --out "$dir/rec" > "$dir/simulate.txt" 2>&1
       train=(--preset "$preset" --seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
       [ -n "${STEPS:-}" ] && train+=(--iterations "$STEPS")
+      [ -n "$BACKGROUND" ] && train+=(--background "$BACKGROUND")
+      [ -n "$DEPTHS" ] && train+=(--near "${DEPTHS% *}" --far "${DEPTHS#* }")
       "$EV" train "$dir/rec" --out "$dir/run" "${train[@]}" > "$dir/train.txt" 2>&1
       "$EV" eval "$dir/run/model.ckpt" "$dir/rec" --out "$dir/eval" > "$dir/eval.txt" 2>&1
     fi
     python3 - "$dir" "$key" "$kind" "$mode" "$preset" "$THREADS" "$SEED" "$CPU" >> "$CSV" <<'PY'
 import json, sys
 d, key, kind, mode, preset, threads, seed, cpu = sys.argv[1:]
+st = json.load(open(f"{d}/run/settings.json"))["runs"][-1]
+bg = "" if st["background"] is None else st["background"]
 m = json.load(open(f"{d}/eval/metrics.json"))
 log = [json.loads(l) for l in open(f"{d}/run/log.jsonl")]
 spr = [r["samples_per_ray"] for r in log if "samples_per_ray" in r]
@@ -72,10 +81,10 @@ for view, j in (("path", m), ("novel", m["novel_views"])):
             continue
         for name, s in methods.items():
             method = "ours" if name.startswith("evnerf") else name
-            print(f"{key},{kind},{mode},{preset},{steps},{threads},{seed},{cpu},{events},{sim},{secs},"
+            print(f"{key},{kind},{mode},{preset},{steps},{threads},{seed},{bg},{st['near']},{st['far']},{cpu},{events},{sim},{secs},"
                   f"{spr[-1] if spr else float('nan'):.1f},{view},{al},{method},{s['psnr']:.2f},{s['ssim']:.3f}")
 PY
-    grep "^$key,.*,$mode,.*,global-log-affine," "$CSV" | cut -d, -f13- | tr '\n' ' '
+    grep "^$key,.*,$mode,.*,global-log-affine," "$CSV" | cut -d, -f16- | tr '\n' ' '
     echo
   done
 done <<<"$ASSETS"

@@ -131,7 +131,9 @@ def mesh_section(rows):
          "Real 3-D assets from Debian's `assimp-testmodels`, each normalised into the unit sphere and recorded by",
          "`evnerf simulate mesh` (346 × 260, one revolution of an orbit at 30° in one second, a grey background); grey",
          "with the default preset, colour (`--bayer`, an RGGB mosaic) with the `colour` preset; " + f"{first['steps']} steps, {first['threads']} threads, "
-         f"training seed {first['seed']}. The held-out views lie on a second orbit at 50°, never trained on; only the model",
+         f"training seed {first['seed']}, " + (f"`train --background {first['background']}` (the backdrop's known luminance, as "
+         "EventNeRF's runs know theirs) and " if first.get("background") else "no background given to `train`, ") +
+         f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`. The held-out views lie on a second orbit at 50°, never trained on; only the model",
          "renders them. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
          "`global-log-offset` (one log offset per channel, E-3DGS's correction). Training seconds are `train`'s wall time",
          "on a shared machine (5–25 % between runs). A montage per asset and mode is in `bench/results/mesh/`: the",

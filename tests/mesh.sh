@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # A real 3-D asset end to end through the command line (ctest cli.mesh): `simulate mesh` renders a textured
 # glTF file from Debian's assimp-testmodels along an orbit with held-out views off it, `train` runs a few
-# steps on it, and `eval` scores the training path against the baselines and the held-out views apart;
-# a file that is no mesh is refused naming it, and leaves no output folder behind.
+# steps on it before its known grey backdrop (--background 0.5, within the object's depths), and `eval`
+# scores the training path against the baselines and the held-out views apart; a file that is no mesh is
+# refused naming it, and leaves no output folder behind.
 # Usage: tests/mesh.sh EVNERF_BINARY    (exit 77, skipped, without assimp-testmodels)
 set -euo pipefail
 EV=$1
@@ -21,7 +22,10 @@ views=$(grep -vc '^#' "$work/rec/novel/poses.txt")
 events=$(wc -l < "$work/rec/events.txt")
 [ "$events" -gt 1000 ] || fail "only $events events from an orbit around a textured box"
 "$EV" train "$work/rec" --out "$work/run" --preset fast --iterations 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse \
-  > "$work/train.txt" 2>&1 || fail "train: $(tail -3 "$work/train.txt")"
+  --background 0.5 --near 1.5 --far 4.5 > "$work/train.txt" 2>&1 || fail "train: $(tail -3 "$work/train.txt")"
+grep -q '"background": 0.5,' "$work/run/settings.json" || fail "settings.json does not record the background: $(cat "$work/run/settings.json")"
+"$EV" train "$work/rec" --out "$work/bad" --iterations 1 --background -1 > "$work/bad.txt" 2>&1 && fail "a negative background was taken"
+grep -q "background" "$work/bad.txt" || fail "the refusal of a negative background does not name it: $(cat "$work/bad.txt")"
 "$EV" eval "$work/run/model.ckpt" "$work/rec" --out "$work/eval" > "$work/eval.txt" 2>&1 || fail "eval: $(tail -3 "$work/eval.txt")"
 grep -q "views off the training path (24" "$work/eval.txt" || fail "eval did not score the held-out views: $(cat "$work/eval.txt")"
 python3 - "$work/eval/metrics.json" <<'PY' || fail "metrics.json"
