@@ -12,31 +12,54 @@
 
 using namespace evnerf;
 
+namespace {
+/// One ray of S samples with C channels drawn from `seed` (densities in [−0.5, sigma_hi), luminance, depths,
+/// density noise) and a random dL/dcolor.
+struct RandomRay {
+  int S, C;
+  std::vector<double> sigma, raw, t, noise, dcolor;
+  RandomRay(int s, int c, std::uint64_t seed, double sigma_hi) : S(s), C(c), sigma(s), raw(s * c), t(s), noise(s), dcolor(c) {
+    Rng rng(seed);
+    for (int k = 0; k < S; ++k) {
+      sigma[k] = rng.uniform(-0.5, sigma_hi);
+      t[k] = 0.5 + 0.3 * k + 0.1 * rng.uniform();
+      noise[k] = 0.3 * rng.normal();
+    }
+    for (auto& v : raw) v = rng.uniform(-2, 2);
+    for (auto& v : dcolor) v = rng.uniform(-1, 1);
+  }
+  /// The composite of densities `sg` and raw luminance `rw` (the ray's own by default) before `background`.
+  template <class Act>
+  render::RayComposite<double> composite(const double* background, const std::vector<double>* sg = nullptr,
+                                         const std::vector<double>* rw = nullptr) const {
+    render::RayComposite<double> r;
+    render::composite_forward<double, Act>(S, C, (sg ? *sg : sigma).data(), 1, (rw ? *rw : raw).data(), t.data(), 1.2, noise.data(), r,
+                                           nullptr, background);
+    return r;
+  }
+  /// composite_backward's dL/dσ and dL/draw for L = dcolor · color, against finite differences in double.
+  template <class Act>
+  void check_gradients(const double* background) const {
+    auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
+      const auto r = composite<Act>(background, &sg, &rw);
+      double s = 0;
+      for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
+      return s;
+    };
+    const auto r = composite<Act>(background);
+    std::vector<double> ds(S), dr(S * C);
+    render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(sigma, v); }, raw, dr) < 1e-6);
+  }
+};
+}  // namespace
+
 TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densities and raw luminance", Act, nn::ReLU,
                    nn::TruncExp) {
-  const int S = 9, C = 2;
-  Rng rng(3);
-  std::vector<double> sigma(S), raw(S * C), t(S), noise(S), dcolor(C);
-  for (int k = 0; k < S; ++k) {
-    sigma[k] = rng.uniform(-0.5, 3.0);
-    t[k] = 0.5 + 0.3 * k + 0.1 * rng.uniform();
-    noise[k] = 0.3 * rng.normal();
-  }
-  for (auto& v : raw) v = rng.uniform(-2, 2);
-  for (auto& v : dcolor) v = rng.uniform(-1, 1);
-  auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
-    render::RayComposite<double> r;
-    render::composite_forward<double, Act>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r);
-    double s = 0;
-    for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
-    return s;
-  };
-  render::RayComposite<double> r;
-  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r);
-  std::vector<double> ds(S), dr(S * C);
-  render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
-  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
-  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(sigma, v); }, raw, dr) < 1e-6);
+  const RandomRay q(9, 2, 3, 3.0);
+  q.check_gradients<Act>(nullptr);
+  const auto r = q.composite<Act>(nullptr);
   // Weights sum to the opacity, and an opaque last interval makes it 1.
   double wsum = 0;
   for (double w : r.weight) wsum += w;
@@ -46,25 +69,11 @@ TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densit
 
 TEST_CASE_TEMPLATE("compositing before a background: finite differences, an empty ray shows the background, an opaque one hides it", Act,
                    nn::ReLU, nn::TruncExp) {
-  const int S = 9, C = 3;
-  Rng rng(4);
-  std::vector<double> sigma(S), raw(S * C), t(S), noise(S), dcolor(C), bg = {0.3, 0.5, 0.9};
-  for (int k = 0; k < S; ++k) {
-    sigma[k] = rng.uniform(-0.5, 1.0);
-    t[k] = 0.5 + 0.3 * k + 0.1 * rng.uniform();
-    noise[k] = 0.3 * rng.normal();
-  }
-  for (auto& v : raw) v = rng.uniform(-2, 2);
-  for (auto& v : dcolor) v = rng.uniform(-1, 1);
-  auto loss = [&](const std::vector<double>& sg, const std::vector<double>& rw) {
-    render::RayComposite<double> r;
-    render::composite_forward<double, Act>(S, C, sg.data(), 1, rw.data(), t.data(), 1.2, noise.data(), r, nullptr, bg.data());
-    double s = 0;
-    for (int c = 0; c < C; ++c) s += dcolor[c] * r.color[c];
-    return s;
-  };
-  render::RayComposite<double> r;
-  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), r, nullptr, bg.data());
+  const RandomRay q(9, 3, 4, 1.0);
+  const int S = q.S, C = q.C;
+  const std::vector<double> bg = {0.3, 0.5, 0.9};
+  q.check_gradients<Act>(bg.data());
+  const auto r = q.composite<Act>(bg.data());
   // The last interval is closed: light is left for the background, and the colour is the samples' plus its share.
   REQUIRE(r.rest > 0.01);
   CHECK(r.opacity + r.rest == doctest::Approx(1.0));
@@ -73,28 +82,21 @@ TEST_CASE_TEMPLATE("compositing before a background: finite differences, an empt
     for (int k = 0; k < S; ++k) samples += r.weight[k] * r.lum[k * C + c];
     CHECK(r.color[c] == doctest::Approx(samples + r.rest * bg[c]).epsilon(1e-12));
   }
-  std::vector<double> ds(S), dr(S * C);
-  render::composite_backward<double>(S, C, r, dcolor.data(), ds.data(), 1, dr.data());
-  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(v, raw); }, sigma, ds) < 1e-6);
-  CHECK(evtest::max_fd_error([&](const std::vector<double>& v) { return loss(sigma, v); }, raw, dr) < 1e-6);
   // Without a background the same samples differ (the last interval is open) and r.rest is 0.
-  render::RayComposite<double> open;
-  render::composite_forward<double, Act>(S, C, sigma.data(), 1, raw.data(), t.data(), 1.2, noise.data(), open);
+  const auto open = q.composite<Act>(nullptr);
   CHECK(open.rest == 0);
   CHECK(open.color[0] != r.color[0]);
   // A ray through empty space is the background, exactly where the activation is 0 (ReLU below 0).
   if constexpr (std::is_same_v<Act, nn::ReLU>) {
-    std::vector<double> empty(S, -3.0);
-    render::RayComposite<double> e;
-    render::composite_forward<double, Act>(S, C, empty.data(), 1, raw.data(), t.data(), 1.2, nullptr, e, nullptr, bg.data());
+    const std::vector<double> empty(S, -3.0);
+    const auto e = q.composite<Act>(bg.data(), &empty);
     for (int c = 0; c < C; ++c) CHECK(e.color[c] == doctest::Approx(bg[c]).epsilon(1e-9));
     CHECK(e.opacity == 0);
   }
   // An opaque first sample hides the background.
-  std::vector<double> wall = sigma;
+  std::vector<double> wall = q.sigma;
   wall[0] = 100;  // α = 1 − e^{−36} under ReLU (δ 0.36), truncated to e^{15}·δ under TruncExp
-  render::RayComposite<double> h;
-  render::composite_forward<double, Act>(S, C, wall.data(), 1, raw.data(), t.data(), 1.2, nullptr, h, nullptr, bg.data());
+  const auto h = q.composite<Act>(bg.data(), &wall);
   CHECK(h.rest < 1e-9);
   for (int c = 0; c < C; ++c) CHECK(h.color[c] == doctest::Approx(h.lum[c]).epsilon(1e-6));
 }
