@@ -9,10 +9,10 @@
 # regenerates docs/results.md (bench/results.py).
 # Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
 # Environment: MODES ("grey colour"), THREADS (2), SEED (training seed, 1), STEPS (train's default),
-#              BACKGROUND (0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs know theirs;
-#              empty: train without one), DEPTHS ("1.5 4.5": train's near and far, where the object can lie
-#              seen from the orbit, radius 3 ± 1.5; empty: train's defaults), BUILD (build), EVNERF (the
-#              binary), OUT (out/mesh), KEEP (1: an asset and mode whose
+#              BACKGROUND (empty: none; 0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs
+#              know theirs), DEPTHS (empty: train's near and far; "1.5 4.5": where the object can lie seen
+#              from the orbit, radius 3 ± 1.5), BUILD (build), EVNERF (the binary), OUT (out/mesh), KEEP (1:
+#              an asset and mode whose
 #              metrics.json is in OUT is not run again), RESULTS (bench/results; empty: not copied).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,8 +21,8 @@ THREADS=${THREADS:-2}
 SEED=${SEED:-1}
 KEEP=${KEEP:-0}
 RESULTS=${RESULTS-bench/results}
-BACKGROUND=${BACKGROUND-0.5}
-DEPTHS=${DEPTHS-1.5 4.5}
+BACKGROUND=${BACKGROUND-}
+DEPTHS=${DEPTHS-}
 . bench/evnerf_bin.sh  # EV
 scripts/deps.sh assimp-testmodels python3-pil
 M=/usr/share/assimp/models
