@@ -12,8 +12,8 @@
 #              BACKGROUND (empty: none; 0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs
 #              know theirs), DEPTHS (empty: train's near and far; "1.5 4.5": where the object can lie seen
 #              from the orbit, radius 3 ± 1.5), BUILD (build), EVNERF (the binary), OUT (out/mesh), KEEP (1:
-#              an asset and mode whose
-#              metrics.json is in OUT is not run again), RESULTS (bench/results; empty: not copied).
+#              an asset and mode whose metrics.json is in OUT is not run again), RESULTS (bench/results;
+#              empty: not copied).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/mesh}
