@@ -1,3 +1,4 @@
+#include <evnerf/events/hot_pixels.hpp>
 #include <evnerf/events/slicing.hpp>
 
 #include "common.hpp"
@@ -141,4 +142,39 @@ TEST_CASE("count prefix: every window's counts equal a brute-force sum over its 
         REQUIRE(pre.window_pos(a, b, p) == np);
         REQUIRE(pre.window_neg(a, b, p) == nn);
       }
+}
+
+TEST_CASE("hot pixels behind a colour mosaic: an object of one filter's colour is not suspected, a hot pixel among it is") {
+  // An RGGB sensor sees a red object over x, y in [8, 24): only its red sites (even x, even y) fire, 100
+  // events each; their eight nearest pixels are green and blue sites with none. One green site at (13, 12)
+  // fires 300 times on its own.
+  EventStream ev;
+  ev.width = 32;
+  ev.height = 32;
+  double t = 0;
+  const auto fire = [&](int x, int y, int n) {
+    for (int k = 0; k < n; ++k) ev.push_back(t += 1e-6, x, y, k % 2 ? 1 : -1);
+  };
+  for (int y = 8; y < 24; y += 2)
+    for (int x = 8; x < 24; x += 2) fire(x, y, 100);
+  SUBCASE("the red sites share their count with the red sites two apart: none is suspected") {
+    CHECK(suspected_hot_pixels(ev).empty());
+  }
+  SUBCASE("the hot green site stands out against its neighbours and against the green sites two apart") {
+    fire(13, 12, 300);
+    const auto hot = suspected_hot_pixels(ev);
+    REQUIRE(hot.size() == 1);
+    CHECK(hot[0].x == 13);
+    CHECK(hot[0].y == 12);
+    CHECK(hot[0].events == 300);
+    CHECK(hot[0].neighbours == 100);  // its red neighbours at (12, 12) and (14, 12)
+  }
+  SUBCASE("a lone busy pixel on a plain sensor is suspected") {
+    EventStream one;
+    one.width = one.height = 16;
+    for (int k = 0; k < 60; ++k) one.push_back(1e-6 * k, 5, 7, 1);
+    const auto hot = suspected_hot_pixels(one);
+    REQUIRE(hot.size() == 1);
+    CHECK(hot[0].neighbours == 0);
+  }
 }
