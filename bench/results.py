@@ -134,25 +134,30 @@ def mesh_section(rows):
          f"training seed {first['seed']}, " + (f"`train --background {first['background']}` (the backdrop's known luminance, as "
          "EventNeRF's runs know theirs) and " if first.get("background") else "no background given to `train`, ") +
          f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`. The held-out views lie on a second orbit at 50°, never trained on; only the model",
-         "renders them. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
+         "renders them, and beside it a flat frame (one brightness per channel, which the alignment fits) scores what",
+         "rendering nothing of the object would. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
          "`global-log-offset` (one log offset per channel, E-3DGS's correction). Training seconds are `train`'s wall time",
          "on a shared machine (5–25 % between runs). A montage per asset and mode is in `bench/results/mesh/`: the",
          "training path's middle frame (truth | ours | direct integration | high-pass filter) above a held-out view",
          "(truth | ours).", "",
-         "| asset | mode | path: ours | direct integration | high-pass filter | held-out: ours | eventnerf | global-log-offset | training s | samples/ray |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
-    means = {}
+         "| asset | mode | path: ours | direct integration | high-pass filter | held-out: ours | flat frame | eventnerf | global-log-offset | training s | samples/ray |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    means, flats = {}, {}
     for asset, mode in dict.fromkeys((r["asset"], r["mode"]) for r in rows):
         ours, r = cell(asset, mode, "path", "global-log-affine")
         novel, nr = cell(asset, mode, "novel", "global-log-affine")
+        flat, fr = cell(asset, mode, "novel", "global-log-affine", "flat")
         if nr:
             means.setdefault(mode, []).append(float(nr["psnr"]))
+        if fr:
+            flats.setdefault(mode, []).append(float(fr["psnr"]))
         p.append(f"| {asset} ({r['kind'] if r else ''}) | {mode} | {ours} | {cell(asset, mode, 'path', 'global-log-affine', 'direct_integration')[0]} | "
-                 f"{cell(asset, mode, 'path', 'global-log-affine', 'high_pass_filter')[0]} | {novel} | {cell(asset, mode, 'novel', 'eventnerf')[0]} | "
+                 f"{cell(asset, mode, 'path', 'global-log-affine', 'high_pass_filter')[0]} | {novel} | {flat} | {cell(asset, mode, 'novel', 'eventnerf')[0]} | "
                  f"{cell(asset, mode, 'novel', 'global-log-offset')[0]} | {float(r['train_seconds']):.0f} | {r['samples_per_ray']} |")
     p.append("")
     for mode, v in means.items():
-        p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets (global-log-affine).")
+        flat = f" (a flat frame: {statistics.mean(flats[mode]):.2f} dB)" if len(flats.get(mode, [])) == len(v) else ""
+        p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets{flat} (global-log-affine).")
     return p
 
 

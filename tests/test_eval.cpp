@@ -158,6 +158,34 @@ TEST_CASE("alignment: the offset-only fit undoes a log offset per channel over t
   CHECK(std::string(eval::to_string(eval::Alignment::GlobalLogOffset)) == "global-log-offset");
 }
 
+TEST_CASE("flat frames: every log alignment brings them to the views' mean log brightness per channel, below a true render") {
+  std::vector<Image> gts;
+  for (int f = 0; f < 3; ++f) {
+    const Image g = det(24, 16, 0.1 + 0.2 * f, 0.5);
+    Image gt(24, 16, 3);
+    for (std::size_t i = 0; i < g.pixels(); ++i)
+      for (int c = 0; c < 3; ++c) gt.data[3 * i + c] = (0.2f + 0.3f * c) * g.data[i];
+    gts.push_back(gt);
+  }
+  const auto flat = eval::flat_frames(gts);
+  CHECK(flat.name == "flat");
+  REQUIRE(flat.images.size() == gts.size());
+  CHECK(flat.images[1].channels == 3);
+  // The level each channel should get: exp(mean of log(x + ε) over every pixel of every view) − ε.
+  double level[3] = {0, 0, 0};
+  for (const auto& g : gts)
+    for (std::size_t i = 0; i < g.data.size(); ++i) level[i % 3] += std::log(g.data[i] + eval::kLogEps);
+  const double n = static_cast<double>(gts.size() * gts[0].pixels());
+  for (auto al : {eval::Alignment::GlobalLogAffine, eval::Alignment::GlobalLogOffset}) {
+    const auto s = eval::score_methods({flat, {"truth", gts}}, gts, al, true);
+    for (const auto& im : s.aligned[0])
+      for (std::size_t i = 0; i < im.data.size(); ++i)
+        REQUIRE(im.data[i] == doctest::Approx(std::exp(level[i % 3] / n) - eval::kLogEps).epsilon(1e-5));
+    CHECK(eval::mean(s.per_frame[0]).psnr < 40);
+    CHECK(eval::mean(s.per_frame[1]).psnr > 60);
+  }
+}
+
 TEST_CASE("HDR scoring: the truth's log range is put on [0, 1], a known map is undone, clipping is seen") {
   // Linear truth spanning 9 nats (1e-4 .. 0.8); a prediction that is a power law of it (exact in log space
   // when the offset is negligible) scores perfectly under the sequence fit, and the same prediction clipped

@@ -507,7 +507,8 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
         print_table(e.scored.primary, e.heldout);
       }
       if (e.novel) {
-        fmt::print("views off the training path ({}, the recording's novel/; ours only, each alignment fitted over these views):\n",
+        fmt::print("views off the training path ({}, the recording's novel/; ours beside a flat frame, each alignment fitted over "
+                   "these views):\n",
                    e.novel_renders.size());
         print_table(e.novel->primary);
         for (const auto& o : e.novel->others) print_table(o);

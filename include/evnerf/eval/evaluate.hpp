@@ -296,8 +296,8 @@ struct Evaluation {
   Scored scored;
   bool colour = false;
   std::vector<std::size_t> heldout;  ///< positions in `ids` of the never-trained frames (holdout > 0)
-  /// The recording's held-out views (Dataset::novel), the model's renders there and its scores (no baseline
-  /// renders a pose it has no events from); empty without them.
+  /// The recording's held-out views (Dataset::novel), the model's renders there and its scores beside the
+  /// flat frame's (eval::flat_frames: no baseline renders a pose it has no events from); empty without them.
   std::vector<Rendering> novel_renders;
   Truth novel_truth;
   std::optional<Scored> novel;
@@ -372,7 +372,7 @@ inline Evaluation evaluate(const Renderable& model, const io::Dataset& d, const 
       if (k < d.novel.depth.size()) gtd.push_back(io::load_npy<float>(d.novel.depth[k]).data);
       views.push_back(k);
     }
-    e.novel = score_all({mine}, e.novel_truth, als, views);
+    e.novel = score_all({mine, eval::flat_frames(mine.images)}, e.novel_truth, als, views);
     nlohmann::json nj = e.novel->json;
     nj["count"] = views.size();
     if (gtd.size() == nd.size()) {

@@ -20,6 +20,16 @@ struct Method {
   std::vector<Image> images;
 };
 
+/// The reference scored beside a model where no baseline can be (views off the training path): "flat", one
+/// frame of one brightness per channel for each of `like`, which each alignment brings to its best level
+/// over the frames. It is what a model that renders nothing of the scene scores there. A view that is mostly
+/// plain background gives it a high score, so a model's score says most as its margin above this one.
+inline Method flat_frames(const std::vector<Image>& like) {
+  Method m{"flat", {}};
+  for (const auto& im : like) m.images.emplace_back(im.width, im.height, im.channels, 0.5f);
+  return m;
+}
+
 /// Every method's per-frame scores under one alignment.
 struct AlignedScores {
   Alignment alignment = Alignment::GlobalLogAffine;
