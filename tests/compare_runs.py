@@ -9,12 +9,13 @@ import sys
 
 
 def params(path):
-    """io/checkpoint.hpp: magic, version, name, counts, step, box, density length, background, loss, architecture, then
+    """io/checkpoint.hpp: magic, version, name, counts, step, box, density length, background, the refractory period's
+    record (period, its Adam moments, learned), loss, architecture, then
     the parameters and Adam's m and v (the metadata with the source path follows)."""
     b = open(path, "rb").read()
     o = 16 + 8 + struct.unpack_from("<Q", b, 16)[0]
     count = struct.unpack_from("<Q", b, o)[0]
-    o += 8 + 8 + 8 + 48 + 8 + 8
+    o += 8 + 8 + 8 + 48 + 8 + 8 + 32
     for _ in range(2):  # loss, architecture
         o += 8 + struct.unpack_from("<Q", b, o)[0]
     return b[o:o + count * 12]

@@ -105,7 +105,7 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   for (int s = 0; s < 2; ++s) a.train_step(f.td, 128, 3);
   const std::string good = a.serialize("tiny", f.run());
   const std::size_t n = a.params().size();
-  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + (8 + Tiny::loss_description().size()) +
+  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) +
                              (8 + Tiny::architecture().size());
   // Values as 4-byte floats: the parameters, Adam's m and v, then the average's count and decay, its values.
   auto with = [&](std::size_t at, float value) {
@@ -177,6 +177,30 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
           with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
   }
+  // A refractory period comes back with its optimiser state, and a resumed step is the uninterrupted one's.
+  CHECK_FALSE(t.refractory().active());
+  {
+    Tiny learn(f.td.slices.size(), box, 7), back_r;
+    learn.set_refractory(1e-4, true);
+    for (int s = 0; s < 3; ++s) learn.train_step(f.td, 128, 3);
+    REQUIRE(learn.refractory().seconds != 1e-4);  // it moved
+    back_r.deserialize(learn.serialize("tiny", run), "r.ckpt");
+    CHECK(back_r.refractory().seconds == learn.refractory().seconds);
+    CHECK(back_r.refractory().m == learn.refractory().m);
+    CHECK(back_r.refractory().v == learn.refractory().v);
+    CHECK(back_r.refractory().learned);
+    learn.train_step(f.td, 128, 3);
+    back_r.train_step(f.td, 128, 3);
+    CHECK(back_r.refractory().seconds == learn.refractory().seconds);
+    CHECK(back_r.params().values == learn.params().values);
+    Tiny fixed(f.td.slices.size(), box, 7), back_f;
+    fixed.set_refractory(2e-4, false);
+    fixed.train_step(f.td, 128, 3);
+    CHECK(fixed.refractory().seconds == 2e-4);  // a given period stays
+    back_f.deserialize(fixed.serialize("tiny", run), "f.ckpt");
+    CHECK(back_f.refractory().seconds == 2e-4);
+    CHECK_FALSE(back_f.refractory().learned);
+  }
   CHECK(Tiny::loss_description() == "bounds split 1, thresholds joint, noise 50 per mille");
   // A model saved outside a run records none; it loads, and render and eval refuse it (evaluation::load_model).
   CHECK(t.deserialize(a.serialize("tiny", {}), "m.ckpt").times.empty());
@@ -187,12 +211,12 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   };
   const std::string body = good.substr(0, good.size() - 8);
   // Another format version, older or newer, is refused with the one this build reads.
-  for (std::uint64_t version : {std::uint64_t{7}, std::uint64_t{9}}) {
+  for (std::uint64_t version : {std::uint64_t{8}, std::uint64_t{10}}) {
     std::string other = body;
     std::memcpy(other.data() + 8, &version, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(other), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: format version " + std::to_string(version) +
-                                         "; this build reads version 8 only").c_str()));
+                                         "; this build reads version 9 only").c_str()));
   }
   // A nonsensical density length.
   const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
@@ -207,6 +231,21 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: the background luminance is " + short_number(v)).c_str()));
   }
+  // A refractory period's record that training never writes: a period beyond a second or not finite, a
+  // moment not finite, a negative second moment, a learned flag other than 0 or 1.
+  for (const auto& [offset, v] : std::vector<std::pair<std::size_t, double>>{{16, 2.0},
+                                                                              {16, std::numeric_limits<double>::quiet_NaN()},
+                                                                              {24, std::numeric_limits<double>::infinity()},
+                                                                              {32, -1.0}}) {
+    bad = body;
+    std::memcpy(bad.data() + at + offset, &v, 8);
+    CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
+                      doctest::Contains("x.ckpt:0: corrupt or mismatched checkpoint: the refractory period's record"));
+  }
+  bad = body;
+  const std::uint64_t two = 2;
+  std::memcpy(bad.data() + at + 40, &two, 8);
+  CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"), doctest::Contains("learned 2) is not one training writes"));
   // A model trained with other bounds refuses the file, naming both losses.
   using TinyHalfSlack = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
   TinyHalfSlack other;
@@ -252,7 +291,8 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   // The refused loads left the model as the good file made it.
   CHECK(t.params().values == a.params().values);
   // A file whose average does not match the model, or whose decay is out of range, is refused.
-  const std::size_t header = at + 8 + 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());  // density length, background
+  // density length, background, the refractory period's record
+  const std::size_t header = at + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());
   const std::size_t moments_end = header + 12 * a.params().size();
   Tiny avg(f.td.slices.size(), box, 7);
   avg.set_average(0.9);

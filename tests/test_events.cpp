@@ -48,12 +48,12 @@ TEST_CASE("slicing counts positive and negative events per pixel exactly like a 
   CHECK(set.slices[1].total == 0);  // an empty slice between two close boundaries
 }
 
-TEST_CASE("slicing with a refractory period marks the counts of a pixel that fired as fast as it could, in the slices of both events") {
-  // Pixel 0 fires ON at 0.10 and 0.1012 (1.2 ms apart: within 1.5 periods of 1 ms) across the boundary 0.101;
-  // pixel 1 fires OFF three times 2 ms apart (slow); pixel 2 fires OFF then ON 0.5 ms apart in slice 2; pixel
-  // 3's one event has nothing before it.
+TEST_CASE("slicing keeps each event's interval since the pixel's previous event, signed by its polarity, per active pixel") {
+  // Pixel 0 fires ON at 0.1000 and 0.1012 across the boundary 0.101; pixel 1 OFF three times 2 ms apart;
+  // pixel 2 OFF then ON 0.5 ms apart in slice 2; pixel 3 fired once before T_0, which its interval counts from.
   EventStream ev;
   ev.width = 4, ev.height = 1;
+  ev.push_back(0.0980, 3, 0, 1);
   ev.push_back(0.0995, 1, 0, -1);
   ev.push_back(0.1000, 0, 0, 1);
   ev.push_back(0.1005, 3, 0, 1);
@@ -64,25 +64,59 @@ TEST_CASE("slicing with a refractory period marks the counts of a pixel that fir
   ev.push_back(0.1035, 2, 0, 1);
   const std::vector<double> b{0.099, 0.101, 0.103, 0.104};
   const auto plain = slice_events(ev, b);
-  for (const auto& s : plain.slices) CHECK(s.limited.empty());
-  const auto set = slice_events(ev, b, 1e-3);
+  for (const auto& s : plain.slices) CHECK(!s.has_intervals());
+  const auto set = slice_events(ev, b, true);
   REQUIRE(set.size() == 3);
+  const float inf = std::numeric_limits<float>::infinity();
+  auto gaps = [&](std::size_t slice, std::uint32_t pix) {
+    const auto [g0, g1] = set.slices[slice].intervals(pix);
+    return std::vector<float>(g0, g1);
+  };
   for (std::size_t i = 0; i < 3; ++i) {
     CAPTURE(i);
     CHECK(set.slices[i].pos == plain.slices[i].pos);  // the counts themselves do not change
     CHECK(set.slices[i].neg == plain.slices[i].neg);
-    REQUIRE(set.slices[i].limited.size() == 4);
+    CHECK(set.slices[i].gap.size() == set.slices[i].total);
   }
-  CHECK(set.slices[0].limited == std::vector<std::uint8_t>{1, 0, 0, 0});
-  CHECK(set.slices[1].limited == std::vector<std::uint8_t>{1, 0, 0, 0});
-  CHECK(set.slices[2].limited == std::vector<std::uint8_t>{0, 0, 1, 0});  // only the ON event came fast
-  // A period under every interval marks nothing; a longer one marks pixel 1's OFF counts too.
-  for (const auto& s : slice_events(ev, b, 1e-4).slices) CHECK(s.limited == std::vector<std::uint8_t>(4, 0));
-  const auto slow = slice_events(ev, b, 1.5e-3);
-  CHECK(slow.slices[0].limited == std::vector<std::uint8_t>{1, 2, 0, 0});
-  CHECK(slow.slices[1].limited == std::vector<std::uint8_t>{1, 2, 0, 0});
-  CHECK(slow.slices[2].limited == std::vector<std::uint8_t>{0, 2, 1, 0});
-  CHECK_THROWS_WITH(slice_events(ev, b, -1.0), doctest::Contains("refractory period must be positive"));
+  CHECK(gaps(0, 0) == std::vector<float>{inf});
+  CHECK(gaps(0, 1) == std::vector<float>{-inf});
+  CHECK(gaps(0, 2).empty());
+  CHECK(gaps(0, 3) == std::vector<float>{static_cast<float>(0.1005 - 0.0980)});
+  CHECK(gaps(1, 0) == std::vector<float>{static_cast<float>(0.1012 - 0.1000)});
+  CHECK(gaps(1, 1) == std::vector<float>{-static_cast<float>(0.1015 - 0.0995)});
+  CHECK(gaps(2, 1) == std::vector<float>{-static_cast<float>(0.1035 - 0.1015)});
+  CHECK(gaps(2, 2) == std::vector<float>{-inf, static_cast<float>(0.1035 - 0.1030)});  // in time order, either polarity before
+  // Noise injection makes counts without intervals.
+  Rng rng(1);
+  CHECK(!inject_noise(set.slices[0], 0.5, rng).has_intervals());
+}
+
+TEST_CASE("dead-time weight: gap / (gap - period) crossings per event, saturated within 1.5 periods, its derivative exact") {
+  const double tau = 1e-4;
+  CHECK(dead_time_weight(2e-4, tau).weight == doctest::Approx(2.0));
+  CHECK(dead_time_weight(1e-3, tau).weight == doctest::Approx(1e-3 / 9e-4));
+  CHECK(!dead_time_weight(1.6e-4, tau).saturated);
+  const auto sat = dead_time_weight(1.2e-4, tau);
+  CHECK(sat.saturated);
+  CHECK(sat.weight == doctest::Approx(3.0));  // the weight at the saturation's edge, continuous there
+  CHECK(dead_time_weight(1.5e-4 * (1 + 1e-9), tau).weight == doctest::Approx(3.0).epsilon(1e-6));
+  CHECK(sat.dweight == 0.0);
+  const auto first = dead_time_weight(std::numeric_limits<double>::infinity(), tau);
+  CHECK(first.weight == 1.0);
+  CHECK(first.dweight == 0.0);
+  // No period: one crossing per event, and the derivative is the slope at 0 (1 / gap).
+  CHECK(dead_time_weight(2e-4, 0).weight == 1.0);
+  CHECK(dead_time_weight(2e-4, 0).dweight == doctest::Approx(5e3));
+  // The derivative against central differences, at and away from 0.
+  for (const double g : {1.7e-4, 3e-4, 2e-3})
+    for (const double t : {0.0, 2e-5, 1e-4}) {
+      if (g <= 1.5 * t) continue;
+      CAPTURE(g);
+      CAPTURE(t);
+      const double h = 1e-9, tl = std::max(0.0, t - h), th = t + h;
+      const double fd = (dead_time_weight(g, th).weight - dead_time_weight(g, tl).weight) / (th - tl);
+      CHECK(dead_time_weight(g, t).dweight == doctest::Approx(fd).epsilon(1e-4));
+    }
 }
 
 TEST_CASE("uniform boundaries and bad boundaries") {

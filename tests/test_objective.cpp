@@ -1,6 +1,8 @@
 // Objectives (loss/objective.hpp), the total-variation penalty (loss/total_variation.hpp) and pixel policies
 // (events/pixels.hpp).
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <set>
 
 #include <evnerf/loss/objective.hpp>
@@ -11,32 +13,50 @@
 using namespace evnerf;
 
 namespace {
+/// A window's counts as the crossings they stand for (loss::DeadTimeCounts' storage); empty: plain counts.
+struct Weighted {
+  std::vector<double> wp, wm, dwp, dwm;
+  std::vector<std::uint8_t> lim;
+  loss::DeadTimeCounts view() const {
+    if (wp.empty()) return {};
+    return {wp.data(), wm.data(), dwp.data(), dwm.data(), lim.data()};
+  }
+};
+/// The counts as they are, with saturated bits `lim` (empty: none).
+Weighted with_bits(const std::vector<int>& np, const std::vector<int>& nn, const std::vector<std::uint8_t>& lim) {
+  if (lim.empty()) return {};
+  Weighted w;
+  w.wp.assign(np.begin(), np.end());
+  w.wm.assign(nn.begin(), nn.end());
+  w.dwp.assign(np.size(), 0.0);
+  w.dwm.assign(np.size(), 0.0);
+  w.lim = lim;
+  return w;
+}
 /// Loss of one pixel over a window with x = (l0, l1, B⁺_0, B⁻_0, …, B⁺_{L-1}, B⁻_{L-1}).
-/// `lim`: the slices' rate-limited bits (SliceCounts::limited), empty for none.
 template <class Bound>
-double window_value(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn,
-                    const std::vector<std::uint8_t>& lim = {}) {
+double window_value(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn, const Weighted& w = {}) {
   const int L = static_cast<int>(np.size());
   std::vector<double> bp(L), bm(L), g1(L), g2(L);
   for (int k = 0; k < L; ++k) {
     bp[k] = x[2 + 2 * k];
     bm[k] = x[3 + 2 * k];
   }
-  return loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3,
-                                        lim.empty() ? nullptr : lim.data())
+  return loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3, w.view())
       .value;
 }
+/// The gradient for x, and dloss/dτ appended where `gtau` is given.
 template <class Bound>
-std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn,
-                                const std::vector<std::uint8_t>& lim = {}) {
+std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn, const Weighted& w = {},
+                                double* gtau = nullptr) {
   const int L = static_cast<int>(np.size());
   std::vector<double> bp(L), bm(L), g1(L, 0.0), g2(L, 0.0);
   for (int k = 0; k < L; ++k) {
     bp[k] = x[2 + 2 * k];
     bm[k] = x[3 + 2 * k];
   }
-  const auto r = loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3,
-                                                lim.empty() ? nullptr : lim.data());
+  const auto r =
+      loss::window_pixel_loss<Bound>(x[0], x[1], L, np.data(), nn.data(), bp.data(), bm.data(), g1.data(), g2.data(), 1e-3, w.view(), gtau);
   std::vector<double> g{r.dl0, r.dl1};
   for (int k = 0; k < L; ++k) {
     g.push_back(g1[k]);
@@ -65,10 +85,11 @@ TEST_CASE_TEMPLATE("window objective: finite differences in double match the gra
     std::vector<std::uint8_t> lim;  // every fourth window with rate-limited counts (one end open)
     if (trial % 4 == 1)
       for (int k = 0; k < L; ++k) lim.push_back(static_cast<std::uint8_t>(k == 0 ? 1 + rng.below(2) : 0));
-    const auto g = window_grad<Bound>(x, np, nn, lim);
-    const double err = evtest::max_fd_error([&](const std::vector<double>& v) { return window_value<Bound>(v, np, nn, lim); }, x, g);
+    const Weighted w = with_bits(np, nn, lim);
+    const auto g = window_grad<Bound>(x, np, nn, w);
+    const double err = evtest::max_fd_error([&](const std::vector<double>& v) { return window_value<Bound>(v, np, nn, w); }, x, g);
     // The hinge has kinks; a draw within h of one is skipped by the value check below.
-    const double v = window_value<Bound>(x, np, nn, lim);
+    const double v = window_value<Bound>(x, np, nn, w);
     if (v > 1e-3) {
       ++checked_nonzero;
       CAPTURE(trial);
@@ -76,6 +97,80 @@ TEST_CASE_TEMPLATE("window objective: finite differences in double match the gra
     }
   }
   CHECK(checked_nonzero > 50);  // the check saw the hinge's active side often
+}
+
+TEST_CASE_TEMPLATE("window objective under a refractory period: finite differences in double for the luminances, thresholds and the period",
+                   Bound, loss::SplitCounts<1>, loss::HalfSlackCounts) {
+  // Each slice's events with random intervals (some a pixel's first, some saturated at the period of the
+  // draw); the period is x's last entry, in units of 0.1 ms, so that the difference step stays far inside
+  // every interval's distance to its saturation.
+  Rng rng(9);
+  int checked = 0, moved = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const int L = 1 + static_cast<int>(rng.below(4));
+    const double tau0 = 1e-4 * (0.2 + 1.5 * rng.uniform());
+    std::vector<int> np(L), nn(L);
+    std::vector<std::vector<double>> gaps(L);  // signed, as SliceCounts::gap
+    for (int k = 0; k < L; ++k) {
+      np[k] = static_cast<int>(rng.below(4));
+      nn[k] = static_cast<int>(rng.below(3));
+      for (int e = 0; e < np[k] + nn[k]; ++e) {
+        const double u = rng.uniform();
+        const double g = u < 0.15 ? std::numeric_limits<double>::infinity() : u < 0.3 ? tau0 * (0.5 + rng.uniform()) : tau0 * (1.7 + 8 * rng.uniform());
+        gaps[k].push_back(e < np[k] ? g : -g);
+      }
+    }
+    auto weighted = [&](double tau) {
+      Weighted w;
+      w.wp.assign(L, 0.0), w.wm.assign(L, 0.0), w.dwp.assign(L, 0.0), w.dwm.assign(L, 0.0), w.lim.assign(L, 0);
+      for (int k = 0; k < L; ++k)
+        for (const double g : gaps[k]) {
+          const auto d = events::dead_time_weight(std::abs(g), tau);
+          (g > 0 ? w.wp : w.wm)[k] += d.weight;
+          (g > 0 ? w.dwp : w.dwm)[k] += d.dweight;
+          if (d.saturated) w.lim[k] |= g > 0 ? 1 : 2;
+        }
+      return w;
+    };
+    std::vector<double> x{0.05 + 0.9 * rng.uniform(), 0.05 + 0.9 * rng.uniform()};
+    for (int k = 0; k < L; ++k) {
+      x.push_back(0.15 + 0.4 * rng.uniform());
+      x.push_back(-0.15 - 0.4 * rng.uniform());
+    }
+    x.push_back(tau0 / 1e-4);
+    auto f = [&](const std::vector<double>& v) {
+      return window_value<Bound>(std::vector<double>(v.begin(), v.end() - 1), np, nn, weighted(v.back() * 1e-4));
+    };
+    double gtau = 0;
+    auto g = window_grad<Bound>(std::vector<double>(x.begin(), x.end() - 1), np, nn, weighted(tau0), &gtau);
+    g.push_back(gtau * 1e-4);
+    if (f(x) > 1e-3) {
+      ++checked;
+      moved += gtau != 0;
+      CAPTURE(trial);
+      CHECK(evtest::max_fd_error(f, x, g) < 1e-5);
+    }
+  }
+  CHECK(checked > 60);
+  CHECK(moved > 30);  // the period's gradient was not trivially zero
+}
+
+TEST_CASE("window objective: with every weight one, a refractory period's path is the plain counts' path to the bit") {
+  Rng rng(2);
+  for (int trial = 0; trial < 100; ++trial) {
+    const int L = 1 + static_cast<int>(rng.below(6));
+    std::vector<int> np(L), nn(L);
+    std::vector<double> x{0.05 + 0.9 * rng.uniform(), 0.05 + 0.9 * rng.uniform()};
+    for (int k = 0; k < L; ++k) {
+      np[k] = static_cast<int>(rng.below(4));
+      nn[k] = static_cast<int>(rng.below(3));
+      x.push_back(0.15 + 0.4 * rng.uniform());
+      x.push_back(-0.15 - 0.4 * rng.uniform());
+    }
+    const Weighted w = with_bits(np, nn, std::vector<std::uint8_t>(L, 0));
+    CHECK(window_grad<loss::HalfSlackCounts>(x, np, nn, w) == window_grad<loss::HalfSlackCounts>(x, np, nn));
+    CHECK(window_value<loss::HalfSlackCounts>(x, np, nn, w) == window_value<loss::HalfSlackCounts>(x, np, nn));
+  }
 }
 
 TEST_CASE("window objective: one slice is spec §2's EventBounds exactly, the window's centre is Σ n_k B_k") {
@@ -102,14 +197,15 @@ TEST_CASE("window objective: one slice is spec §2's EventBounds exactly, the wi
   CHECK(loss::window_pixel_loss<loss::SplitCounts<1>>(a, b2, 2, np2, nn2, bp2, bm2, gp, gm).value == doctest::Approx(0.1));
 }
 
-TEST_CASE("window objective: a rate-limited count opens its end of the interval and leaves the other end as it was") {
+TEST_CASE("window objective: a saturated count opens its end of the interval and leaves the other end as it was") {
   // Two slices, 3 ON and 1 OFF event; B± = ±0.25. The interval (half slack) is μ ± 0.125, μ = 0.5.
   const int np[2] = {2, 1}, nn[2] = {0, 1};
   const double bp[2] = {0.25, 0.25}, bm[2] = {-0.25, -0.25}, l0 = 0.3;
   auto cost = [&](double change, std::vector<std::uint8_t> lim) {
     double gp[2] = {0, 0}, gm[2] = {0, 0};
     const double l1 = std::exp(change) * (l0 + 1e-3) - 1e-3;
-    return loss::window_pixel_loss<loss::HalfSlackCounts>(l0, l1, 2, np, nn, bp, bm, gp, gm, 1e-3, lim.empty() ? nullptr : lim.data()).value;
+    const Weighted w = with_bits({np[0], np[1]}, {nn[0], nn[1]}, lim);
+    return loss::window_pixel_loss<loss::HalfSlackCounts>(l0, l1, 2, np, nn, bp, bm, gp, gm, 1e-3, w.view()).value;
   };
   CHECK(cost(1.5, {}) == doctest::Approx(1.5 - 0.625));
   CHECK(cost(-0.5, {}) == doctest::Approx(0.375 + 0.5));

@@ -134,7 +134,7 @@ TEST_CASE("training data: suspected hot pixels are never drawn, keep_hot_pixels 
   CHECK(kept.sites.all());
 }
 
-TEST_CASE("training data: with the sensor's refractory period, the counts it limits are marked and every step draws their marks") {
+TEST_CASE("training data: the slices keep their events' intervals unless the period is 0, and a step weighs its counts by them") {
   sim::SimulateOptions so;
   so.width = 64;
   so.height = 48;
@@ -142,37 +142,55 @@ TEST_CASE("training data: with the sensor's refractory period, the counts it lim
   so.sensor.refractory = 2e-3;
   const auto d = sim::to_dataset(sim::simulate("planes", so));
   train::Config cfg;
+  cfg.refractory = 0.0;
   const auto plain = train::prepare(d, cfg);
-  for (const auto& s : plain.slices.slices) CHECK(s.limited.empty());
-  cfg.refractory = 2e-3;
+  for (const auto& s : plain.slices.slices) CHECK(!s.has_intervals());
+  cfg.refractory.reset();  // learned: the intervals are kept
   const auto td = train::prepare(d, cfg);
-  std::size_t marked = 0, active = 0;
-  for (const auto& s : td.slices.slices) {
-    REQUIRE(s.limited.size() == s.pixels());
-    active += s.active.size();
-    for (std::size_t p = 0; p < s.pixels(); ++p) {
-      marked += s.limited[p] != 0;
-      if (s.limited[p] & 1) CHECK(s.pos[p] > 0);  // a mark on a polarity with events of that polarity
-      if (s.limited[p] & 2) CHECK(s.neg[p] > 0);
-    }
-  }
-  CHECK(marked > 0);
-  CHECK(marked < active);
+  for (const auto& s : td.slices.slices) CHECK(s.gap.size() == s.total);
   Rng rng(3);
   loss::StepDraw draw;
-  bool seen = false;
+  std::size_t saturated = 0, counted = 0;
   for (int step = 0; step < 20; ++step) {
-    loss::draw_step<loss::WindowInterval<24>>(td.slices, td.slice_enabled, td.prefix, 0.0, 256, rng, draw, &td.sites);
-    REQUIRE(draw.limited.size() == draw.pixels.size() * draw.len);
+    const double tau = step % 3 == 0 ? 0.0 : step % 3 == 1 ? 4e-3 : 5e-3;  // the sensor's 2 ms leaves intervals of 4.5 ms and more
+    loss::draw_step<loss::WindowInterval<24>>(td.slices, td.slice_enabled, td.prefix, 0.0, 256, rng, draw, &td.sites, 1, tau);
+    REQUIRE(draw.wpos.size() == draw.pixels.size() * draw.len);
     for (std::size_t i = 0; i < draw.pixels.size(); ++i)
       for (std::size_t k = 0; k < draw.len; ++k) {
-        CHECK(draw.limited[i * draw.len + k] == td.slices.slices[draw.first + k].limited[draw.pixels[i]]);
-        seen = seen || draw.limited[i * draw.len + k] != 0;
+        // The plain sum over the pixel's events, by polarity.
+        const auto& c = td.slices.slices[draw.first + k];
+        double w[2] = {0, 0}, dw[2] = {0, 0};
+        std::uint8_t bits = 0;
+        for (std::size_t e = 0; e < c.gap.size(); ++e) {
+          const auto a = static_cast<std::size_t>(std::upper_bound(c.gap_start.begin(), c.gap_start.end(), e) - c.gap_start.begin()) - 1;
+          if (c.active[a] != draw.pixels[i]) continue;
+          const int on = c.gap[e] > 0 ? 0 : 1;
+          const auto dt = events::dead_time_weight(std::abs(static_cast<double>(c.gap[e])), tau);
+          w[on] += dt.weight;
+          dw[on] += dt.dweight;
+          if (dt.saturated) bits |= on == 0 ? 1 : 2;
+        }
+        const std::size_t o = i * draw.len + k;
+        CHECK(draw.wpos[o] == doctest::Approx(w[0]));
+        CHECK(draw.wneg[o] == doctest::Approx(w[1]));
+        CHECK(draw.dwpos[o] == doctest::Approx(dw[0]));
+        CHECK(draw.dwneg[o] == doctest::Approx(dw[1]));
+        CHECK(draw.limited[o] == bits);
+        CHECK(draw.wpos[o] >= draw.npos[o]);  // a period only ever adds crossings
+        if (tau == 0) CHECK(draw.wpos[o] == draw.npos[o]);
+        saturated += bits != 0;
+        counted += draw.npos[o] + draw.nneg[o] > 0;
       }
   }
-  CHECK(seen);
+  CHECK(saturated > 0);  // the sensor's 2 ms period leaves saturated counts, but not everywhere
+  CHECK(saturated < counted);
+  // Plain counts draw no weights; slices without intervals refuse a period.
   loss::draw_step<loss::WindowInterval<24>>(plain.slices, plain.slice_enabled, plain.prefix, 0.0, 256, rng, draw, &plain.sites);
+  CHECK(draw.wpos.empty());
   CHECK(draw.limited.empty());
+  CHECK_THROWS_WITH(loss::draw_step<loss::WindowInterval<24>>(plain.slices, plain.slice_enabled, plain.prefix, 0.0, 256, rng, draw,
+                                                              &plain.sites, 1, 1e-3),
+                    doctest::Contains("needs the slices' event intervals"));
 }
 
 TEST_CASE("noise injection inside training draws a fresh noise map per step") {

@@ -10,7 +10,8 @@ struct Fixture {
   evnerf::io::Dataset d;
   evnerf::TrainingData td;
   evnerf::train::Config cfg;
-  Fixture() {
+  /// `threshold`: the sensor's contrast threshold (a finer one fires more events, closer together).
+  explicit Fixture(double threshold = 0.25) {
     auto spec = evnerf::sim::parse_scene("plane 0 0 1.5 0 0 -1 1 0 0 0 0 checker 2\npath slider -0.1 0 0 0.1 0 0 0 0 1 0.5\n", "tiny.txt");
     evnerf::sim::SensorConfig sc;
     sc.width = 32;
@@ -18,6 +19,7 @@ struct Fixture {
     sc.fx = sc.fy = 30;
     sc.cx = sc.cy = -1;
     sc.frame_rate = 12;
+    sc.threshold_pos = sc.threshold_neg = threshold;
     auto rec = evnerf::sim::Simulator(spec, sc).run();
     d.camera = rec.camera;
     d.events = rec.events;

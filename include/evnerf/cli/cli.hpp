@@ -104,6 +104,8 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
   if (lead)
     fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
                r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
+  if (const auto& rp = trainer.model().refractory(); lead && rp.active())
+    fmt::print("refractory period {:.1f} us ({})\n", rp.seconds * 1e6, rp.learned ? "learned" : "given");
   if (r.diverged) return 3;
   if (r.stopped) {
     // In a group the signal may have reached another process only: its stop is shared (train::run).

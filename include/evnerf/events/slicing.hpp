@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "../core/error.hpp"
@@ -19,13 +20,23 @@ struct SliceCounts {
   std::vector<std::int16_t> pos, neg;   ///< n⁺ and n⁻ (both non-negative)
   std::vector<std::uint32_t> active;    ///< pixel indices with at least one event, increasing
   std::size_t total = 0;                ///< events counted (Σ n⁺ + n⁻)
-  /// Counts that are lower bounds (slice_events with a refractory period; empty otherwise): bit 0 the
-  /// pixel's n⁺, bit 1 its n⁻, set where the pixel fired at the rate its refractory period allows, which
-  /// swallows threshold crossings (the sensor's reference level moves on without an event).
-  std::vector<std::uint8_t> limited;
+  /// The intervals behind the counts (slice_events with `intervals`; empty otherwise): the events of active
+  /// pixel a (active[a]) are gap[gap_start[a] .. gap_start[a + 1]), in time order, each the seconds since the
+  /// pixel's previous event of either polarity (infinity for its first), negative for an OFF event. A
+  /// refractory period reads them (dead_time_weight).
+  std::vector<std::uint32_t> gap_start;
+  std::vector<float> gap;
 
   std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
   int signed_count(std::size_t pix) const { return pos[pix] - neg[pix]; }
+  bool has_intervals() const { return !gap_start.empty(); }
+  /// The signed intervals of pixel `pix`'s events in this slice ([first, last); empty where it has none).
+  std::pair<const float*, const float*> intervals(std::uint32_t pix) const {
+    const auto it = std::lower_bound(active.begin(), active.end(), pix);
+    if (gap_start.empty() || it == active.end() || *it != pix) return {nullptr, nullptr};
+    const auto a = static_cast<std::size_t>(it - active.begin());
+    return {gap.data() + gap_start[a], gap.data() + gap_start[a + 1]};
+  }
 };
 
 /// Slices of a stream: boundaries T_0 < … < T_N and counts for each [T_i, T_i+1).
@@ -43,39 +54,57 @@ inline std::vector<double> uniform_boundaries(double t0, double t1, std::size_t 
   return b;
 }
 
-/// A pixel's event that comes within this many refractory periods of its previous event marks the counts
-/// of its polarity, in its slice and in the previous event's, as rate-limited: such an interval is what a
-/// burst of crossings faster than the pixel may fire leaves behind.
-inline constexpr double kRateLimitedPeriods = 1.5;
+/// How many threshold crossings an event stands for under a refractory period. A DVS pixel that fires is
+/// held in reset for the period τ and then memorises the level it sees, so the change during the period is
+/// lost: at a locally steady rate of change, an event that came `gap` seconds after the pixel's previous one
+/// stands for gap / (gap − τ) thresholds (a non-paralysable dead time: crossings at rate r leave r / (1 + rτ)
+/// events). Within kSaturatedPeriods · τ the rate is beyond what the count can tell: the weight stays at its
+/// value there, 1 / (1 − 1 / kSaturatedPeriods) = 3, and the event is saturated (its count is a lower bound).
+inline constexpr double kSaturatedPeriods = 1.5;
+struct DeadTimeWeight {
+  double weight = 1, dweight = 0;  ///< the crossings the event stands for, and its derivative w.r.t. τ
+  bool saturated = false;
+};
+inline DeadTimeWeight dead_time_weight(double gap, double tau) {
+  if (!(tau > 0)) return {1.0, std::isfinite(gap) && gap > 0 ? 1.0 / gap : 0.0, false};
+  if (gap <= kSaturatedPeriods * tau) return {1.0 / (1.0 - 1.0 / kSaturatedPeriods), 0.0, true};
+  if (!std::isfinite(gap)) return {1.0, 0.0, false};
+  const double r = 1.0 / (gap - tau);
+  return {gap * r, gap * r * r, false};
+}
 
-/// Sets SliceCounts::limited of `set`'s slices from the stream's events (SliceCounts::limited).
-inline void mark_rate_limited(const EventStream& ev, SliceSet& set, double refractory) {
-  require(std::isfinite(refractory) && refractory > 0, "slice_events: the refractory period must be positive");
+/// Fills SliceCounts::gap_start and gap of `set`'s slices from the stream's events.
+inline void record_intervals(const EventStream& ev, SliceSet& set) {
   const std::size_t hw = static_cast<std::size_t>(ev.width) * ev.height;
-  const auto& b = set.boundaries;
-  for (auto& s : set.slices) s.limited.assign(hw, 0);
-  // The slice of time t, or -1 outside [T_0, T_N).
-  auto slice_of = [&](double t) -> long {
-    if (t < b.front() || t >= b.back()) return -1;
-    return static_cast<long>(std::upper_bound(b.begin(), b.end(), t) - b.begin()) - 1;
-  };
-  const double gap = kRateLimitedPeriods * refractory;
   std::vector<double> last(hw, -std::numeric_limits<double>::infinity());
-  for (std::size_t k = 0; k < ev.size(); ++k) {
-    const std::size_t pix = static_cast<std::size_t>(ev.y[k]) * ev.width + ev.x[k];
-    const double prev = last[pix];
-    last[pix] = ev.t[k];
-    if (ev.t[k] - prev >= gap) continue;
-    const std::uint8_t bit = ev.polarity[k] > 0 ? 1 : 2;
-    for (const long i : {slice_of(prev), slice_of(ev.t[k])})
-      if (i >= 0) set.slices[static_cast<std::size_t>(i)].limited[pix] |= bit;
+  std::vector<std::uint32_t> slot(hw, 0);
+  const auto& b = set.boundaries;
+  std::size_t k = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), b.front()) - ev.t.begin());
+  for (std::size_t i = 0; i < ev.size() && ev.t[i] < b.front(); ++i)
+    last[static_cast<std::size_t>(ev.y[i]) * ev.width + ev.x[i]] = ev.t[i];
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    SliceCounts& s = set.slices[i];
+    s.gap_start.assign(s.active.size() + 1, 0);
+    for (std::size_t a = 0; a < s.active.size(); ++a) {
+      const auto p = s.active[a];
+      s.gap_start[a + 1] = s.gap_start[a] + static_cast<std::uint32_t>(s.pos[p] + s.neg[p]);
+      slot[p] = s.gap_start[a];
+    }
+    s.gap.assign(s.gap_start.back(), 0.0f);
+    for (; k < ev.size() && ev.t[k] < b[i + 1]; ++k) {
+      const std::size_t pix = static_cast<std::size_t>(ev.y[k]) * ev.width + ev.x[k];
+      const double d = ev.t[k] - last[pix];
+      last[pix] = ev.t[k];
+      const float g = std::isfinite(d) ? static_cast<float>(d) : std::numeric_limits<float>::infinity();
+      s.gap[slot[pix]++] = ev.polarity[k] > 0 ? g : -g;
+    }
   }
 }
 
 /// Counts events per slice and pixel. Events before T_0 or at/after T_N are ignored; the boundaries must
-/// increase strictly. Counts saturate at int16 max with an error rather than wrapping. With `refractory` > 0
-/// (seconds), SliceCounts::limited marks the counts a rate-limited pixel leaves (kRateLimitedPeriods).
-inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& boundaries, double refractory = 0) {
+/// increase strictly. Counts saturate at int16 max with an error rather than wrapping. With `intervals`,
+/// each slice also keeps its events' intervals (SliceCounts::gap), which a refractory period reads.
+inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& boundaries, bool intervals = false) {
   require(boundaries.size() >= 2, "slice_events: need at least two boundaries");
   for (std::size_t i = 1; i < boundaries.size(); ++i)
     require(boundaries[i] > boundaries[i - 1], "slice_events: boundaries must increase strictly");
@@ -104,7 +133,7 @@ inline SliceSet slice_events(const EventStream& ev, const std::vector<double>& b
     for (std::size_t p = 0; p < hw; ++p)
       if (s.pos[p] || s.neg[p]) s.active.push_back(static_cast<std::uint32_t>(p));
   }
-  if (refractory != 0) mark_rate_limited(ev, set, refractory);
+  if (intervals) record_intervals(ev, set);
   return set;
 }
 
@@ -172,6 +201,8 @@ inline SliceCounts inject_noise(const SliceCounts& s, double ratio, Rng& rng) {
     if (c < INT16_MAX) ++c;
   }
   out.total += noise.size();
+  out.gap_start.clear();  // the injected events have no intervals
+  out.gap.clear();
   out.active.clear();
   for (std::size_t p = 0; p < s.pixels(); ++p)
     if (out.pos[p] || out.neg[p]) out.active.push_back(static_cast<std::uint32_t>(p));

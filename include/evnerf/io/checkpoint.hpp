@@ -1,6 +1,7 @@
 // io/checkpoint.hpp — the checkpoint format and its one parser. A checkpoint is
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
 //   f64×6 box (centre, scale, near, far) | f64 density length | f64 background (NaN: none) |
+//   f64 refractory period (seconds; negative: counts read as they are) + f64×2 its Adam moments + u64 learned (0, 1) |
 //   str loss | str architecture |
 //   f32 parameters | f32 Adam m | f32 Adam v |
 //   u64 average count (0 or the parameter count) + f64 its decay + f32 average |
@@ -32,7 +33,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 8;
+inline constexpr std::uint64_t kCheckpointVersion = 9;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -91,6 +92,8 @@ struct CheckpointHeader {
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
   double density_length = 1.0;
   double background = std::numeric_limits<double>::quiet_NaN();  ///< the box's background luminance, NaN for none
+  double refractory = -1, refractory_m = 0, refractory_v = 0;     ///< the period (negative: none) and its Adam moments
+  bool refractory_learned = false;
   std::string loss;
   std::string architecture;
 };
@@ -123,6 +126,15 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
   h.background = r.f64();
   if (!std::isnan(h.background) && !(h.background >= 0 && std::isfinite(h.background)))
     r.fail("the background luminance is " + short_number(h.background) + " (a number >= 0, or NaN for none)");
+  h.refractory = r.f64();
+  h.refractory_m = r.f64();
+  h.refractory_v = r.f64();
+  const std::uint64_t learned = r.u64();
+  if (!std::isfinite(h.refractory) || h.refractory > 1 || !std::isfinite(h.refractory_m) || !(h.refractory_v >= 0) ||
+      !std::isfinite(h.refractory_v) || learned > 1)
+    r.fail("the refractory period's record (" + short_number(h.refractory) + " s, moments " + short_number(h.refractory_m) + ", " +
+           short_number(h.refractory_v) + ", learned " + std::to_string(learned) + ") is not one training writes");
+  h.refractory_learned = learned == 1;
   h.loss = r.str();
   h.architecture = r.str();
   return h;
@@ -201,6 +213,10 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put(h.box, sizeof h.box);
   put_f64(h.density_length);
   put_f64(h.background);
+  put_f64(h.refractory);
+  put_f64(h.refractory_m);
+  put_f64(h.refractory_v);
+  put_u64(h.refractory_learned ? 1 : 0);
   put_str(h.loss);
   put_str(h.architecture);
   put(body.params, body.n * 4);

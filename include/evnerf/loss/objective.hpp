@@ -14,6 +14,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <concepts>
 #include <cstdint>
 #include <string>
@@ -52,48 +53,79 @@ struct PixelLoss {
 /// thresholds B±_eff = Σ_k n±_k B±_k / N± (the plain mean where N± = 0), so its centre is exactly
 /// Σ_k n⁺_k B⁺_k + Σ_k n⁻_k B⁻_k and its slack is in units of the thresholds that fired. Adds dloss/dB±_k
 /// to gbp[k], gbm[k]. With L = 1 this is spec §2's loss, computed exactly as EventBounds does. `log_eps` is
-/// the ε of log(ℓ + ε) (the field's radiance policy's; the spec's 1e-3 by default). `limited`, where not
-/// null, holds the slices' SliceCounts::limited bits: a window with a rate-limited n⁺ has no upper end, one
-/// with a rate-limited n⁻ no lower end (the pixel may have changed more than it could fire).
+/// the ε of log(ℓ + ε) (the field's radiance policy's; the spec's 1e-3 by default).
+/// Under a refractory period (`dt` not null: TileView::dead_time) the counts in the centre and the weights
+/// are the crossings the events stand for (the slack's size still follows the event counts), a window with
+/// a saturated n⁺ has no upper end and one with a saturated n⁻ no lower end (the pixel may have changed
+/// more than it could fire), and dloss/dτ is added to `gtau` where not null.
 template <BoundPolicy Bound>
 PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const int* nneg, const double* bp, const double* bm,
-                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps, const std::uint8_t* limited = nullptr) {
+                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps, const DeadTimeCounts& dt = {},
+                            double* gtau = nullptr) {
   unsigned open = 0;
-  if (limited)
-    for (int k = 0; k < L; ++k) open |= limited[k];
-  auto bounds = [log_eps, open](int np, int nm) {
+  if (dt)
+    for (int k = 0; k < L; ++k) open |= dt.limited[k];
+  // The bounds for n⁺, n⁻ events standing for wp, wm crossings.
+  auto bounds = [log_eps, open](int np, int nm, double wp, double wm) {
     auto b = Bound::make(np, nm);
     b.eps = log_eps;
+    b.n_pos *= wp / std::max(np, 1);
+    b.n_neg *= wm / std::max(nm, 1);
     b.open_pos = b.open_pos || (open & 1u);
     b.open_neg = b.open_neg || (open & 2u);
     return b;
   };
+  // dloss/dμ of bounds `b` at the rendered change: +1 below the lower end, −1 above the upper end.
+  auto dmu = [&](const EventBounds& b, double bpe, double bme) {
+    const double change = std::log(l1 + log_eps) - std::log(l0 + log_eps), mu = b.n_pos * bpe + b.n_neg * bme;
+    if (!b.open_neg && mu + b.k_neg * bme - change > 0) return 1.0;
+    if (!b.open_pos && change - (mu + b.k_pos * bpe) > 0) return -1.0;
+    return 0.0;
+  };
   if (L == 1) {
-    const auto r = bounds(npos[0], nneg[0]).evaluate(l0, l1, bp[0], bm[0]);
+    const double wp = dt ? dt.wpos[0] : npos[0], wm = dt ? dt.wneg[0] : nneg[0];
+    const auto b = bounds(npos[0], nneg[0], wp, wm);
+    const auto r = b.evaluate(l0, l1, bp[0], bm[0]);
     gbp[0] += r[3];
     gbm[0] += r[4];
+    if (dt && gtau) *gtau += dmu(b, bp[0], bm[0]) * (bp[0] * dt.dwpos[0] + bm[0] * dt.dwneg[0]);
     return {r[0], r[1], r[2]};
   }
   long Np = 0, Nm = 0;
-  double sp = 0, sm = 0, mp = 0, mm = 0;
+  double Wp = 0, Wm = 0, sp = 0, sm = 0, mp = 0, mm = 0;
   for (int k = 0; k < L; ++k) {
+    const double wp = dt ? dt.wpos[k] : npos[k], wm = dt ? dt.wneg[k] : nneg[k];
     Np += npos[k];
     Nm += nneg[k];
-    sp += npos[k] * bp[k];
-    sm += nneg[k] * bm[k];
+    Wp += wp;
+    Wm += wm;
+    sp += wp * bp[k];
+    sm += wm * bm[k];
     mp += bp[k];
     mm += bm[k];
   }
-  const double bpe = Np > 0 ? sp / static_cast<double>(Np) : mp / L, bme = Nm > 0 ? sm / static_cast<double>(Nm) : mm / L;
-  const auto r = bounds(static_cast<int>(std::min<long>(Np, INT32_MAX)), static_cast<int>(std::min<long>(Nm, INT32_MAX)))
-                     .evaluate(l0, l1, bpe, bme);
+  const double bpe = Wp > 0 ? sp / Wp : mp / L, bme = Wm > 0 ? sm / Wm : mm / L;
+  const auto b = bounds(static_cast<int>(std::min<long>(Np, INT32_MAX)), static_cast<int>(std::min<long>(Nm, INT32_MAX)), Wp, Wm);
+  const auto r = b.evaluate(l0, l1, bpe, bme);
   for (int k = 0; k < L; ++k) {
-    gbp[k] += r[3] * (Np > 0 ? npos[k] / static_cast<double>(Np) : 1.0 / L);
-    gbm[k] += r[4] * (Nm > 0 ? nneg[k] / static_cast<double>(Nm) : 1.0 / L);
+    const double wp = dt ? dt.wpos[k] : npos[k], wm = dt ? dt.wneg[k] : nneg[k];
+    gbp[k] += r[3] * (Wp > 0 ? wp / Wp : 1.0 / L);
+    gbm[k] += r[4] * (Wm > 0 ? wm / Wm : 1.0 / L);
+  }
+  if (dt && gtau) {
+    // The loss depends on each slice's crossings through μ = Σ w⁺_k B⁺_k + Σ w⁻_k B⁻_k and through the slack's
+    // thresholds B±_eff = Σ w±_k B±_k / W±, whose own dloss/dB±_eff with μ held is r[3] − dloss/dμ · W⁺.
+    const double g = dmu(b, bpe, bme), sp_slack = r[3] - g * b.n_pos, sm_slack = r[4] - g * b.n_neg;
+    double d = 0;
+    for (int k = 0; k < L; ++k) {
+      const double dp = g * bp[k] + (Wp > 0 ? sp_slack * (bp[k] - bpe) / Wp : 0.0);
+      const double dm = g * bm[k] + (Wm > 0 ? sm_slack * (bm[k] - bme) / Wm : 0.0);
+      d += dp * dt.dwpos[k] + dm * dt.dwneg[k];
+    }
+    *gtau += d;
   }
   return {r[0], r[1], r[2]};
 }
-
 
 /// A rendered composite with up to three channels: what the concepts below probe objectives with.
 struct ProbeComposite {
@@ -171,8 +203,10 @@ struct IntervalScore {
       const int c = t.channel(i);
       std::fill(s.gbp.begin(), s.gbp.end(), 0.0);
       std::fill(s.gbm.begin(), s.gbm.end(), 0.0);
+      double gtau = 0;
       const auto r = window_pixel_loss<Bound>(v.at(2 * i, c), v.at(2 * i + 1, c), L, t.npos(i), t.nneg(i), th.pos, th.neg, s.gbp.data(),
-                                              s.gbm.data(), t.log_eps, t.limited(i));
+                                              s.gbm.data(), t.log_eps, t.dead_time(i), th.refractory_grad ? &gtau : nullptr);
+      if (th.refractory_grad) *th.refractory_grad += gtau / t.batch;
       total += r.value / t.batch;
       v.add(2 * i, c, r.dl0 / t.batch);
       v.add(2 * i + 1, c, r.dl1 / t.batch);

@@ -27,7 +27,11 @@ struct StepDraw {
   std::size_t first = 0, len = 1;
   std::vector<std::uint32_t> pixels;
   std::vector<int> npos, nneg;  ///< P × len: pixel i's counts in slice first + k at i · len + k
-  std::vector<std::uint8_t> limited;  ///< P × len, as npos: SliceCounts::limited (empty where the slices have none)
+  /// Under a refractory period (draw_step's `refractory` ≥ 0; all empty otherwise), P × len as npos: the
+  /// crossings the counts stand for (events::dead_time_weight summed, an injected event counting one), their
+  /// derivatives w.r.t. the period, and the saturated bits (1: n⁺ is a lower bound, 2: n⁻ is).
+  std::vector<double> wpos, wneg, dwpos, dwneg;
+  std::vector<std::uint8_t> limited;
   std::vector<events::NoiseEvent> noise;
   std::vector<std::size_t> starts;
   std::vector<std::uint8_t> taken;
@@ -43,11 +47,13 @@ struct StepDraw {
 /// redrawn at every step; drawn before the pixels, so a one-slice step draws as inject_noise does), then
 /// the pixels by O's pixel policy, then their counts with the noise added (saturating like inject_noise).
 /// `enabled` marks trainable slices (empty: all); `sites`, where not null and not all(), restricts the pixels
-/// and the noise to the pixels that carry events. Deterministic for a given rng.
+/// and the noise to the pixels that carry events. `refractory` ≥ 0 (seconds; the slices must keep their
+/// intervals) weighs each event by the crossings it stands for (StepDraw::wpos); negative: plain counts.
+/// Deterministic for a given rng.
 template <class O>
 void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
                double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr,
-               int per_interval = 1) {
+               int per_interval = 1, double refractory = -1) {
   require(per_interval >= 1, "train_step: slices per interval must be at least 1, got " + std::to_string(per_interval));
   const std::size_t N = slices.size();
   auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
@@ -87,14 +93,29 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
   require(P > 0, "train_step: no pixel to train on");
   d.npos.resize(static_cast<std::size_t>(P) * L);
   d.nneg.resize(static_cast<std::size_t>(P) * L);
-  const bool limits = !slices.slices[first].limited.empty();
-  d.limited.resize(limits ? static_cast<std::size_t>(P) * L : 0);
+  const bool weighed = refractory >= 0;
+  require(!weighed || slices.slices[first].has_intervals(), "train_step: a refractory period needs the slices' event intervals");
+  const std::size_t PL = weighed ? static_cast<std::size_t>(P) * L : 0;
+  d.wpos.assign(PL, 0.0);
+  d.wneg.assign(PL, 0.0);
+  d.dwpos.assign(PL, 0.0);
+  d.dwneg.assign(PL, 0.0);
+  d.limited.assign(PL, 0);
   for (int i = 0; i < P; ++i)
     for (std::size_t k = 0; k < L; ++k) {
       const auto& c = slices.slices[first + k];
-      d.npos[static_cast<std::size_t>(i) * L + k] = c.pos[d.pixels[i]];
-      d.nneg[static_cast<std::size_t>(i) * L + k] = c.neg[d.pixels[i]];
-      if (limits) d.limited[static_cast<std::size_t>(i) * L + k] = c.limited[d.pixels[i]];
+      const std::size_t o = static_cast<std::size_t>(i) * L + k;
+      d.npos[o] = c.pos[d.pixels[i]];
+      d.nneg[o] = c.neg[d.pixels[i]];
+      if (!weighed) continue;
+      const auto [g0, g1] = c.intervals(d.pixels[i]);
+      for (const float* g = g0; g != g1; ++g) {
+        const bool on = *g > 0;
+        const auto w = events::dead_time_weight(std::abs(static_cast<double>(*g)), refractory);
+        (on ? d.wpos : d.wneg)[o] += w.weight;
+        (on ? d.dwpos : d.dwneg)[o] += w.dweight;
+        if (w.saturated) d.limited[o] |= on ? 1 : 2;
+      }
     }
   if (!d.noise.empty()) {
     if (d.slot.size() != hw) d.slot.assign(hw, -1);
@@ -102,12 +123,24 @@ void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled,
     for (const auto& e : d.noise) {
       const int i = d.slot[e.pixel];
       if (i < 0) continue;
-      int& c = (e.positive ? d.npos : d.nneg)[static_cast<std::size_t>(i) * L + e.slice];
-      if (c < INT16_MAX) ++c;
+      const std::size_t o = static_cast<std::size_t>(i) * L + e.slice;
+      int& c = (e.positive ? d.npos : d.nneg)[o];
+      if (c < INT16_MAX) {
+        ++c;
+        if (weighed) (e.positive ? d.wpos : d.wneg)[o] += 1;
+      }
     }
     for (int i = 0; i < P; ++i) d.slot[d.pixels[i]] = -1;
   }
 }
+
+/// One pixel's counts over a window under a refractory period: per slice, the crossings its ON and OFF events
+/// stand for, their derivatives w.r.t. the period, and the saturated bits (all null: plain counts).
+struct DeadTimeCounts {
+  const double *wpos = nullptr, *wneg = nullptr, *dwpos = nullptr, *dwneg = nullptr;
+  const std::uint8_t* limited = nullptr;
+  explicit operator bool() const { return wpos != nullptr; }
+};
 
 /// Everything an objective may read about one tile of a step: the step's draw, the tile's pixels
 /// (draw.pixels[p0 .. p0 + P)), the step's pixel count (every loss is a mean over it), the sensor, the
@@ -133,9 +166,16 @@ struct TileView {
   /// Tile pixel i's counts in the window's slices (len() of each).
   const int* npos(int i) const { return &draw->npos[static_cast<std::size_t>(p0 + i) * draw->len]; }
   const int* nneg(int i) const { return &draw->nneg[static_cast<std::size_t>(p0 + i) * draw->len]; }
-  /// Tile pixel i's rate-limited bits in the window's slices (SliceCounts::limited), or null where there are none.
+  /// Tile pixel i's saturated bits in the window's slices (StepDraw::limited), or null without a refractory period.
   const std::uint8_t* limited(int i) const {
     return draw->limited.empty() ? nullptr : &draw->limited[static_cast<std::size_t>(p0 + i) * draw->len];
+  }
+  /// Tile pixel i's counts as the crossings they stand for under the refractory period (StepDraw::wpos …),
+  /// or all null without one.
+  DeadTimeCounts dead_time(int i) const {
+    if (draw->wpos.empty()) return {};
+    const std::size_t o = static_cast<std::size_t>(p0 + i) * draw->len;
+    return {&draw->wpos[o], &draw->wneg[o], &draw->dwpos[o], &draw->dwneg[o], &draw->limited[o]};
   }
   /// The channel tile pixel i's events see: 0 for a grey field, else its colour in the mosaic.
   int channel(int i) const {
@@ -198,6 +238,7 @@ struct WindowThresholds {
   const double* pos = nullptr;
   const double* neg = nullptr;
   Scalar* grad = nullptr;  ///< B⁺_k's at 2k, B⁻_k's at 2k + 1; null: fixed thresholds
+  double* refractory_grad = nullptr;  ///< where dloss/dτ goes (a learned refractory period; null: none)
   void add(int k, double dpos, double dneg) const {
     if (!grad) return;
     grad[2 * k] += static_cast<Scalar>(dpos);

@@ -31,6 +31,10 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
   std::copy(boxv, boxv + 6, h.box);
   h.density_length = bx.density_length;
   h.background = bx.background.value_or(std::numeric_limits<double>::quiet_NaN());
+  h.refractory = refractory_.seconds;
+  h.refractory_m = refractory_.m;
+  h.refractory_v = refractory_.v;
+  h.refractory_learned = refractory_.learned;
   h.loss = loss_description();
   h.architecture = architecture();
   return io::write_checkpoint(h,
@@ -102,6 +106,8 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   if (!std::isnan(h.background)) bx.background = h.background;
   renderer_ = renderer_type(bx, std::move(sampler));
   n_slices_ = h.n_slices;
+  refractory_ = {h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax), h.refractory_m, h.refractory_v,
+                 h.refractory_learned && h.refractory >= 0};
   params_ = std::move(params);
   adam_ = std::move(adam);
   average_ = std::move(average);

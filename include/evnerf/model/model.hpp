@@ -56,6 +56,18 @@ struct StepStats {
   /// weights and held fixed in the backward (as in NeRF), so the coarse network's gradient is that of the
   /// coarse pass's loss alone.
   std::array<double, 2> pass_event_loss{};
+  double refractory_grad = 0;  ///< dloss/dτ of a learned refractory period (0 when none is learned)
+};
+
+/// The refractory period a model reads its counts with (EvNerf::set_refractory): `seconds` < 0 reads the
+/// counts as they are; otherwise each event stands for the crossings events::dead_time_weight gives. A
+/// learned period moves with the field, by its own Adam (lr kLr seconds, the field's betas, no decay) within
+/// [0, kMax]; m and v are that Adam's moments.
+struct RefractoryState {
+  static constexpr double kLr = 2e-6, kMax = 5e-3;
+  double seconds = -1, m = 0, v = 0;
+  bool learned = false;
+  bool active() const { return seconds >= 0; }
 };
 
 /// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and the objective
@@ -196,6 +208,18 @@ class EvNerf {
     d.append(objective_type::description());
     return d;
   }
+  /// The refractory period the counts are read with: `seconds` ≥ 0 weighs each event by the threshold
+  /// crossings it stands for (events::dead_time_weight; the slices must keep their intervals), learned with
+  /// the field when `learn`; negative reads the counts as they are (the default: a new model's step is then
+  /// bit-identical to one without this setting). Checkpoints keep it with its optimiser state.
+  void set_refractory(double seconds, bool learn) {
+    require(std::isfinite(seconds) && seconds <= RefractoryState::kMax,
+            "the refractory period must be at most " + std::to_string(RefractoryState::kMax) + " s, not " + std::to_string(seconds));
+    refractory_ = {};
+    refractory_.seconds = seconds < 0 ? -1.0 : seconds;
+    refractory_.learned = learn && seconds >= 0;
+  }
+  const RefractoryState& refractory() const { return refractory_; }
   /// The distortion regulariser (render::distortion_loss, Mip-NeRF 360's, against floaters and surfaces
   /// smeared along rays): `weight` × its mean over a step's rays, in every pass, joins the loss. 0 (the
   /// default) leaves the step bit-identical. A training setting like the learning rate: not checkpointed.
@@ -241,12 +265,12 @@ class EvNerf {
  private:
   /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
   /// samples, backward samples and the two passes' event losses.
-  static constexpr std::size_t kTotals = 9 + StepStats::kMaxTerms;
+  static constexpr std::size_t kTotals = 10 + StepStats::kMaxTerms;
   static void add_totals(std::vector<double>& t, const StepStats& s) {
-    const double v[9] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
-                         s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss};
-    for (std::size_t i = 0; i < 9; ++i) t[i] += v[i];
-    for (int k = 0; k < StepStats::kMaxTerms; ++k) t[9 + k] += s.term_loss[k];
+    const double v[10] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
+                          s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss, s.refractory_grad};
+    for (std::size_t i = 0; i < 10; ++i) t[i] += v[i];
+    for (int k = 0; k < StepStats::kMaxTerms; ++k) t[10 + k] += s.term_loss[k];
   }
   StepStats from_totals(const std::vector<double>& t, int count) const {
     StepStats s;
@@ -258,7 +282,8 @@ class EvNerf {
     s.backward_samples = static_cast<std::size_t>(t[5]);
     s.pass_event_loss = {t[6] / count, t[7] / count};
     s.distortion_loss = t[8] / count;
-    for (int k = 0; k < StepStats::kMaxTerms; ++k) s.term_loss[k] = t[9 + k] / count;
+    s.refractory_grad = t[9] / count;
+    for (int k = 0; k < StepStats::kMaxTerms; ++k) s.term_loss[k] = t[10 + k] / count;
     s.first_slice = window_.first;
     s.window = window_.len;
     return s;
@@ -287,6 +312,7 @@ class EvNerf {
     std::array<double, 2> pass_loss{};                ///< the thread's event loss by pass, this step
     std::array<double, StepStats::kMaxTerms> terms{};  ///< the thread's regulariser terms, this step
     double distortion = 0;                            ///< the thread's distortion term, this step
+    double refractory_grad = 0;                       ///< the thread's dloss/dτ, this step
     std::size_t rays = 0;                             ///< the thread's rays, this step
   };
 
@@ -313,6 +339,8 @@ class EvNerf {
   bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   objective_type objective_;    ///< the objective and its regularisers' settings (objective(), term<T>())
+  RefractoryState refractory_;  ///< the period the counts are read with (set_refractory)
+  double last_refractory_grad_ = 0;  ///< the step's dloss/dτ, for apply_update
 };
 
 }  // namespace evnerf

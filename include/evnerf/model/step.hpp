@@ -84,6 +84,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
     for (auto& g : params_.grads) g *= inv;
   }
   if (!std::isfinite(st.loss)) return st;
+  last_refractory_grad_ = st.refractory_grad;
   apply_update();
   return st;
 }
@@ -98,14 +99,14 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   if (shard > 0) rng = rng.split(0x5348415244000000ull + static_cast<std::uint64_t>(shard));
   StepWindow& sw = window_;
   loss::draw_step<objective_type>(data.slices, data.slice_enabled, data.prefix, NoiseP::ratio, pixels_per_step, rng, sw, &data.sites,
-                             data.slices_per_interval);
+                                  data.slices_per_interval, refractory_.seconds);
   const std::size_t first = sw.first, L = sw.len;
   const int P = static_cast<int>(sw.pixels.size());
   const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
   const int n_tiles = (P + tile - 1) / tile;
   const int threads = std::max(1, std::min(thread_count(), n_tiles));
   params_.size_accumulators(threads);  // each thread zeroes its own below
-  std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0);
+  std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), grad_tau(threads, 0.0);
   std::vector<std::array<double, StepStats::kMaxTerms>> loss_terms(threads);
   std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), rays(threads, 0);
   std::vector<std::array<double, 2>> pass_loss(threads);
@@ -117,6 +118,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     w.rw.evaluated = w.rw.backward_samples = 0;
     w.pass_loss = {};
     w.distortion = 0;
+    w.refractory_grad = 0;
     w.terms = {};
     w.rays = 0;
     w.rw.training_termination = ray_termination_;
@@ -129,6 +131,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     evaluated[th] = w.rw.evaluated;
     pass_loss[th] = w.pass_loss;
     loss_dist[th] = w.distortion;
+    grad_tau[th] = w.refractory_grad;
     loss_terms[th] = w.terms;
     rays[th] = w.rays;
     backward[th] = w.rw.backward_samples;
@@ -148,6 +151,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   st.window = L;
   for (double l : loss_ev) st.event_loss += l;
   for (double l : loss_dist) st.distortion_loss += l;
+  for (double g : grad_tau) st.refractory_grad += g;
   for (const auto& l : loss_terms)
     for (int k = 1; k < n_terms; ++k) st.term_loss[k] += l[k];
   for (const auto& l : pass_loss)
@@ -218,7 +222,8 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
     w.bp[k] = params_.values[to + 2 * k];
     w.bm[k] = params_.values[to + 2 * k + 1];
   }
-  const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr};
+  const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr,
+                                          refractory_.learned ? &w.refractory_grad : nullptr};
   const Scalar* params = params_.values.data();
   renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
   double loss = 0;

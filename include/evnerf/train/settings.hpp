@@ -40,7 +40,7 @@ struct Config {
   int holdout = 0;
   bool clamp_poses = false;
   bool keep_hot_pixels = false;
-  double refractory = 0;
+  std::optional<double> refractory;  ///< unset: learned with the field (from 0); given: that period, fixed
   bool density_per_box = false;
   std::optional<double> background;  ///< unset: no background (the last sample stops every ray)
   long collapse_check_every = 250, collapse_check_from = 500;
@@ -180,9 +180,10 @@ inline const std::vector<Setting>& settings() {
       {"clamp_poses", &Config::clamp_poses, -inf, inf, false, false, "slice boundaries outside the poses take the nearest pose"},
       {"keep_hot_pixels", &Config::keep_hot_pixels, -inf, inf, false, false,
        "draw the suspected hot pixels too (pixels firing far above their neighbours, as inspect lists them; left out by default)"},
-      {"refractory", &Config::refractory, 0, 1, false, false,
-       "the sensor's refractory period in seconds: where a pixel fired that fast, its count bounds the change only from one side "
-       "(0 = off)"},
+      {"refractory", &Config::refractory, 0, 0.005, false, false,
+       "the sensor's refractory period in seconds, fixed (unset: learned with the field): an event that came d after the "
+       "pixel's previous one stands for d / (d - period) thresholds, and one within 1.5 periods makes its count a lower bound "
+       "(0 = counts read as they are)"},
       {"density_per_box", &Config::density_per_box, -inf, inf, false, false,
        "density per unit of the normalised scene box, not per world unit"},
       {"background", &Config::background, 0, inf, false, false,

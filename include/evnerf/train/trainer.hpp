@@ -75,7 +75,10 @@ double render_log_spread(const Model& model, const TrainingData& td) {
 /// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
-  return Model(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
+  Model m(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
+  // The refractory period: given, fixed (0 reads the counts as they are); unset, learned from 0.
+  if (!cfg.refractory || *cfg.refractory > 0) m.set_refractory(cfg.refractory.value_or(0.0), !cfg.refractory);
+  return m;
 }
 
 template <class Model>
@@ -265,6 +268,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"rays_per_s", rays / std::max(el, 1e-9)},
                           {"seconds", el}};
       if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
+      if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
       for (int k = 1; k < Model::n_terms; ++k)  // each regulariser that is on, as <name>_loss
         if (model.objective().active(k)) j[std::string(Model::term_name(k)) + "_loss"] = sum_terms[k] / window;
       if (shard_count > 1) {
@@ -391,14 +395,18 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
-  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and background), whatever
-  /// this call's Config says; the Config takes them over, so that settings.json records what the run uses.
+  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and background) and its
+  /// refractory period, whatever this call's Config says; the Config takes them over, so that settings.json
+  /// records what the run uses.
   void follow_box() {
     const auto& b = model_.box();
     cfg_.near = b.near;
     cfg_.far = b.far;
     cfg_.density_per_box = b.density_length != 1.0;
     cfg_.background = b.background;
+    const auto& r = model_.refractory();
+    if (r.learned) cfg_.refractory.reset();
+    else cfg_.refractory = r.active() ? r.seconds : 0.0;
   }
 
   const TrainingData& td_;
