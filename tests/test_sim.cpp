@@ -1,4 +1,5 @@
 #include <evnerf/events/hot_pixels.hpp>
+#include <evnerf/events/slicing.hpp>
 #include <evnerf/io/dataset.hpp>
 #include <evnerf/sim/random_scene.hpp>
 #include <evnerf/sim/simulate.hpp>
@@ -298,6 +299,43 @@ TEST_CASE("sensor: a refractory period removes every event closer than it to the
   CHECK(free_gap < 2e-3);
   CHECK(gap >= 2e-3 - 1e-12);
   CHECK(n < free_n);
+}
+
+TEST_CASE("sensor: a pixel is held in reset for its refractory period, so each event stands for gap / (gap - period) thresholds") {
+  // Over the sequence, each pixel's events, weighted by the dead-time model (events::dead_time_weight),
+  // add up to its true change in log brightness; the plain count falls short by what the periods lost.
+  auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 4\npath slider -0.2 0 0 0.2 0 0 0 0 1 0.5\n", "moving.txt");
+  auto cfg = small_sensor();
+  cfg.threshold_pos = cfg.threshold_neg = 0.05;
+  cfg.refractory = 2e-3;
+  cfg.hdr = true;  // the linear truth at the frames
+  const auto rec = sim::Simulator(spec, cfg).run();
+  REQUIRE(rec.linear.size() >= 2);
+  const double ta = rec.frame_times.front(), tb = rec.frame_times.back();
+  const std::size_t n = 40 * 30;
+  std::vector<double> plain(n, 0.0), weighted(n, 0.0), last(n, -std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < rec.events.size(); ++i) {
+    const std::size_t p = static_cast<std::size_t>(rec.events.y[i]) * 40 + rec.events.x[i];
+    const double t = rec.events.t[i], gap = t - last[p];
+    last[p] = t;
+    if (t <= ta || t > tb) continue;
+    plain[p] += rec.events.polarity[i] * 0.05;
+    weighted[p] += rec.events.polarity[i] * 0.05 * events::dead_time_weight(gap, cfg.refractory).weight;
+  }
+  double err_plain = 0, err_weighted = 0;
+  int moved = 0;
+  for (std::size_t p = 0; p < n; ++p) {
+    const double change = std::log(rec.linear.back().data[p] + cfg.log_offset) - std::log(rec.linear.front().data[p] + cfg.log_offset);
+    if (std::abs(change) < 0.5) continue;  // pixels an edge crossed for good
+    ++moved;
+    err_plain += std::abs(plain[p] - change);
+    err_weighted += std::abs(weighted[p] - change);
+  }
+  REQUIRE(moved > 50);
+  CAPTURE(err_plain / moved);
+  CAPTURE(err_weighted / moved);
+  CHECK(err_plain / moved > 0.3);                   // the period lost a good share of each edge's change
+  CHECK(err_weighted < 0.5 * err_plain);            // which the dead-time weights give back
 }
 
 TEST_CASE("sensor: a hot pixel fires at its rate on a static scene, C+ and C- scale the ON and OFF counts") {

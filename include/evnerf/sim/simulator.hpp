@@ -158,7 +158,8 @@ class Simulator {
       }
     std::vector<Vec3> rgb;
     std::vector<double> L0, L1, ref;
-    std::vector<double> last_event(n, -1e9);
+    const bool refractory = cfg_.refractory > 0;
+    std::vector<double> release(n, -1e9);  // the end of each pixel's refractory period
     render(0.0, rgb);
     log_intensity(rgb, L0);
     ref = L0;
@@ -182,9 +183,17 @@ class Simulator {
         dt = std::max(cfg_.min_step, dt * 0.5);
         continue;
       }
-      // Emit events at the crossings of the linear interpolation in (t, t + dt].
+      // Emit events at the crossings of the linear interpolation in (t, t + dt]. A pixel that fired is held in
+      // reset for the refractory period: it sees nothing until `release`, and then memorises the level it sees
+      // (the DVS pixel's differencing amplifier is balanced again when its reset switch opens), so the change
+      // during the period is lost, not carried over.
+      const double t1 = t + dt;
       for (std::size_t i = 0; i < n; ++i) {
         const double a = L0[i], b = L1[i];
+        if (refractory && release[i] > t) {
+          if (release[i] >= t1) continue;  // blind for the whole step
+          ref[i] = a + (b - a) * ((release[i] - t) / dt);
+        }
         if (a == b) continue;
         while (true) {
           const bool up = b > ref[i];
@@ -192,9 +201,12 @@ class Simulator {
           if ((up && b < level) || (!up && b > level)) break;
           const double te = t + dt * std::clamp((level - a) / (b - a), 0.0, 1.0);
           ref[i] = level;
-          if (te - last_event[i] < cfg_.refractory) continue;  // swallowed by the refractory period
-          last_event[i] = te;
           evs.push_back({te, static_cast<std::uint32_t>(i), static_cast<std::int8_t>(up ? 1 : -1)});
+          if (refractory) {
+            release[i] = te + cfg_.refractory;
+            if (release[i] >= t1) break;
+            ref[i] = a + (b - a) * ((release[i] - t) / dt);
+          }
         }
       }
       L0.swap(L1);
