@@ -666,7 +666,7 @@ TEST_CASE("PNG: write then read back, montage and depth colouring have the right
                  "t.tga:0: cannot decode image: not a PNG file");
   CHECK_CONTAINS(error_of([&] { io::decode_png("garbage", "x.png"); }), "x.png:0: cannot decode image");
   // Found by tests/fuzz (fuzz_png): an IDAT chunk announcing 1 GB in a small file made stb_image allocate
-  // 2 GB before noticing the data was missing. The chunk lengths are now checked against the file first.
+  // 2 GB before noticing the data was missing: the chunk lengths are checked against the file first.
   std::string liar = good_png_for_lengths();
   const std::size_t idat_at = liar.find("IDAT") - 4;
   liar[idat_at] = 0x40;  // 0x40xxxxxx bytes

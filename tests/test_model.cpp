@@ -34,7 +34,7 @@ template <int C>
 using HierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
 template <int C>
 using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
-// Samples spaced in log depth (FastLog's render::LogDepth): uneven intervals between samples.
+// Samples spaced in log depth (render::LogDepth): uneven intervals between samples.
 template <int C>
 using LogOccupancyModel =
     EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;

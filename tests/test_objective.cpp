@@ -210,7 +210,7 @@ TEST_CASE("window objective: a saturated count opens its end of the interval and
   CHECK(cost(1.5, {}) == doctest::Approx(1.5 - 0.625));
   CHECK(cost(-0.5, {}) == doctest::Approx(0.375 + 0.5));
   CHECK(cost(1.5, {0, 1}) == 0.0);  // ON limited in the window's second slice: no upper end
-  CHECK(cost(-0.5, {0, 1}) == doctest::Approx(0.875));  // the lower end as before
+  CHECK(cost(-0.5, {0, 1}) == doctest::Approx(0.875));  // the lower end stays
   CHECK(cost(-0.5, {2, 0}) == 0.0);  // OFF limited: no lower end
   CHECK(cost(1.5, {2, 0}) == doctest::Approx(0.875));
   CHECK(cost(9.0, {3, 0}) == 0.0);
@@ -287,7 +287,7 @@ TEST_CASE("pixel policies: distinct pixels, EventPixels draws its share of empty
   CHECK(std::count(taken.begin(), taken.end(), 1) == 0);
 }
 
-TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel at the full sensor), no sites draws as before") {
+TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel at the full sensor), no sites draws over the whole sensor") {
   // 10×10 sensor, one slice; the sites are the pixels of even x + y (a green quincunx); events fire at the
   // sites among pixels 0..29.
   std::vector<std::uint8_t> mask(100, 0);

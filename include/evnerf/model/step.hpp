@@ -2,7 +2,8 @@
 // window of slices, pixels and noise (loss::draw_step), the tiles of pixels rendered and handed to the
 // objective in parallel, per-thread gradients reduced in a fixed order (the result depends on neither the
 // tiling nor the thread count), the threshold floor, and the shards of a data-parallel step summed across
-// processes (train/group.hpp's exchange). Included by model/model.hpp. Depends on loss/, render/ and core/.
+// processes (train/group.hpp's exchange). Included by model/model.hpp. Depends on ad/ (the threshold floor),
+// loss/, render/, geometry/ (the rays of a tile) and core/.
 #pragma once
 #include "model.hpp"
 

@@ -134,7 +134,7 @@ class OccupancyGrid {
 /// refreshed every `Interval` steps once `Warmup` steps have passed; until then every sample is evaluated.
 /// A cell is occupied when its density can give a sample an alpha of kOccupiedAlpha = AlphaPerMille / 1000
 /// at the mean spacing (far − near)/N (or exceeds the mean density over the seen cells, whichever is lower).
-/// `Spacing` places the N bins along the ray (UniformDepth, or LogDepth: FastLog's; render/sampler.hpp).
+/// `Spacing` places the N bins along the ray (UniformDepth, or LogDepth; render/sampler.hpp).
 template <int N, int Res = 64, int Interval = 16, int Warmup = 256, int AlphaPerMille = 10, DepthSpacing Spacing = UniformDepth>
 struct OccupancySkipping {
   static_assert(N >= 2, "OccupancySkipping<N>: need at least two samples per ray.");

@@ -45,7 +45,7 @@ struct UniformDepth {
   }
 };
 /// LogDepth's and OffsetLogDepth's bins: n equal bins in log(z + c) between near and far; bin k's centre, or
-/// a point drawn uniformly in log(z + c) inside it (c = 0 is LogDepth, bit for bit as before the two shared it).
+/// a point drawn uniformly in log(z + c) inside it (c = 0 is LogDepth exactly: log(z + 0) is log z).
 template <class T>
 void log_spaced_depths(int n, double near, double far, double c, Rng* rng, T* t) {
   const double a = std::log(near + c), span = std::log(far + c) - a;

@@ -1,8 +1,9 @@
 // train/data.hpp — what training reads of a recording: TrainingData (the slices with their counts, the
 // boundary poses, the camera's pixel directions, held-out slices, the mosaic and the event sites), made by
 // train::prepare from an io::Dataset and the settings; the scene box and Adam's settings a Config gives;
-// and what a checkpoint records of the run (train::describe). Depends on events/, geometry/, io/ and
-// train/settings.hpp, not on the model's parts.
+// and what a checkpoint records of the run (train::describe). Depends on core/, events/, geometry/, io/,
+// nn/params.hpp (Adam's settings), render/scene.hpp (the scene box) and train/settings.hpp, not on the model's
+// parts.
 #pragma once
 #include <algorithm>
 #include <cstddef>
