@@ -5,10 +5,10 @@
 # collapse detector fired, our error split by scale (eval's error_scales: coarse and fine PSNR) and eval's
 # offset oracle (the score with the truth's log offsets per image row, and per row and column). A scene
 # passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Each scene is recorded by every sensor
-# of SENSORS (`simulate --sensor`: ideal, and random, drawn from the scene's seed), side by side in the
+# of SENSORS (`simulate --sensor`: ideal, realistic, and random, drawn from the scene's seed), side by side in the
 # table. Writes $OUT/robustness.csv and prints a Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
-# Environment: SENSORS ("ideal random"), PRESET (the default preset), STEPS (train's default), SEED (training
+# Environment: SENSORS ("ideal realistic random"), PRESET (the default preset), STEPS (train's default), SEED (training
 #              seed, 1), THREADS (2),
 #              OUT (out/robustness), BUILD (build), EVNERF (the binary: $BUILD/examples/evnerf), TRAIN_FLAGS
 #              (more train options, split at spaces: to compare a binary or an option against the default).
@@ -18,7 +18,7 @@ OUT=${OUT:-out/robustness}
 SEED=${SEED:-1}
 THREADS=${THREADS:-2}
 . bench/evnerf_bin.sh  # EV
-read -r -a SENSORS <<<"${SENSORS:-ideal random}"
+read -r -a SENSORS <<<"${SENSORS:-ideal realistic random}"
 SEEDS=("$@")
 [ ${#SEEDS[@]} -gt 0 ] || SEEDS=(1 2 3 4 5 6 7 8 9 10)
 TRAIN_ARGS=(--seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
