@@ -188,12 +188,13 @@ def factors_section(rows):
     p = ["", "## One sensor effect at a time (`bench/sensor_factors.sh`)", "",
          f"Random scene {', '.join(scenes)} recorded by an ideal sensor with one effect of the random sensor added, then by the",
          "realistic and the random sensor whole; the default preset and steps, training seed 1, 2 threads, global-log-affine.",
-         "Rows with `train --refractory` give training the sensor's refractory period (the counts it limits bound the",
-         "change from one side: `docs/method.md`).", "",
-         "| sensor | train | events | ours | direct integration | high-pass filter |", "|---|---|---|---|---|---|"]
+         "By default training learns the refractory period; rows with `train --refractory` give it the sensor's and fix it",
+         "(`docs/method.md`). The period column is the one each run ended with.", "",
+         "| sensor | train | events | period µs | ours | direct integration | high-pass filter |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         p.append(f"| {r['what'].replace(', train --refractory', '')} | {('`' + r['train_flags'] + '`') if r['train_flags'] else 'default'} | "
-                 f"{int(r['events']) / 1e6:.2f} M | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | {r['hpf_psnr']} / {r['hpf_ssim']} |")
+                 f"{int(r['events']) / 1e6:.2f} M | {r.get('period_us', '')} | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | "
+                 f"{r['hpf_psnr']} / {r['hpf_ssim']} |")
     return p
 
 
@@ -248,10 +249,12 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
     else:
         p += ["Procedural scenes (`simulate random --seed N`), each recorded by every sensor named (`--sensor`), the",
               "default preset and steps, training seed 1, eval's default alignment; a scene passes when ours beats both",
-              "baselines by 3 dB PSNR and 0.10 SSIM.", "",
-              "| scene | sensor | path | ours | direct integration | high-pass filter | passes |", "|---|---|---|---|---|---|---|"]
+              "baselines by 3 dB PSNR and 0.10 SSIM. The refractory period: the sensor's, and the one training learned.", "",
+              "| scene | sensor | path | period µs: sensor / learned | ours | direct integration | high-pass filter | passes |",
+              "|---|---|---|---|---|---|---|---|"]
         for r in robust:
-            p.append(f"| {r['scene_seed']} | {r['sensor']} | {r['path']} | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | "
+            period = f"{r['sensor_period_us']} / {r['period_us']}" if r.get("period_us") else ""
+            p.append(f"| {r['scene_seed']} | {r['sensor']} | {r['path']} | {period} | {r['psnr']} / {r['ssim']} | {r['di_psnr']} / {r['di_ssim']} | "
                      f"{r['hpf_psnr']} / {r['hpf_ssim']} | {'yes' if r['pass'] == '1' else 'no'} |")
         p.append("")
         for sensor in dict.fromkeys(r["sensor"] for r in robust):

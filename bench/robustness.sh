@@ -28,7 +28,7 @@ TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iterations "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
-echo "scene_seed,sensor,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr" > "$CSV"
+echo "scene_seed,sensor,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr,sensor_period_us,period_us" > "$CSV"
 for n in "${SEEDS[@]}"; do
  for sensor in "${SENSORS[@]}"; do
   dir="$OUT/random-$n-$sensor"
@@ -47,6 +47,8 @@ ours = m[name]
 di, hpf = m["direct_integration"], m["high_pass_filter"]
 log = [json.loads(l) for l in open(f"{d}/run/log.jsonl")]
 fired = any(r.get("collapse_check", {}).get("collapsed", False) for r in log)
+period = f"{log[-1]['refractory'] * 1e6:.1f}" if "refractory" in log[-1] else "0"  # the period the run ended with
+sensor_period = next((float(l.split()[1]) * 1e6 for l in open(f"{d}/scene/sensor_model.txt") if l.startswith("refractory ")), 0.0)
 train = open(f"{d}/train.txt").read()
 secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else "nan"
 path = next((l.split()[1] for l in open(f"{d}/scene/scene.txt") if l.startswith("path")), "?")
@@ -55,7 +57,8 @@ ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for 
 scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
 db = lambda key: "" if key not in scales else "inf" if scales[key] is None else f"{scales[key]:.2f}"  # null: no error; absent: older eval
 print(f"{n},{sensor},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
-      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')},{db('oracle_rows_psnr')},{db('oracle_both_psnr')}")
+      f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')},{db('oracle_rows_psnr')},{db('oracle_both_psnr')},"
+      f"{sensor_period:.1f},{period}")
 PY
   tail -n 1 "$CSV"
  done

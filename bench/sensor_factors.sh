@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # What each effect of a real sensor costs: one random scene (`simulate random --seed SCENE`) recorded by an
 # ideal sensor with one effect of the random sensor added at a time, then by the realistic and the random
-# sensor whole, each trained with the default preset and steps (training seed 1) and, where the sensor has a
-# refractory period, once more with `train --refractory` set to it; ours against both baselines under eval's
-# default alignment. The effects' values are those `--sensor random` draws for scene 2 (hand-held): C+ 0.172
+# sensor whole, each trained with the default preset and steps (training seed 1, the refractory period learned)
+# and, where the sensor has a period, once more with `train --refractory` set to it; ours against both
+# baselines under eval's default alignment, and the period each run ended with. The effects' values are those `--sensor random` draws for scene 2 (hand-held): C+ 0.172
 # and C- 0.218, 4.4 % mismatch, 0.76 Hz background with 10 hot pixels, 47 µs jitter, 0.75 ms refractory
 # period; the refractory period also at 0.1 and 0.3 ms. Writes $OUT/sensor_factors.csv, copies it to
 # bench/results/ (RESULTS; empty: not copied) and regenerates docs/results.md. About 4 minutes a row on
@@ -40,7 +40,7 @@ ROWS=(
 WANT=("$@")
 mkdir -p "$OUT"
 CSV="$OUT/sensor_factors.csv"
-echo "scene_seed,row,what,train_flags,events,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim" > "$CSV"
+echo "scene_seed,row,what,train_flags,events,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,period_us" > "$CSV"
 for spec in "${ROWS[@]}"; do
   IFS='|' read -r name what sim_flags train_flags <<<"$spec"
   if [ ${#WANT[@]} -gt 0 ] && [[ " ${WANT[*]} " != *" $name "* ]]; then continue; fi
@@ -63,8 +63,10 @@ m = json.load(open(f"{d}/eval/metrics.json"))["methods"]
 ours = m[next(k for k in m if k.startswith("evnerf"))]
 di, hpf = m["direct_integration"], m["high_pass_filter"]
 events = sum(1 for _ in open(f"{scene}/events.txt"))
+last = [json.loads(l) for l in open(f"{d}/run/log.jsonl")][-1]  # the period the run ended with (learned or given)
+period = f"{last['refractory'] * 1e6:.1f}" if "refractory" in last else "0"
 csv.writer(sys.stdout, lineterminator="\n").writerow([n, name, what, flags, events, f"{ours['psnr']:.2f}", f"{ours['ssim']:.3f}", f"{di['psnr']:.2f}",
-                                                   f"{di['ssim']:.3f}", f"{hpf['psnr']:.2f}", f"{hpf['ssim']:.3f}"])
+                                                   f"{di['ssim']:.3f}", f"{hpf['psnr']:.2f}", f"{hpf['ssim']:.3f}", period])
 PY
   tail -n 1 "$CSV"
 done
