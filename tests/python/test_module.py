@@ -60,6 +60,9 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert np.array_equal(d.events.p, planes.events.p)
     m = evnerf.train(d, iterations=20, threads=2, seed=3)
     assert m.variant == "fast" and m.step == 20 and m.run["steps"] == 20
+    assert 0 <= m.run["refractory"] <= 0.005  # learned by default; a given one stays, 0 reads the counts as they are
+    assert evnerf.train(d, iterations=2, threads=2, seed=3, refractory=2e-4).run["refractory"] == 2e-4
+    assert evnerf.train(d, iterations=2, threads=2, seed=3, refractory=0).run["refractory"] is None
     img, depth = m.render(m.boundary_poses[5])
     assert img.shape == (H, W) and depth.shape == (H, W) and img.dtype == np.float32
     assert np.all(np.isfinite(img)) and np.all(depth > 0) and img.std() > 0

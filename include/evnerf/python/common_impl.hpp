@@ -159,7 +159,7 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
   py::class_<Model> model(m, "Model", "A trained or loaded model of any of this module's variants.", py::module_local());
   model.def_readonly("variant", &Model::variant);
   model.def_readonly("channels", &Model::channels);
-  model.def_readonly("run", &Model::run, "what train() did (steps, seconds, final_loss, stopped, collapse checks); empty when loaded");
+  model.def_readonly("run", &Model::run, "what train() did (steps, seconds, final_loss, stopped, collapse checks, the refractory period it ended with: learned or given, None when the counts were read as they are); empty when loaded");
   model.def_property_readonly("width", [](const Model& s) { return s.renderable.desc.camera.width(); });
   model.def_property_readonly("height", [](const Model& s) { return s.renderable.desc.camera.height(); });
   model.def_property_readonly("boundary_times", [](const Model& s) {

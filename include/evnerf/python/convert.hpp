@@ -41,7 +41,7 @@ struct Model {
   std::function<std::vector<double>()> thresholds;  ///< per slice (B+, B−), row-major N×2; empty for channels.json
   std::function<long()> step;
   std::function<void(const fs::path&)> save;
-  py::dict run;  ///< what train() did: steps, seconds, final_loss, stopped, collapse checks
+  py::dict run;  ///< what train() did: steps, seconds, final_loss, stopped, collapse checks, refractory
 };
 
 namespace detail {

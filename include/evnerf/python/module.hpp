@@ -154,7 +154,8 @@ Model train_model(const Dataset& ds, const std::string& preset, py::object callb
       checks.append(py::dict(py::arg("step") = c.step, py::arg("log_spread") = c.log_spread, py::arg("collapsed") = c.collapsed()));
     result.run = py::dict(py::arg("steps") = r.steps, py::arg("seconds") = r.seconds, py::arg("final_loss") = r.final_loss,
                           py::arg("rays_per_second") = r.rays_per_second, py::arg("stopped") = r.stopped,
-                          py::arg("collapse_checks") = checks);
+                          py::arg("collapse_checks") = checks,
+                          py::arg("refractory") = model.refractory().active() ? py::object(py::float_(model.refractory().seconds)) : py::none());
     return 0;
   });
   return result;
