@@ -91,6 +91,13 @@ def ablation(q):
     return (ab, common) if common else ([], [])
 
 
+# The protocol of the suites whose recordings come from the ideal simulated sensor (no refractory period): their
+# rows were trained with the counts read as they are.
+PLAIN_COUNTS = ("Recordings of the ideal simulated sensor (no refractory period) were trained with `train --refractory 0`, the "
+                "counts read as they are; the default learns the period, which on such a sensor stays at 0 or within "
+                "microseconds of it (the random scenes' table in `docs/results.md` shows both).")
+
+
 def headline(q):
     """The README's table and the lines under it."""
     first = q.any_row()
@@ -99,7 +106,7 @@ def headline(q):
     lines = [f"PSNR dB / SSIM against the recording's frames, **{first['alignment']} alignment** (one log-affine map per",
              f"channel over the sequence, `eval`'s default); `{first['preset']}` preset, {first['steps']} steps, {first['threads']} threads",
              "unless named, the first seed in bold; the two baselines (direct integration, high-pass filter) integrate",
-             "the same events with a threshold of 0.2.", "",
+             "the same events with a threshold of 0.2. " + PLAIN_COUNTS, "",
              "| recording | seeds | ours | direct integration | high-pass filter |", "|---|---|---|---|---|"]
     for row, what in RECORDINGS:
         cell = q.seeds_cell(row)
@@ -133,7 +140,7 @@ def mesh_section(rows):
          "with the default preset, colour (`--bayer`, an RGGB mosaic) with the `colour` preset; " + f"{first['steps']} steps, {first['threads']} threads, "
          f"training seed {first['seed']}, " + (f"`train --background {first['background']}` (the backdrop's known luminance, as "
          "EventNeRF's runs know theirs) and " if first.get("background") else "no background given to `train`, ") +
-         f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`. The held-out views lie on a second orbit at 50°, never trained on; only the model",
+         f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`, `--refractory 0` (an ideal sensor). The held-out views lie on a second orbit at 50°, never trained on; only the model",
          "renders them, and beside it a flat frame (one brightness per channel, which the alignment fits) scores what",
          "rendering nothing of the object would. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
          "`global-log-offset` (one log offset per channel, E-3DGS's correction). Training seconds are `train`'s wall time",
@@ -215,7 +222,7 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
     else:
         cpu = CPU.get(first["cpu"], first["cpu"])
         p += [f"`bench/quality.sh` (every row: `evnerf simulate` → `evnerf train --seed S --threads {first['threads']}` → `evnerf eval`),",
-              f"`{first['preset']}` preset unless named, {first['steps']} steps, on {cpu}.", "",
+              f"`{first['preset']}` preset unless named, {first['steps']} steps, on {cpu}. " + PLAIN_COUNTS, "",
               "| recording | seed | ours | direct integration | high-pass filter | alignment |", "|---|---|---|---|---|---|"]
         for row, what in RECORDINGS:
             ours = q.get(row)
@@ -291,7 +298,7 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         p += formats_section(formats)
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
-              "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it);",
+              "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it), `--refractory 0` (an ideal sensor);",
               "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`; `time_to_quality_avx2.png`), from a run of its own:",
               "training seconds of separate runs on this shared machine compare only roughly (`bench/README.md`).", "",
               "| build | scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|"]
