@@ -32,8 +32,8 @@ for name in names:
     else:
         if name == "iterations":
             value = 1
-        if value is None:  # the variant's own: give it one
-            value = 0.05
+        if value is None:  # unset: the variant's own (tv), or learned (the refractory period): give it one
+            value = 1e-4 if name == "refractory" else 0.05
         if name == "threads":
             value = 1
         args += [flag, str(value)]

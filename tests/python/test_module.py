@@ -342,8 +342,8 @@ def test_every_setting_of_the_table(planes, tmp_path):
     for r in rows:
         name = r["name"]
         value = 1 if name == "iterations" else r["default"]
-        if value is None:  # the variant's own (tv): give it one
-            value = 0.05
+        if value is None:  # unset: the variant's own (tv), or learned (the refractory period): give it one
+            value = 1e-4 if name == "refractory" else 0.05
         out = tmp_path / name
         kwargs = {"iterations": 1, "threads": 1, name: value}
         evnerf.train(planes, out=out, **kwargs)
