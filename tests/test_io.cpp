@@ -682,6 +682,36 @@ TEST_CASE("PNG: write then read back, montage and depth colouring have the right
   fs::remove_all(dir);
 }
 
+/// An uncompressed 24-bit BMP of w x h pixels, bottom-up rows padded to 4 bytes, pixel (x, y) (y = 0 the
+/// top row) of grey level 40 x + 10 y (blue, green and red equal).
+static std::string bmp_24(int w, int h, std::uint32_t compression = 0) {
+  const int row = (w * 3 + 3) / 4 * 4;
+  std::string b(54 + static_cast<std::size_t>(row) * h, '\0');
+  auto put = [&](std::size_t at, std::uint32_t v, int n) {
+    for (int i = 0; i < n; ++i) b[at + i] = static_cast<char>((v >> (8 * i)) & 0xff);
+  };
+  b[0] = 'B', b[1] = 'M';
+  put(2, static_cast<std::uint32_t>(b.size()), 4), put(10, 54, 4), put(14, 40, 4), put(18, w, 4), put(22, h, 4);
+  put(26, 1, 2), put(28, 24, 2), put(30, compression, 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) b[54 + static_cast<std::size_t>(row) * (h - 1 - y) + 3 * x + c] = static_cast<char>(40 * x + 10 * y);
+  return b;
+}
+
+TEST_CASE("BMP textures: an uncompressed one decodes the right way up; a short or compressed one is refused before decoding") {
+  const auto img = io::decode_image(bmp_24(3, 2), "skin.bmp", 3);
+  REQUIRE(img.width == 3);
+  REQUIRE(img.height == 2);
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 3; ++x) CHECK(img.data[3 * (3 * y + x) + 1] == doctest::Approx((40 * x + 10 * y) / 255.0));
+  CHECK_CONTAINS(error_of([] { io::decode_image(bmp_24(3, 2).substr(0, 60), "cut.bmp"); }),
+                 "cut.bmp:0: cannot decode image: truncated BMP (6 bytes of pixel data for 3x2 pixels)");
+  CHECK_CONTAINS(error_of([] { io::decode_image(bmp_24(3, 2, 1), "rle.bmp"); }), "rle.bmp:0: cannot decode image: compressed BMP (compression 1");
+  CHECK_CONTAINS(error_of([] { io::decode_image("BM", "tiny.bmp"); }), "tiny.bmp:0: cannot decode image: a BMP header is at least 26 bytes");
+  CHECK_CONTAINS(error_of([] { io::decode_image("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image: not a PNG, JPEG, TGA or BMP file");
+}
+
 TEST_CASE("real data: IJRR slider_depth chunk loads with the documented counts and warnings") {
   const auto folder = evtest::shared_data("ijrr_slider_depth_chunk");
   if (folder.empty()) {

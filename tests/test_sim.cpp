@@ -1,3 +1,4 @@
+#include <evnerf/core/warn.hpp>
 #include <evnerf/events/hot_pixels.hpp>
 #include <evnerf/events/slicing.hpp>
 #include <evnerf/io/dataset.hpp>
@@ -652,9 +653,6 @@ TEST_CASE("mesh: files that cannot be a scene's mesh are refused naming the file
   CHECK_CONTAINS(refused("garbage.xyz1"), "assimp cannot read it");
   write_text(s.dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1\np 2\np 3\n");
   CHECK_CONTAINS(refused("points.obj"), "points.obj: the file holds no triangles");
-  write_text(s.dir / "nomap.mtl", "newmtl m\nKd 1 1 1\nmap_Kd missing.png\n");
-  write_text(s.dir / "nomap.obj", "mtllib nomap.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
-  CHECK_CONTAINS(refused("nomap.obj"), "texture 'missing.png' is not a file");
   write_text(s.dir / "bad.png", "\x89PNG\r\n\x1a\n but then nothing of a PNG");
   write_text(s.dir / "badmap.mtl", "newmtl m\nKd 1 1 1\nmap_Kd bad.png\n");
   write_text(s.dir / "badmap.obj", "mtllib badmap.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
@@ -686,6 +684,67 @@ TEST_CASE("mesh: files that cannot be a scene's mesh are refused naming the file
 #endif
 
 #ifdef EVNERF_HAVE_MESH
+TEST_CASE("mesh: texture names resolve as model viewers resolve them; one not found is warned of once and shows the base colour") {
+  Scratch s("evnerf_texpath");
+  fs::create_directories(s.dir / "Art" / "Wood");
+  fs::create_directories(s.dir / "m");
+  Image tex(2, 2, 3);
+  io::write_png(s.dir / "Art" / "Wood" / "Oak.PNG", tex);
+  write_text(s.dir / "m" / "top.tga", "");
+  write_text(s.dir / "m" / "knight2.bmp", "");
+  const fs::path model = s.dir / "m" / "model.obj";
+  auto found = [&](const fs::path& from, const std::string& name) {
+    const auto p = sim::resolve_texture(from, name);
+    return p ? fs::relative(*p, s.dir).generic_string() : std::string("(none)");
+  };
+  CHECK(found(model, "../Art/Wood/Oak.PNG") == "Art/Wood/Oak.PNG");
+  CHECK(found(model, "..\\art\\wood\\oak.png") == "Art/Wood/Oak.PNG");  // separators and case
+  CHECK(found(model, "//../ART/wood/OAK.png") == "Art/Wood/Oak.PNG");       // Blender's "//"
+  CHECK(found(model, (s.dir / "Art/Wood/Oak.PNG").string()) == "Art/Wood/Oak.PNG");
+  CHECK(found(model, "C:\\Users\\me\\TOP.TGA") == "m/top.tga");      // the author's path, the file beside the model
+  CHECK(found(model, "/nowhere/top.tga") == "m/top.tga");
+  CHECK(found(s.dir / "m" / "knight.md2", "$texture_dummy.bmp") == "m/knight2.bmp");  // an MD2 model's skin
+  write_text(s.dir / "m" / "Knight.bmp", "");
+  CHECK(found(s.dir / "m" / "knight.md2", "$texture_dummy.bmp") == "m/Knight.bmp");
+  CHECK(found(s.dir / "m" / "other.md2", "$texture_dummy.bmp") == "(none)");
+  CHECK(found(model, "missing.png") == "(none)");
+  CHECK(found(model, "../Art") == "(none)");  // a folder is not a texture
+  CHECK(found(model, "") == "(none)");
+
+  // A model whose two materials name a texture that is nowhere: it loads, warns once naming the texture, and
+  // both materials keep their diffuse colour.
+  write_text(s.dir / "m" / "nomap.mtl", "newmtl a\nKd 0.5 0.25 1\nmap_Kd missing.png\nnewmtl b\nKd 1 0 0\nmap_Kd missing.png\n");
+  write_text(s.dir / "m" / "nomap.obj", "mtllib nomap.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                         "usemtl a\nf 1/1 2/2 3/3\nusemtl b\nf 1/1 2/2 4/3\n");
+  sim::MeshPlacement where;
+  where.file = s.dir / "m" / "nomap.obj";
+  where.centre = Vec3(0, 0, 4);
+  WarningCollector warnings;
+  const auto m = sim::Mesh::load(where);
+  REQUIRE(warnings.messages().size() == 1);
+  CHECK_CONTAINS(warnings.messages()[0], "nomap.obj: texture 'missing.png' not found beside the model");
+  CHECK(m->textures().empty());
+  std::set<std::pair<double, double>> colours;
+  for (const auto& mat : m->materials()) {
+    CHECK(mat.texture == -1);
+    colours.insert({mat.colour.x(), mat.colour.y()});
+  }
+  CHECK(colours.count({0.5, 0.25}) == 1);
+  CHECK(colours.count({1.0, 0.0}) == 1);
+
+  // Debian's assimp test models whose texture names only resolve so: an MD2 skin, a case, an author's path.
+  const fs::path root = "/usr/share/assimp/models";
+  for (const char* file : {"MD2/sydney.md2", "MD2/faerie.md2", "3DS/cube_with_diffuse_texture.3DS", "X/kwxport_test_cubewithvcolors.x"}) {
+    if (!fs::exists(root / file)) continue;
+    INFO(file);
+    WarningCollector quiet;
+    where.file = root / file;
+    const auto asset = sim::Mesh::load(where);
+    CHECK(!asset->textures().empty());
+    CHECK(quiet.messages().empty());
+  }
+}
+
 TEST_CASE("mesh: the suite's assets from assimp-testmodels load, textured, inside their sphere") {
   const fs::path root = "/usr/share/assimp/models";
   if (!fs::exists(root)) {

@@ -9,6 +9,7 @@
 #include "core/fileio.hpp"
 #include "core/parallel.hpp"
 #include "core/progress.hpp"
+#include "core/warn.hpp"
 #include "core/rng.hpp"
 #include "core/types.hpp"
 #include "geometry/bayer.hpp"

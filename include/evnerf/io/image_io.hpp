@@ -92,11 +92,11 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
   return detail::decode_checked(bytes, file, want_channels);
 }
 
-/// Decodes a PNG (decode_png), a baseline or progressive JPEG, or (when `file` ends in .tga) a TGA, the
-/// formats mesh files' textures come in, as float in [0, 1]; `extension` stands in for the file's (".tga" for a
-/// TGA held in memory without a name). A TGA has no signature: its header is checked
+/// Decodes a PNG (decode_png), a baseline or progressive JPEG, an uncompressed BMP, or (when `file` ends in
+/// .tga) a TGA, the formats mesh files' textures come in, as float in [0, 1]; `extension` stands in for the
+/// file's (".tga" for a TGA held in memory without a name). A TGA has no signature: its header is checked
 /// against the file's size first (an uncompressed image must be all there; run-length packets expand at most
-/// 128-fold), so a short file never decodes into a large image.
+/// 128-fold), and a BMP's rows must all be in the file, so a short file never decodes into a large image.
 inline Image decode_image(std::string_view bytes, const std::string& file, int want_channels = 0, std::string extension = {}) {
   if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
     throw Error(file, 0, "image file of " + std::to_string(bytes.size()) + " bytes is too large to decode");
@@ -121,7 +121,39 @@ inline Image decode_image(std::string_view bytes, const std::string& file, int w
                                std::to_string(h) + " pixels)");
     return detail::decode_checked(bytes, file, want_channels);
   }
-  throw Error(file, 0, "cannot decode image: not a PNG, JPEG or TGA file");
+  if (bytes.size() >= 2 && bytes.substr(0, 2) == "BM") {
+    // A BMP's header is checked against the file's size: the rows its header announces must all be there.
+    // Only uncompressed rows are read (stb_image reads no run-length BMP either).
+    auto u = [&](std::size_t at, int n) {
+      std::uint64_t v = 0;
+      for (int i = n - 1; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + static_cast<std::size_t>(i)]);
+      return v;
+    };
+    if (bytes.size() < 26) throw Error(file, 0, "cannot decode image: a BMP header is at least 26 bytes, the file has " + std::to_string(bytes.size()));
+    const std::uint64_t offset = u(10, 4), header = u(14, 4);
+    std::uint64_t w = 0, h = 0, bits = 0, compression = 0;
+    if (header == 12) {
+      w = u(18, 2), h = u(20, 2), bits = u(24, 2);
+    } else if (header >= 40 && bytes.size() >= 34) {
+      w = u(18, 4);
+      const auto sh = static_cast<std::int32_t>(u(22, 4));  // negative: rows stored top-down
+      h = static_cast<std::uint64_t>(sh < 0 ? -static_cast<std::int64_t>(sh) : sh);
+      bits = u(28, 2), compression = u(30, 4);
+    } else {
+      throw Error(file, 0, "cannot decode image: BMP info header of " + std::to_string(header) + " bytes (12 or at least 40 are read)");
+    }
+    if (compression != 0 && compression != 3)
+      throw Error(file, 0, "cannot decode image: compressed BMP (compression " + std::to_string(compression) + "; uncompressed rows are read)");
+    if (w == 0 || h == 0 || w >= (1u << 31) || (bits != 1 && bits != 4 && bits != 8 && bits != 16 && bits != 24 && bits != 32))
+      throw Error(file, 0, "cannot decode image: BMP header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
+                               std::to_string(bits) + " bits");
+    const std::uint64_t row = (w * bits + 31) / 32 * 4;
+    if (offset > bytes.size() || (bytes.size() - offset) / row < h)
+      throw Error(file, 0, "cannot decode image: truncated BMP (" + std::to_string(bytes.size() - std::min<std::uint64_t>(offset, bytes.size())) +
+                               " bytes of pixel data for " + std::to_string(w) + "x" + std::to_string(h) + " pixels)");
+    return detail::decode_checked(bytes, file, want_channels);
+  }
+  throw Error(file, 0, "cannot decode image: not a PNG, JPEG, TGA or BMP file");
 }
 
 /// Loads a PNG file (see decode_png).

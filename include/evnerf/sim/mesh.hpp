@@ -1,10 +1,11 @@
 // sim/mesh.hpp — triangle meshes in simulated scenes. Any file assimp reads (glTF 1/2, Collada, OBJ, PLY,
 // FBX, 3DS, …) with its node transforms applied, normalised into a sphere (MeshPlacement); albedo from the
-// material's base or diffuse colour, vertex colours and base-colour textures (PNG, JPEG or TGA, on disk or
-// embedded), the textures mip-mapped and sampled at the pixel's footprint so that fine texture does not alias
-// into spurious events; rays cast through Embree 3's BVH as streams. Compiled where CMake found
-// libassimp-dev and libembree-dev (EVNERF_HAVE_MESH); sim/scene.hpp includes it and its `mesh` directive
-// calls load_mesh. Depends on sim/scene.hpp, io/image_io.hpp, assimp and Embree.
+// material's base or diffuse colour, vertex colours and base-colour textures (PNG, JPEG, TGA or BMP, on disk
+// or embedded, found as model viewers find them: resolve_texture; one not found is warned of once and its
+// material keeps its base colour), the textures mip-mapped and sampled at the pixel's footprint so that fine
+// texture does not alias into spurious events; rays cast through Embree 3's BVH as streams. Compiled where
+// CMake found libassimp-dev and libembree-dev (EVNERF_HAVE_MESH); sim/scene.hpp includes it and its `mesh`
+// directive calls load_mesh. Depends on sim/scene.hpp, io/image_io.hpp, core/warn.hpp, assimp and Embree.
 #pragma once
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -12,15 +13,19 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "../core/error.hpp"
 #include "../core/fileio.hpp"
+#include "../core/warn.hpp"
 #include "../io/image_io.hpp"
 #include "scene.hpp"
 
@@ -104,6 +109,83 @@ class MipTexture {
   std::vector<Level> levels_;
 };
 
+namespace detail {
+inline std::string ascii_lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+/// The entry of folder `dir` named `name`: that name itself if it exists, else the first by name of those that
+/// differ from it only in ASCII case.
+inline std::optional<std::filesystem::path> entry_any_case(const std::filesystem::path& dir, const std::string& name) {
+  std::error_code ec;
+  if (std::filesystem::exists(dir / name, ec)) return dir / name;
+  const std::string want = ascii_lower(name);
+  std::optional<std::filesystem::path> best;
+  for (auto it = std::filesystem::directory_iterator(dir, ec); !ec && it != std::filesystem::directory_iterator(); it.increment(ec))
+    if (ascii_lower(it->path().filename().string()) == want && (!best || it->path() < *best)) best = it->path();
+  return best;
+}
+
+/// `rel`'s components ('/'-separated; "." and ".." as usual) walked from `dir`, each matched in any case.
+inline std::optional<std::filesystem::path> walk_any_case(std::filesystem::path dir, const std::string& rel) {
+  std::size_t at = 0;
+  while (at <= rel.size()) {
+    const std::size_t end = std::min(rel.find('/', at), rel.size());
+    const std::string part = rel.substr(at, end - at);
+    at = end + 1;
+    if (part.empty() || part == ".") continue;
+    if (part == "..") {
+      dir = dir.parent_path();
+      continue;
+    }
+    auto next = entry_any_case(dir, part);
+    if (!next) return std::nullopt;
+    dir = *next;
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(dir, ec)) return std::nullopt;
+  return dir;
+}
+}  // namespace detail
+
+/// The file a mesh's texture name means, found as model viewers find it, or nothing. The name as written
+/// (Windows separators read as '/', Blender's leading "//" as the model's folder), relative to the model's
+/// folder or absolute, each component matched in any case (a 3DS file's "TEST.PNG" is "test.png"); then
+/// the name's last component in the model's folder (absolute paths from the author's machine, such as
+/// "C:\models\top.tga", where the file lies beside the model). A placeholder assimp gives when a file
+/// names no texture of its own (a name beginning with '$', as an MD2 model's "$texture_dummy.bmp") means the
+/// skin beside the model: the image whose name is the model's (sydney.md2: sydney.bmp), else the first by name
+/// that begins with it (faerie.md2: faerie2.bmp).
+inline std::optional<std::filesystem::path> resolve_texture(const std::filesystem::path& model, const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path folder = model.parent_path().empty() ? fs::path(".") : model.parent_path();
+  std::error_code ec;
+  if (name.empty()) return std::nullopt;
+  if (name[0] == '$') {
+    const std::string stem = detail::ascii_lower(model.stem().string());
+    std::optional<fs::path> exact, prefixed;
+    for (auto it = fs::directory_iterator(folder, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+      const fs::path& p = it->path();
+      const std::string ext = detail::ascii_lower(p.extension().string()), s = detail::ascii_lower(p.stem().string());
+      if (!(ext == ".bmp" || ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tga") || !fs::is_regular_file(p, ec)) continue;
+      if (s == stem && (!exact || p < *exact)) exact = p;
+      if (s.starts_with(stem) && (!prefixed || p < *prefixed)) prefixed = p;
+    }
+    return exact ? exact : prefixed;
+  }
+  std::string rel = name;
+  std::replace(rel.begin(), rel.end(), '\\', '/');
+  if (rel.starts_with("//")) rel = rel.substr(2);  // Blender: relative to the .blend file
+  const bool drive = rel.size() >= 2 && rel[1] == ':' && std::isalpha(static_cast<unsigned char>(rel[0]));
+  if (!drive && rel[0] == '/' && fs::is_regular_file(rel, ec)) return fs::path(rel);
+  if (!drive)
+    if (auto p = detail::walk_any_case(folder, rel)) return p;
+  const std::string last = rel.substr(rel.find_last_of('/') == std::string::npos ? 0 : rel.find_last_of('/') + 1);
+  if (auto p = detail::entry_any_case(folder, last); p && fs::is_regular_file(*p, ec)) return p;
+  return std::nullopt;
+}
+
 /// A triangle mesh: positions in scene units after the placement, per-vertex normals, texture coordinates
 /// and colours, per-triangle material; rays go through an Embree BVH built once.
 class Mesh final : public Surface {
@@ -114,8 +196,8 @@ class Mesh final : public Surface {
   };
 
   /// Loads `where.file` with assimp and places it (see MeshPlacement). Errors name the file: one assimp
-  /// cannot read, one without triangles, a texture missing or undecodable, coordinates that are not finite
-  /// or span no volume.
+  /// cannot read, one without triangles, a texture found but undecodable, coordinates that are not finite
+  /// or span no volume. A texture not found (resolve_texture) is a warning, once a name.
   static std::shared_ptr<const Mesh> load(const MeshPlacement& where) {
     const std::string file = where.file.string();
     std::error_code ec;
@@ -133,8 +215,8 @@ class Mesh final : public Surface {
     auto mesh = std::shared_ptr<Mesh>(new Mesh());
     Mesh& m = *mesh;
     m.file_ = file;
-    const auto folder = where.file.parent_path();
-    // Materials and their textures.
+    // Materials and their textures; a texture that is not found is named once.
+    std::set<std::string> missing;
     for (unsigned i = 0; i < sc->mNumMaterials; ++i) {
       const aiMaterial* mat = sc->mMaterials[i];
       Material out;
@@ -147,8 +229,15 @@ class Mesh final : public Surface {
       else if (!has_tex && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS)
         out.colour = Vec3(c.r, c.g, c.b);
       if (has_tex) {
-        out.texture = static_cast<int>(m.textures_.size());
-        m.textures_.emplace_back(load_texture(sc, tex.C_Str(), folder, file), true);
+        if (auto img = load_texture(sc, tex.C_Str(), where.file, file)) {
+          out.texture = static_cast<int>(m.textures_.size());
+          m.textures_.emplace_back(*img, true);
+        } else {
+          if (mat->Get(AI_MATKEY_BASE_COLOR, c) != AI_SUCCESS && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) out.colour = Vec3(c.r, c.g, c.b);
+          if (missing.insert(tex.C_Str()).second)
+            warn(file + ": texture '" + std::string(tex.C_Str()) + "' not found beside the model (material " + std::to_string(i) +
+                 " and any other that uses it show their base colour)");
+        }
       }
       if (!out.colour.allFinite() || out.colour.minCoeff() < 0) throw Error(file, 0, "material " + std::to_string(i) + " has a colour that is negative or not finite");
       m.materials_.push_back(out);
@@ -234,7 +323,9 @@ class Mesh final : public Surface {
  private:
   Mesh() = default;
 
-  static Image load_texture(const aiScene* sc, const std::string& name, const std::filesystem::path& folder, const std::string& file) {
+  /// A texture named `name`, embedded in the scene or a file found by resolve_texture; nothing when no file
+  /// is found (the material then keeps its base colour). A file found but undecodable is an error.
+  static std::optional<Image> load_texture(const aiScene* sc, const std::string& name, const std::filesystem::path& model, const std::string& file) {
     if (const aiTexture* t = sc->GetEmbeddedTexture(name.c_str())) {
       const std::string what = file + " (embedded texture '" + name + "')";
       if (t->mHeight == 0)  // compressed: mWidth bytes of a PNG or JPEG file
@@ -248,13 +339,10 @@ class Mesh final : public Surface {
       }
       return img;
     }
-    std::string rel = name;
-    std::replace(rel.begin(), rel.end(), '\\', '/');
-    const auto path = folder / rel;
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec)) throw Error(file, 0, "texture '" + name + "' is not a file (looked for " + path.string() + ")");
+    const auto path = resolve_texture(model, name);
+    if (!path) return std::nullopt;
     try {
-      return io::decode_image(read_file(path), path.string(), 3);
+      return io::decode_image(read_file(*path), path->string(), 3);
     } catch (const Error& e) {
       throw Error(file, 0, "texture '" + name + "': " + e.message());
     }
