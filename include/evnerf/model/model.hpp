@@ -18,6 +18,7 @@
 #include "../core/rng.hpp"
 #include "../core/types.hpp"
 #include "../events/slicing.hpp"
+#include "../events/training_data.hpp"
 #include "../field/field.hpp"
 #include "../geometry/bayer.hpp"
 #include "../geometry/camera.hpp"
@@ -30,7 +31,6 @@
 #include "../render/renderer.hpp"
 #include "../render/sampler.hpp"
 #include "../render/scene.hpp"
-#include "../train/data.hpp"
 
 namespace evnerf {
 

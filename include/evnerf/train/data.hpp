@@ -1,9 +1,7 @@
-// train/data.hpp — what training reads of a recording: TrainingData (the slices with their counts, the
-// boundary poses, the camera's pixel directions, held-out slices, the mosaic and the event sites), made by
-// train::prepare from an io::Dataset and the settings; the scene box and Adam's settings a Config gives;
-// and what a checkpoint records of the run (train::describe). Depends on core/, events/, geometry/, io/,
-// nn/params.hpp (Adam's settings), render/scene.hpp (the scene box) and train/settings.hpp, not on the model's
-// parts.
+// train/data.hpp — a recording made into what training reads: train::prepare cuts an io::Dataset into
+// TrainingData (events/training_data.hpp) under the settings; the scene box a Config gives; and what a
+// checkpoint records of the run (train::describe). Depends on core/, events/, geometry/, io/,
+// render/scene.hpp (the scene box) and train/settings.hpp, not on the model's parts.
 #pragma once
 #include <algorithm>
 #include <cstddef>
@@ -14,38 +12,14 @@
 #include "../events/hot_pixels.hpp"
 #include "../events/pixels.hpp"
 #include "../events/slicing.hpp"
+#include "../events/training_data.hpp"
 #include "../geometry/bayer.hpp"
 #include "../geometry/camera.hpp"
 #include "../geometry/pose.hpp"
 #include "../io/checkpoint.hpp"
 #include "../io/recording.hpp"
-#include "../nn/params.hpp"
 #include "../render/scene.hpp"
 #include "settings.hpp"
-
-namespace evnerf {
-
-/// Everything a training step reads: slices with their boundary poses and the camera.
-struct TrainingData {
-  geometry::Camera camera;
-  events::SliceSet slices;
-  std::vector<geometry::Pose> boundary_poses;  ///< pose at each slice boundary
-  std::vector<Vec3f> pixel_dirs;               ///< render::pixel_directions(camera)
-  std::vector<bool> slice_enabled;             ///< held-out slices are false (novel-view evaluation)
-  events::CountPrefix prefix;                  ///< per-pixel running counts (objectives whose pixels look at the
-                                               ///< window's counts need it; train::prepare builds it)
-  geometry::BayerPattern bayer;                ///< colour models: the channel of each pixel's events (the
-                                               ///< recording's mosaic; RGGB where it names none)
-  events::PixelSites sites;                    ///< the pixels that carry events (one colour channel's sites of
-                                               ///< a mosaic at the full sensor); all() = every pixel. Steps draw
-                                               ///< their pixels and noise among them only.
-  std::vector<events::HotPixel> masked;        ///< suspected hot pixels left out of `sites` (unless Config::keep_hot_pixels)
-  int slices_per_interval = 1;                 ///< slices per interval of the recording's own cut (train's
-                                               ///< --subslices): a window objective's W counts such intervals,
-                                               ///< so its windows span 1..W·this slices, the same time at any cut
-};
-
-}  // namespace evnerf
 
 namespace evnerf::train {
 
@@ -119,14 +93,6 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   return td;
 }
 
-/// Adam's settings from a Config (learning rate and its decay).
-inline nn::AdamConfig adam_config(const Config& cfg) {
-  nn::AdamConfig ac;
-  ac.lr = cfg.lr;
-  ac.decay = cfg.lr_decay;
-  ac.decay_steps = cfg.lr_decay_steps;
-  return ac;
-}
 /// Scene box from the boundary poses and near/far, with the Config's density unit and background.
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;

@@ -3,7 +3,7 @@
 // the Python module's keyword and settings.json's key), says where it lives in Config, which values it
 // allows and what it does in one line. The command line's flags and --help, the Python keywords, check()
 // and settings.json all come from the table: a new setting is one member and one row.
-// Depends on core/ and train/group.hpp (nlohmann::json for settings.json).
+// Depends on core/, nn/params.hpp (Adam's defaults) and train/group.hpp (nlohmann::json for settings.json).
 #pragma once
 #include <cmath>
 #include <cstdint>
@@ -17,21 +17,22 @@
 #include <nlohmann/json.hpp>
 
 #include "../core/error.hpp"
+#include "../nn/params.hpp"
 #include "group.hpp"
 
 namespace evnerf::train {
 
 /// Everything a training run is given that does not change the computation's shape (the variant's type
-/// does that). These defaults are the library's, the command line's and the Python module's alike (spec §9,
-/// but lr 5e-3: the hash-grid presets want it; pass 5e-4 for the paper's). Each member is a row of
-/// settings() but `progress` and `group`, which say how a run is shown and where it runs.
+/// does that). These defaults are the library's, the command line's and the Python module's alike (spec §9;
+/// Adam's are nn::AdamConfig's, whose lr 5e-3 the hash-grid presets want; pass 5e-4 for the paper's). Each
+/// member is a row of settings() but `progress` and `group`, which say how a run is shown and where it runs.
 struct Config {
   long iterations = 6000;
   int pixels = 1024;
   std::uint64_t seed = 1;
   int threads = 0;
   double near = 0.3, far = 7.0;
-  double lr = 5e-3, lr_decay = 0.1, lr_decay_steps = 250000;
+  double lr = nn::AdamConfig{}.lr, lr_decay = nn::AdamConfig{}.decay, lr_decay_steps = nn::AdamConfig{}.decay_steps;
   double distortion = 0;
   std::optional<double> tv;  ///< unset: the variant's own weight
   double average = 0.998;
@@ -200,6 +201,15 @@ inline const std::vector<Setting>& settings() {
        "how processes sum gradients: dense (the whole buffer), sparse (the blocks some process touched), auto (the fewer bytes)"},
   };
   return rows;
+}
+
+/// Adam's settings a Config gives (the learning rate and its decay; β and ε are nn::AdamConfig's).
+inline nn::AdamConfig adam_config(const Config& cfg) {
+  nn::AdamConfig ac;
+  ac.lr = cfg.lr;
+  ac.decay = cfg.lr_decay;
+  ac.decay_steps = cfg.lr_decay_steps;
+  return ac;
 }
 
 /// The row called `name`; an Error naming `who` and every setting when there is none.
