@@ -699,7 +699,7 @@ static std::string bmp_24(int w, int h, std::uint32_t compression = 0) {
   return b;
 }
 
-TEST_CASE("BMP textures: an uncompressed one decodes the right way up; a short or compressed one is refused before decoding") {
+TEST_CASE("BMP textures: an uncompressed one decodes the right way up, a short or compressed one is refused before decoding") {
   const auto img = io::decode_image(bmp_24(3, 2), "skin.bmp", 3);
   REQUIRE(img.width == 3);
   REQUIRE(img.height == 2);

@@ -684,7 +684,7 @@ TEST_CASE("mesh: files that cannot be a scene's mesh are refused naming the file
 #endif
 
 #ifdef EVNERF_HAVE_MESH
-TEST_CASE("mesh: texture names resolve as model viewers resolve them; one not found is warned of once and shows the base colour") {
+TEST_CASE("mesh: texture names resolve as model viewers resolve them, one not found is warned of once and shows the base colour") {
   Scratch s("evnerf_texpath");
   fs::create_directories(s.dir / "Art" / "Wood");
   fs::create_directories(s.dir / "m");
