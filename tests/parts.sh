@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The parts under examples/parts/ end to end through cli::main (custom_parts): a recording simulated, the
 # EventNeRF objective and the quiet-pixels regulariser each trained, rendered and evaluated; the log names the
-# regulariser's term, and a variant's checkpoint is refused by the other's loss.
+# regulariser's term, and a variant's checkpoint is refused by the other's loss; eval's output is one table
+# unless --verbose.
 # Usage: tests/parts.sh path/to/custom_parts
 set -euo pipefail
 EV=$1
@@ -16,6 +17,15 @@ for v in fast-eventnerf fast-quiet; do
   test -s "$work/$v/eval/metrics.json" || { echo "no metrics for $v"; exit 1; }
   grep -q '"variant": "'"$v"'"' "$work/$v/settings.json" || { echo "settings.json does not name $v"; exit 1; }
 done
+# eval prints one table (the default alignment: ours and both baselines); --verbose prints the rest, and a
+# depth band whose edges meet (planes' back plane) reads "at z m", never "z-z m".
+[ "$(grep -c '^method ' "$work/fast-quiet.eval.txt")" = 1 ] || { cat "$work/fast-quiet.eval.txt"; echo "eval printed more than one table"; exit 1; }
+grep -q "coarse PSNR" "$work/fast-quiet.eval.txt" && { echo "eval printed the error by scale without --verbose"; exit 1; }
+"$EV" eval "$work/fast-quiet/model.ckpt" "$work/rec" --out "$work/eval_verbose" --verbose > "$work/verbose.txt"
+for want in "coarse PSNR" "alignment: min-max" "by true depth"; do
+  grep -q "$want" "$work/verbose.txt" || { cat "$work/verbose.txt"; echo "eval --verbose lacks '$want'"; exit 1; }
+done
+if grep -Eq '([0-9]+\.[0-9]+)-\1 m' "$work/verbose.txt"; then cat "$work/verbose.txt"; echo "a degenerate depth band"; exit 1; fi
 # The event loss falls over the run (the objective learns); the regulariser's term is logged under its name.
 python3 - "$work" <<'PY'
 import json, sys

@@ -46,11 +46,13 @@ inline void print_table(const eval::AlignedScores& a, const std::vector<std::siz
 
 using namespace evaluation;
 
-/// Prints the scores of evaluation::score_all: the primary table, the others, and in colour the grey one.
-inline void print_scores(const Scored& s, const Truth& truth) {
+/// Prints the scores of evaluation::score_all: the primary table; `verbose` adds the error by scale, the offset
+/// oracle, the other alignments and, in colour, the grey scores.
+inline void print_scores(const Scored& s, const Truth& truth, bool verbose) {
   if (truth.hdr)
     fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(truth.hdr->offset));
   print_table(s.primary);
+  if (!verbose) return;
   if (s.json.contains("error_scales")) {
     const auto& es = s.json.at("error_scales");
     fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
@@ -340,6 +342,10 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  bool verbose = false;
+  evalc->add_flag("--verbose", verbose,
+                  "also print the other alignments, the error by scale, the row/column offset oracle, the grey scores of a colour "
+                  "recording and the fine error by depth (metrics.json has them all)");
 
   if (group && group->size() <= 1) group = nullptr;
   const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
@@ -412,7 +418,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       const auto d = io::load(folder, load_opt);
       const auto als = alignments_from(align);
       const auto b = run_baselines(d, als, contrast);
-      print_scores(b.scored, b.truth);
+      print_scores(b.scored, b.truth, true);
       const auto& j = b.scored.json;
       const auto& ids = b.ids;
       const auto& primary = b.scored.primary;
@@ -483,17 +489,23 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
       const auto als = alignments_from(align);
       const auto model = load_renderable(ckpt, parse_channel_upsampling(channel_up), programme.open);
       auto e = evaluate(model, d, als, holdout);
-      print_scores(e.scored, e.truth);
-      if (e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth")) {
+      print_scores(e.scored, e.truth, verbose);
+      if (verbose && e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth")) {
         const auto& fd = e.json.at("error_scales").at("fine_by_depth");
         const auto z = fd.at("edges_m").template get<std::vector<double>>();
         const auto p = fd.at("pixel_share").template get<std::vector<double>>();
-        fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {:.2f}-{:.2f} m ({:.0f} % of pixels), {:.2f}-{:.2f} m ({:.0f} %), "
-                   "{:.2f}-{:.2f} m ({:.0f} %)\n",
-                   z[0], z[1], 100 * p[0], z[1], z[2], 100 * p[1], z[2], z[3], 100 * p[2]);
+        // A band reads "lo-hi m", or "at z m" where its edges meet (a depth that a third of the pixels share,
+        // such as a back wall).
+        std::string bands;
+        for (std::size_t b = 0; b + 1 < z.size() && b < p.size(); ++b) {
+          const std::string lo = fmt::format("{:.2f}", z[b]), hi = fmt::format("{:.2f}", z[b + 1]);
+          bands += fmt::format("{}{} ({:.0f} %{})", b ? ", " : "", lo == hi ? "at " + lo + " m" : lo + "-" + hi + " m", 100 * p[b], b ? "" : " of pixels");
+        }
+        fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {}\n", bands);
         for (const auto& [name, v] : fd.at("methods").items()) {
-          const auto f = v.at("fine_mse").template get<std::vector<double>>();
-          fmt::print("{:<22} {:>8.3f} {:>8.3f} {:>8.3f}\n", name, f[0] * 1e3, f[1] * 1e3, f[2] * 1e3);
+          std::string row = fmt::format("{:<22}", name);
+          for (const double f : v.at("fine_mse").template get<std::vector<double>>()) row += fmt::format(" {:>8.3f}", f * 1e3);
+          fmt::print("{}\n", row);
         }
       }
       for (std::size_t q = 0; q < e.ids.size(); ++q)
@@ -511,16 +523,17 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                    "these views):\n",
                    e.novel_renders.size());
         print_table(e.novel->primary);
-        for (const auto& o : e.novel->others) print_table(o);
-        if (e.json.at("novel_views").contains("depth_absrel_median_scaled"))
+        if (verbose)
+          for (const auto& o : e.novel->others) print_table(o);
+        if (verbose && e.json.at("novel_views").contains("depth_absrel_median_scaled"))
           fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n", e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
         for (std::size_t k = 0; k < e.novel_renders.size(); ++k)
           write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], float(model.near), float(model.far * 0.6));
         const std::size_t m = e.novel_renders.size() / 2;
         io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
       }
-      fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json, montage.png (ground truth | ours | direct integration | "
-                 "high-pass filter), renders/\n",
+      fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "
+                 "prints them), montage.png (ground truth | ours | direct integration | high-pass filter), renders/\n",
                  e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
       return 0;
     }
