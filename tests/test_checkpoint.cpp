@@ -81,7 +81,7 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   // but not with the file's size made the loader allocate 64 GB. Now refused before allocating.
   {
     std::string huge = bytes.substr(0, bytes.size() - 8);
-    const std::uint64_t slices = std::uint64_t{1} << 33, n = Tiny::n_fields * Tiny::field_params + 2 * slices;
+    const std::uint64_t slices = std::uint64_t{1} << 33, n = Tiny::renderer_type::n_params + 2 * slices;
     const std::size_t at = 16 + 8 + 4;  // after the magic, the version and the name "tiny" (length, bytes)
     std::memcpy(huge.data() + at, &n, 8);
     std::memcpy(huge.data() + at + 8, &slices, 8);
@@ -105,7 +105,7 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   for (int s = 0; s < 2; ++s) a.train_step(f.td, 128, 3);
   const std::string good = a.serialize("tiny", f.run());
   const std::size_t n = a.params().size();
-  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) +
+  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) +
                              (8 + Tiny::architecture().size());
   // Values as 4-byte floats: the parameters, Adam's m and v, then the average's count and decay, its values.
   auto with = [&](std::size_t at, float value) {
@@ -177,6 +177,22 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
           with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
   }
+  // A learned backdrop comes back with its values, and renders are the same.
+  {
+    train::Config cb = f.cfg;
+    cb.learn_background = true;
+    Tiny with(f.td.slices.size(), train::scene_box(f.td, cb), 7), back_bg;
+    for (int s = 0; s < 3; ++s) with.train_step(f.td, 128, 3);
+    REQUIRE(with.params().values[Tiny::backdrop_offset()] != 0.f);  // it moved
+    back_bg.deserialize(with.serialize("tiny", run), "b.ckpt");
+    CHECK(back_bg.box().background_learned);
+    CHECK_FALSE(back_bg.box().background.has_value());
+    CHECK(back_bg.params().values == with.params().values);
+    const auto dirs = render::pixel_directions(f.td.camera);
+    CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
+          with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
+    CHECK_FALSE(t.box().background_learned);
+  }
   // A refractory period comes back with its optimiser state, and a resumed step is the uninterrupted one's.
   CHECK_FALSE(t.refractory().active());
   {
@@ -211,12 +227,12 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   };
   const std::string body = good.substr(0, good.size() - 8);
   // Another format version, older or newer, is refused with the one this build reads.
-  for (std::uint64_t version : {std::uint64_t{8}, std::uint64_t{10}}) {
+  for (std::uint64_t version : {io::kCheckpointVersion - 1, io::kCheckpointVersion + 1}) {
     std::string other = body;
     std::memcpy(other.data() + 8, &version, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(other), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: format version " + std::to_string(version) +
-                                         "; this build reads version 9 only").c_str()));
+                                         "; this build reads version " + std::to_string(io::kCheckpointVersion) + " only").c_str()));
   }
   // A nonsensical density length.
   const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
@@ -231,20 +247,24 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: the background luminance is " + short_number(v)).c_str()));
   }
+  // A backdrop flag other than 0 or 1.
+  bad = body;
+  const std::uint64_t two = 2;
+  std::memcpy(bad.data() + at + 16, &two, 8);
+  CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"), doctest::Contains("the backdrop's flag is 2"));
   // A refractory period's record that training never writes: a period beyond a second or not finite, a
   // moment not finite, a negative second moment, a learned flag other than 0 or 1.
-  for (const auto& [offset, v] : std::vector<std::pair<std::size_t, double>>{{16, 2.0},
-                                                                              {16, std::numeric_limits<double>::quiet_NaN()},
-                                                                              {24, std::numeric_limits<double>::infinity()},
-                                                                              {32, -1.0}}) {
+  for (const auto& [offset, v] : std::vector<std::pair<std::size_t, double>>{{24, 2.0},
+                                                                              {24, std::numeric_limits<double>::quiet_NaN()},
+                                                                              {32, std::numeric_limits<double>::infinity()},
+                                                                              {40, -1.0}}) {
     bad = body;
     std::memcpy(bad.data() + at + offset, &v, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
                       doctest::Contains("x.ckpt:0: corrupt or mismatched checkpoint: the refractory period's record"));
   }
   bad = body;
-  const std::uint64_t two = 2;
-  std::memcpy(bad.data() + at + 40, &two, 8);
+  std::memcpy(bad.data() + at + 48, &two, 8);
   CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"), doctest::Contains("learned 2) is not one training writes"));
   // A model trained with other bounds refuses the file, naming both losses.
   using TinyHalfSlack = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
@@ -291,8 +311,8 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   // The refused loads left the model as the good file made it.
   CHECK(t.params().values == a.params().values);
   // A file whose average does not match the model, or whose decay is out of range, is refused.
-  // density length, background, the refractory period's record
-  const std::size_t header = at + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());
+  // density length, background, the backdrop's flag, the refractory period's record
+  const std::size_t header = at + 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());
   const std::size_t moments_end = header + 12 * a.params().size();
   Tiny avg(f.td.slices.size(), box, 7);
   avg.set_average(0.9);

@@ -118,11 +118,13 @@ GradCheck check_all(Model& m, const TrainingData& td, int pixels, std::uint64_t 
 /// events::dead_time_weight gives), on the fixture with a finer threshold, at the period that saturates
 /// about a third of its events; dloss/dτ is checked too.
 /// `background`: the scene box's background luminance (train::Config::background), unset for none.
+/// `learn_background`: a learned backdrop (train::Config::learn_background), its raw values checked too.
 template <class Model>
 void check_model(double distortion = 0, double tv = 0, bool terminate = false, loss::TvNeighbours neighbours = loss::TvNeighbours::Any,
-                 double tv_share = 1, bool dead_time = false, std::optional<double> background = {}) {
+                 double tv_share = 1, bool dead_time = false, std::optional<double> background = {}, bool learn_background = false) {
   evtest::Fixture f(dead_time ? 0.08 : 0.25);
   f.cfg.background = background;
+  f.cfg.learn_background = learn_background;
   double refractory = 0;
   if (dead_time) {
     std::vector<double> gaps;
@@ -163,6 +165,8 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     m.params().values[m.threshold_offset() + 2 * i] = 0.2 + 0.2 * rng.uniform();
     m.params().values[m.threshold_offset() + 2 * i + 1] = -(0.2 + 0.2 * rng.uniform());
   }
+  // A backdrop away from the activation's middle, one value per channel.
+  for (int c = 0; c < Model::channels; ++c) m.params().values[Model::backdrop_offset() + c] = rng.uniform() - 0.5;
   if (terminate) {
     // A density high enough that rays become opaque inside the box (the first output's bias raised), so
     // that they stop before their last samples.
@@ -212,7 +216,13 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     CAPTURE(r.kinks);
     CAPTURE(r.nonzero);
     CAPTURE(r.worst);
-    CHECK(r.checked == Model::n_fields * Model::field_params + 2 * m.n_slices());
+    CHECK(r.checked == Model::renderer_type::n_params + 2 * m.n_slices());
+    // The backdrop's raw values have a gradient only when it is learned (the comparison above covered
+    // them); then some of them do, unless every ray stops before it (terminate: opaque rays).
+    int backdrop_grads = 0;
+    for (int c = 0; c < Model::channels; ++c) backdrop_grads += m.params().grads[Model::backdrop_offset() + c] != 0;
+    if (!learn_background) CHECK(backdrop_grads == 0);
+    else if (!terminate) CHECK(backdrop_grads > 0);
     CHECK(r.bad == 0);
     CHECK(r.kinks * 50 <= r.checked);    // kinks are rare: the comparison covers almost every parameter
     CHECK(r.nonzero * 3 >= r.checked);  // and most of them get a gradient at all
@@ -611,4 +621,12 @@ TEST_CASE_TEMPLATE("whole training loss before a known background: finite differ
   with.set_ray_termination(terminate);
   REQUIRE(with.box().background == 0.4);
   CHECK(with.gradients(f.td, 16, 1, 4).loss != without.gradients(f.td, 16, 1, 4).loss);
+}
+// A learned backdrop (train::Config::learn_background): the rays' leftover transmittance weighs a luminance
+// per channel that is a parameter, shared by every pass; the whole loss matches finite differences in its
+// raw values as in the field's, grey and colour, with rays that stop early (which show no backdrop) too.
+TEST_CASE_TEMPLATE("whole training loss before a learned backdrop: finite differences in double", Model, StratifiedModel<1>,
+                   HierarchicalModel<3>, LongOccupancyModel<3>) {
+  const bool terminate = std::is_same_v<Model, LongOccupancyModel<3>>;
+  check_model<Model>(0, 0, terminate, loss::TvNeighbours::Any, 1, false, std::nullopt, true);
 }

@@ -23,7 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     evfuzz::expect(run.times.empty() || (run.times.size() == model.n_slices() + 1 && run.camera.width() > 0 && run.camera.height() > 0),
                    "a run whose boundaries do not match the slices, or without a sensor");
     for (const auto& pose : run.poses) evfuzz::expect(std::abs(pose.q.norm() - 1) < 1e-9, "a boundary pose that is not a rotation");
-    evfuzz::expect(model.params().size() == evfuzz::FuzzModel::n_fields * evfuzz::FuzzModel::field_params + 2 * model.n_slices(),
+    evfuzz::expect(model.params().size() == evfuzz::FuzzModel::renderer_type::n_params + 2 * model.n_slices(),
                    "parameter count does not match the slices");
     const auto& avg = model.average();
     evfuzz::expect(!avg.active() || (avg.values().size() == model.params().size() && avg.decay() >= 0 && avg.decay() < 1),

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 
 #include "../eval/load.hpp"
 #include "../evnerf.hpp"
@@ -106,6 +107,10 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
                r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
   if (const auto& rp = trainer.model().refractory(); lead && rp.active())
     fmt::print("refractory period {:.1f} us ({})\n", rp.seconds * 1e6, rp.learned ? "learned" : "given");
+  if (const auto& m = trainer.model(); lead && m.renderer().learns_backdrop()) {
+    const auto b = *m.renderer().backdrop(m.render_params().data());
+    fmt::print("backdrop luminance {:.4g} (learned{})\n", fmt::join(b, " "), b.size() > 1 ? ", per channel" : "");
+  }
   if (r.diverged) return 3;
   if (r.stopped) {
     // In a group the signal may have reached another process only: its stop is shared (train::run).

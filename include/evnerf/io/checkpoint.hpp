@@ -1,6 +1,6 @@
 // io/checkpoint.hpp — the checkpoint format and its one parser. A checkpoint is
 //   "EVNERFCK" | u64 version | str variant name | u64 parameter count | u64 slices | i64 step |
-//   f64×6 box (centre, scale, near, far) | f64 density length | f64 background (NaN: none) |
+//   f64×6 box (centre, scale, near, far) | f64 density length | f64 background (NaN: none) | u64 backdrop learned (0, 1) |
 //   f64 refractory period (seconds; negative: counts read as they are) + f64×2 its Adam moments + u64 learned (0, 1) |
 //   str loss | str architecture |
 //   f32 parameters | f32 Adam m | f32 Adam v |
@@ -33,7 +33,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 9;
+inline constexpr std::uint64_t kCheckpointVersion = 10;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -92,6 +92,7 @@ struct CheckpointHeader {
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
   double density_length = 1.0;
   double background = std::numeric_limits<double>::quiet_NaN();  ///< the box's background luminance, NaN for none
+  bool background_learned = false;                                ///< the box's backdrop is learned (its values are parameters)
   double refractory = -1, refractory_m = 0, refractory_v = 0;     ///< the period (negative: none) and its Adam moments
   bool refractory_learned = false;
   std::string loss;
@@ -126,6 +127,9 @@ inline CheckpointHeader read_checkpoint_header(CheckpointReader& r) {
   h.background = r.f64();
   if (!std::isnan(h.background) && !(h.background >= 0 && std::isfinite(h.background)))
     r.fail("the background luminance is " + short_number(h.background) + " (a number >= 0, or NaN for none)");
+  const std::uint64_t backdrop = r.u64();
+  if (backdrop > 1) r.fail("the backdrop's flag is " + std::to_string(backdrop) + " (0: not learned, 1: learned)");
+  h.background_learned = backdrop == 1;
   h.refractory = r.f64();
   h.refractory_m = r.f64();
   h.refractory_v = r.f64();
@@ -213,6 +217,7 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put(h.box, sizeof h.box);
   put_f64(h.density_length);
   put_f64(h.background);
+  put_u64(h.background_learned ? 1 : 0);
   put_f64(h.refractory);
   put_f64(h.refractory_m);
   put_f64(h.refractory_v);

@@ -1,5 +1,5 @@
 // model/checkpoint.hpp — EvNerf (model/model.hpp) as a checkpoint and back: the format is io/checkpoint.hpp;
-// here the model's part of it (box and background, parameters, Adam's moments, the parameter average, the
+// here the model's part of it (box and backdrop, parameters, Adam's moments, the parameter average, the
 // sampler's state) and the checks a load makes (architecture, loss, counts, finite values) before the model
 // changes.
 // Included by model/model.hpp.
@@ -31,6 +31,7 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
   std::copy(boxv, boxv + 6, h.box);
   h.density_length = bx.density_length;
   h.background = bx.background.value_or(std::numeric_limits<double>::quiet_NaN());
+  h.background_learned = bx.background_learned;
   h.refractory = refractory_.seconds;
   h.refractory_m = refractory_.m;
   h.refractory_v = refractory_.v;
@@ -55,8 +56,8 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   if (h.architecture != architecture())
     r.fail("written by a model of another architecture ('" + h.architecture + "'; this model is '" + architecture() + "')");
   const std::uint64_t n = h.n_params;
-  if (h.n_slices > n || n != n_fields * field_params + 2 * h.n_slices)
-    r.fail("parameter count does not match this model (" + std::to_string(n) + " in the file, " + std::to_string(n_fields * field_params) +
+  if (h.n_slices > n || n != renderer_type::n_params + 2 * h.n_slices)
+    r.fail("parameter count does not match this model (" + std::to_string(n) + " in the file, " + std::to_string(renderer_type::n_params) +
            " + 2 per slice here)");
   if (n > r.remaining() / 12)  // parameters and Adam's two moments, 4 bytes each: refuse before allocating
     r.fail("truncated: " + std::to_string(n) + " parameters need " + std::to_string(n * 12) + " bytes, " + std::to_string(r.remaining()) +
@@ -104,6 +105,7 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   bx.far = h.box[5];
   bx.density_length = h.density_length;
   if (!std::isnan(h.background)) bx.background = h.background;
+  bx.background_learned = h.background_learned;
   renderer_ = renderer_type(bx, std::move(sampler));
   n_slices_ = h.n_slices;
   refractory_ = {h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax), h.refractory_m, h.refractory_v,

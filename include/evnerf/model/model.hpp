@@ -1,7 +1,8 @@
 // model/model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
 // composition of its parts. The renderer (render/renderer.hpp: rays → samples → field → compositing, and
 // the sampler's state) turns rays into luminance; the objective (loss/objective.hpp) says which rays a tile
-// renders and scores them; the thresholds, one pair per slice, sit after the field's parameters. This
+// renders and scores them; the thresholds, one pair per slice, sit after the renderer's parameters (the
+// networks' and the backdrop's). This
 // header declares the class and holds its state; its work is in the headers it includes at its end:
 // model/step.hpp (a training step: the draw, the tiles, the shards), model/optimiser.hpp (Adam, the
 // threshold projection, the parameter average) and model/checkpoint.hpp (the model as a checkpoint, format
@@ -100,8 +101,7 @@ class EvNerf {
   EvNerf() = default;
   /// A fresh model for `n_slices` slices, seeded initialisation.
   EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
-      : renderer_(box), n_slices_(n_slices), params_(n_fields * field_params + 2 * n_slices),
-        adam_(n_fields * field_params + 2 * n_slices, adam) {
+      : renderer_(box), n_slices_(n_slices), params_(renderer_type::n_params + 2 * n_slices), adam_(renderer_type::n_params + 2 * n_slices, adam) {
     Rng rng(seed);
     for (int f = 0; f < n_fields; ++f) {
       Rng r = rng.split(static_cast<std::uint64_t>(f));
@@ -113,7 +113,12 @@ class EvNerf {
     }
   }
 
-  std::size_t threshold_offset() const { return n_fields * field_params; }
+  /// Where the thresholds lie in params(): behind the networks and the backdrop's raw values (which start
+  /// at 0: the radiance activation's middle, as an untrained field's samples).
+  std::size_t threshold_offset() const { return renderer_type::n_params; }
+  /// Where the backdrop's raw values lie in params() (render::Renderer::backdrop_offset; used when the box's
+  /// backdrop is learned).
+  static constexpr std::size_t backdrop_offset() { return renderer_type::backdrop_offset; }
   std::size_t n_slices() const { return n_slices_; }
   Scalar threshold_pos(std::size_t i) const { return params_.values[threshold_offset() + 2 * i]; }
   Scalar threshold_neg(std::size_t i) const { return params_.values[threshold_offset() + 2 * i + 1]; }

@@ -47,7 +47,7 @@ template <class... V>
 std::string checkpoint_variant(const std::filesystem::path& path) {
   const auto h = io::peek_checkpoint(path);
   auto fits = [&]<class Model>() {
-    return h.n_params == Model::n_fields * Model::field_params + 2 * h.n_slices && h.loss == Model::loss_description() &&
+    return h.n_params == Model::renderer_type::n_params + 2 * h.n_slices && h.loss == Model::loss_description() &&
            h.architecture == Model::architecture();
   };
   std::string pick;

@@ -1,14 +1,16 @@
 // render/renderer.hpp — Renderer<Field, Sampler, T>: rays (any number, from any poses) to samples, the field
 // over the samples the sampler keeps, compositing forward and backward; whole images with depth and
 // opacity. It owns the scene box and the sampler (and so the sampler's state). Two-network samplers run a
-// coarse and a fine pass, each with its own network parameters (network n at params + n · Field::n_params).
-// Depends on field/, geometry/ and render/.
+// coarse and a fine pass, each with its own network parameters (network n at params + n · Field::n_params);
+// behind the networks lie the backdrop's raw values, one per channel, read when the box's backdrop is
+// learned (SceneBox::background_learned). Depends on field/, geometry/ and render/.
 #pragma once
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "../core/parallel.hpp"
@@ -32,8 +34,12 @@ class Renderer {
   static constexpr int networks = SamplerT::two_networks ? 2 : 1;
   static constexpr int n_coarse = SamplerT::n_coarse, n_fine = SamplerT::two_networks ? SamplerT::n_fine : 0;
   static constexpr std::size_t field_params = FieldT::n_params;
-  /// Parameters of all networks (the coarse network's first).
-  static constexpr std::size_t n_params = networks * field_params;
+  /// Where the backdrop's `channels` raw values lie: behind all networks' parameters (the coarse network's
+  /// first). A learned backdrop's luminance in channel c is the field's radiance activation of value c, so
+  /// that it spans what the field's own samples can show.
+  static constexpr std::size_t backdrop_offset = networks * field_params;
+  /// Parameters of all networks and the backdrop's raw values.
+  static constexpr std::size_t n_params = backdrop_offset + channels;
 
   /// Backward early termination (samplers that skip): samples behind this transmittance get no gradient.
   static constexpr T kMinTransmittance = T(1e-4);
@@ -55,7 +61,7 @@ class Renderer {
     std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
     std::vector<std::uint64_t> noise_key, noise_at;  ///< per ray: where its density noise is drawn (draw_noise)
     std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
-    std::array<T, channels> background{};    ///< the box's background in every channel (comp's point here)
+    std::array<T, channels> background{};    ///< the backdrop behind the rays, per channel (comp's point here)
     std::array<T, channels> black{};         ///< what lies behind a ray that stopped early (zeros)
   };
   /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
@@ -72,6 +78,9 @@ class Renderer {
     /// no further backward (kMinTransmittance unless the model sets another, Model::set_ray_termination).
     T training_cut = kMinTransmittance;
     std::vector<T> one;                   ///< a ray's fine depths
+    /// The learned backdrop of the last forward (SceneBox::background_learned): its luminance per channel
+    /// and that luminance's derivative by its raw value.
+    std::array<T, channels> backdrop{}, dbackdrop_draw{};
   };
 
   Renderer() = default;
@@ -97,10 +106,33 @@ class Renderer {
   static const std::vector<RayComposite<T>>& composites(const Workspace& w, int net) { return w.pass[net].comp; }
 
   /// Backward of the last training forward from every pass's dcolor: adds the gradients of all networks'
-  /// parameters to `grads` (laid out as params). With a deferring field workspace, flush() applies the
-  /// table gradients that backward() kept back.
+  /// parameters, and of a learned backdrop's raw values, to `grads` (laid out as params). With a deferring
+  /// field workspace, flush() applies the table gradients that backward() kept back.
   void backward(const T* params, Workspace& w, T* grads) const {
+    if (learns_backdrop()) {
+      // Every pass shows the backdrop behind its rays with the transmittance they leave (r.rest); a ray
+      // that stopped early shows none (composited before zeros).
+      std::array<double, channels> d{};
+      for (const auto& p : w.pass)
+        for (std::size_t r = 0; r < p.comp.size(); ++r) {
+          if (p.comp[r].background != p.background.data()) continue;
+          for (int c = 0; c < channels; ++c) d[c] += double(p.dcolor[r * channels + c]) * double(p.comp[r].rest);
+        }
+      for (int c = 0; c < channels; ++c) grads[backdrop_offset + c] += static_cast<T>(d[c] * double(w.dbackdrop_draw[c]));
+    }
     for (int net = 0; net < networks; ++net) backward_pass(params + net * field_params, w.pass[net], w, grads + net * field_params);
+  }
+  /// Whether a backdrop lies behind the samples (known or learned): the last interval is then closed.
+  bool has_backdrop() const { return box_.background.has_value() || box_.background_learned; }
+  /// Whether the backdrop is learned (its raw values in params get gradients): learned and not known.
+  bool learns_backdrop() const { return box_.background_learned && !box_.background; }
+  /// The backdrop's luminance in each channel under `params` (laid out as params): the box's known one, the
+  /// learned one, or nothing (std::nullopt) when rays stop at their last sample.
+  std::optional<std::array<T, channels>> backdrop(const T* params) const {
+    if (!has_backdrop()) return std::nullopt;
+    Workspace w;
+    set_backdrop(params, w);
+    return w.backdrop;
   }
   /// Adds `scale` × the distortion of every ray's weights (distortion_loss) in every pass of the last
   /// training forward to the loss that backward() differentiates; returns that addition. Call after the
@@ -218,7 +250,22 @@ class Renderer {
   }
 
  private:
+  /// w.backdrop (and its derivatives) from the box's known backdrop or the learned raw values in params.
+  void set_backdrop(const T* params, Workspace& w) const {
+    if (box_.background) {
+      w.backdrop.fill(static_cast<T>(*box_.background));
+      w.dbackdrop_draw.fill(T(0));
+    } else if (learns_backdrop()) {
+      for (int c = 0; c < channels; ++c) {
+        const auto l = ad::value_and_grad(LuminanceOfRaw<typename FieldT::radiance::activation>{},
+                                          std::array<double, 1>{double(params[backdrop_offset + c])});
+        w.backdrop[c] = static_cast<T>(l.value);
+        w.dbackdrop_draw[c] = static_cast<T>(l.grad[0]);
+      }
+    }
+  }
   void forward(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
+    set_backdrop(params, w);
     Pass& c = w.pass[0];
     c.S = n_coarse;
     c.t.resize(static_cast<std::size_t>(R) * n_coarse);
@@ -401,7 +448,7 @@ class Renderer {
         for (int k = k0; k < k1; ++k) {
           const std::size_t i = static_cast<std::size_t>(r) * S + k;
           const T nz = training ? p.noise[i] : T(0);
-          const double delta = interval_length(S, k, p.t.data() + static_cast<std::size_t>(r) * S, dn, box_.background.has_value());
+          const double delta = interval_length(S, k, p.t.data() + static_cast<std::size_t>(r) * S, dn, has_backdrop());
           const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity && nz == T(0)
                                    ? 0.0
                                    : 1.0 - std::exp(-(FieldT::density_activation::f(training ? p.sig_full[i] + nz : p.sig_full[i]) * delta));
@@ -461,11 +508,12 @@ class Renderer {
     const bool skipped = !training || sampler_.skipping();  // samples may sit at kSkippedDensity
     if (training && !terminating) draw_noise(R, sampler_.skipping() && noise_vanishes_when_skipped(), p);
     p.comp.resize(R);
-    // The box's background lies behind a ray's samples, unless the ray stopped early: then what lies behind
-    // its stop is not known and adds nothing (less than the cut's share; the same intervals as the stop's).
+    // The backdrop (known or learned) lies behind a ray's samples, unless the ray stopped early: then what
+    // lies behind its stop is not known and adds nothing (less than the cut's share; the same intervals as
+    // the stop's).
     const T* background = nullptr;
-    if (box_.background) {
-      p.background.fill(static_cast<T>(*box_.background));
+    if (has_backdrop()) {
+      p.background = w.backdrop;
       background = p.background.data();
     }
     const T cut = training ? w.training_cut : kEvalTransmittance;

@@ -16,13 +16,17 @@ namespace evnerf::render {
 /// the normalised box, which makes the untrained field's opacity and the N(0, 1) density noise
 /// independent of the recording's units). `background`, when set, is the luminance (the same in every
 /// channel) a ray sees where it leaves the samples unstopped: a backdrop of known brightness behind an
-/// object, as EventNeRF's object scenes assume (render::composite_forward). Unset, the last sample stops
-/// every ray (NeRF's open interval) and the field itself must paint what lies behind.
+/// object, as EventNeRF's object scenes assume (render::composite_forward). `background_learned` puts a
+/// backdrop of unknown brightness there instead, one luminance per channel learned with the field (the
+/// renderer's backdrop parameters; Robust e-NeRF learns one for the same reason: the sequence's log offset
+/// is unknown, so no fixed brightness fits it). With neither, the last sample stops every ray (NeRF's open
+/// interval) and the field itself must paint what lies behind.
 struct SceneBox {
   Vec3 center = Vec3::Zero();
   double scale = 1.0, near = 0.1, far = 5.0;
   double density_length = 1.0;
   std::optional<double> background;
+  bool background_learned = false;  ///< a learned backdrop (ignored when `background` is known)
 
   /// The box that holds every point at depth ≤ far seen from any of the camera centres.
   static SceneBox from_cameras(const std::vector<Vec3>& centres, double near, double far) {

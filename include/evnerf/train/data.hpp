@@ -93,13 +93,14 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   return td;
 }
 
-/// Scene box from the boundary poses and near/far, with the Config's density unit and background.
+/// Scene box from the boundary poses and near/far, with the Config's density unit and backdrop.
 inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   std::vector<Vec3> c;
   for (auto& p : td.boundary_poses) c.push_back(p.t);
   auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
   if (cfg.density_per_box) box.density_length = box.scale;
   box.background = cfg.background;
+  box.background_learned = cfg.learn_background;
   return box;
 }
 

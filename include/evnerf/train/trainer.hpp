@@ -269,6 +269,10 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
                           {"seconds", el}};
       if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
       if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
+      if (model.renderer().learns_backdrop()) {  // the learned backdrop's luminance per channel
+        const auto b = *model.renderer().backdrop(model.params().values.data());
+        j["background"] = std::vector<double>(b.begin(), b.end());
+      }
       for (int k = 1; k < Model::n_terms; ++k)  // each regulariser that is on, as <name>_loss
         if (model.objective().active(k)) j[std::string(Model::term_name(k)) + "_loss"] = sum_terms[k] / window;
       if (shard_count > 1) {
@@ -395,7 +399,7 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
-  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and background) and its
+  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and backdrop) and its
   /// refractory period, whatever this call's Config says; the Config takes them over, so that settings.json
   /// records what the run uses.
   void follow_box() {
@@ -404,6 +408,7 @@ class Trainer {
     cfg_.far = b.far;
     cfg_.density_per_box = b.density_length != 1.0;
     cfg_.background = b.background;
+    cfg_.learn_background = b.background_learned;
     const auto& r = model_.refractory();
     if (r.learned) cfg_.refractory.reset();
     else cfg_.refractory = r.active() ? r.seconds : 0.0;
