@@ -8,21 +8,24 @@
 # $OUT/mesh.csv, copies it to bench/results/mesh.csv with a montage per asset (bench/results/mesh/) and
 # regenerates docs/results.md (bench/results.py).
 # Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
-# Environment: MODES ("grey colour"), THREADS (2), SEED (training seed, 1), STEPS (train's default),
+# Environment: MODES ("grey colour"), THREADS (2), SEEDS (training seeds, "1 2": each asset and mode is recorded once and
+#              trained once per seed, in OUT/<asset>-<mode>/s<seed>), STEPS (train's default),
 #              BACKGROUND (empty: none; 0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs
 #              know theirs), DEPTHS (empty: train's near and far; "1.5 4.5": where the object can lie seen
-#              from the orbit, radius 3 ± 1.5), BUILD (build), EVNERF (the binary), OUT (out/mesh), KEEP (1:
+#              from the orbit, radius 3 ± 1.5), TRAIN_FLAGS (more train options, split at spaces), BUILD
+#              (build), EVNERF (the binary), OUT (out/mesh), KEEP (1:
 #              an asset and mode whose metrics.json is in OUT is not run again), RESULTS (bench/results;
 #              empty: not copied).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/mesh}
 THREADS=${THREADS:-2}
-SEED=${SEED:-1}
+read -r -a SEEDS <<<"${SEEDS:-1 2}"
 KEEP=${KEEP:-0}
 RESULTS=${RESULTS-bench/results}
 BACKGROUND=${BACKGROUND-}
 DEPTHS=${DEPTHS-}
+read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 . bench/evnerf_bin.sh  # EV
 scripts/deps.sh assimp-testmodels python3-pil
 M=/usr/share/assimp/models
@@ -47,26 +50,33 @@ while read -r key kind file; do
     flags=()
     preset=fast
     if [ "$mode" = colour ]; then flags=(--bayer); preset=colour; fi
-    if [ "$KEEP" != 1 ] || [ ! -f "$dir/eval/metrics.json" ]; then
-      rm -rf "$dir"
-      mkdir -p "$dir"
+    mkdir -p "$dir"
+    if [ "$KEEP" != 1 ] || [ ! -f "$dir/rec/events.txt" ]; then
+      rm -rf "$dir/rec"
       /usr/bin/time -f "%e" -o "$dir/simulate.seconds" "$EV" simulate mesh "$M/$file" "${flags[@]}" --out "$dir/rec" > "$dir/simulate.txt" 2>&1
-      train=(--preset "$preset" --seed "$SEED" --threads "$THREADS" --quiet --allow-collapse)
-      [ -n "${STEPS:-}" ] && train+=(--iterations "$STEPS")
-      [ -n "$BACKGROUND" ] && train+=(--background "$BACKGROUND")
-      [ -n "$DEPTHS" ] && train+=(--near "${DEPTHS% *}" --far "${DEPTHS#* }")
-      "$EV" train "$dir/rec" --out "$dir/run" "${train[@]}" > "$dir/train.txt" 2>&1
-      "$EV" eval "$dir/run/model.ckpt" "$dir/rec" --out "$dir/eval" > "$dir/eval.txt" 2>&1
     fi
-    python3 - "$dir" "$key" "$kind" "$mode" "$preset" "$THREADS" "$SEED" "$CPU" >> "$CSV" <<'PY'
+    for seed in "${SEEDS[@]}"; do
+      run="$dir/s$seed"
+      if [ "$KEEP" != 1 ] || [ ! -f "$run/eval/metrics.json" ]; then
+        rm -rf "$run"
+        mkdir -p "$run"
+        train=(--preset "$preset" --seed "$seed" --threads "$THREADS" --quiet --allow-collapse)
+        [ -n "${STEPS:-}" ] && train+=(--iterations "$STEPS")
+        [ -n "$BACKGROUND" ] && train+=(--background "$BACKGROUND")
+        [ -n "$DEPTHS" ] && train+=(--near "${DEPTHS% *}" --far "${DEPTHS#* }")
+        train+=("${TRAIN_EXTRA[@]}")
+        "$EV" train "$dir/rec" --out "$run/run" "${train[@]}" > "$run/train.txt" 2>&1
+        "$EV" eval "$run/run/model.ckpt" "$dir/rec" --out "$run/eval" > "$run/eval.txt" 2>&1
+      fi
+      python3 - "$dir" "$run" "$key" "$kind" "$mode" "$preset" "$THREADS" "$seed" "$CPU" >> "$CSV" <<'PY'
 import json, sys
-d, key, kind, mode, preset, threads, seed, cpu = sys.argv[1:]
-st = json.load(open(f"{d}/run/settings.json"))["runs"][-1]
-bg = "" if st["background"] is None else st["background"]
-m = json.load(open(f"{d}/eval/metrics.json"))
-log = [json.loads(l) for l in open(f"{d}/run/log.jsonl")]
+d, run, key, kind, mode, preset, threads, seed, cpu = sys.argv[1:]
+st = json.load(open(f"{run}/run/settings.json"))["runs"][-1]
+bg = st["background"] if st["background"] is not None else "learned" if st.get("learn_background") else ""
+m = json.load(open(f"{run}/eval/metrics.json"))
+log = [json.loads(l) for l in open(f"{run}/run/log.jsonl")]
 spr = [r["samples_per_ray"] for r in log if "samples_per_ray" in r]
-train = open(f"{d}/train.txt").read()
+train = open(f"{run}/train.txt").read()
 steps = train.split("trained ")[1].split(": ")[1].split(" steps")[0] if "trained " in train else "nan"
 secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else "nan"
 sim = open(f"{d}/simulate.seconds").read().split()[-1]
@@ -84,17 +94,18 @@ for view, j in (("path", m), ("novel", m["novel_views"])):
             print(f"{key},{kind},{mode},{preset},{steps},{threads},{seed},{bg},{st['near']},{st['far']},{cpu},{events},{sim},{secs},"
                   f"{spr[-1] if spr else float('nan'):.1f},{view},{al},{method},{s['psnr']:.2f},{s['ssim']:.3f}")
 PY
-    grep "^$key,.*,$mode,.*,global-log-affine," "$CSV" | cut -d, -f16- | tr '\n' ' '
-    echo
+      echo "$key $mode seed $seed: $(grep "^$key,.*,$mode,.*,$seed,.*,global-log-affine," "$CSV" | cut -d, -f16- | tr '\n' ' ')"
+    done
   done
 done <<<"$ASSETS"
 if [ -n "$RESULTS" ]; then
   mkdir -p "$RESULTS/mesh"
   cp "$CSV" "$RESULTS/mesh.csv"
   for dir in "$OUT"/*-grey "$OUT"/*-colour; do
-    [ -f "$dir/eval/montage.png" ] || continue
+    ev="$dir/s${SEEDS[0]}/eval"  # the first seed's montages
+    [ -f "$ev/montage.png" ] || continue
     n=$(basename "$dir")
-    /usr/bin/python3 - "$dir/eval/montage.png" "$dir/eval/montage_novel.png" "$RESULTS/mesh/$n.png" <<'PY'
+    /usr/bin/python3 - "$ev/montage.png" "$ev/montage_novel.png" "$RESULTS/mesh/$n.png" <<'PY'
 import sys
 from PIL import Image
 a, b = (Image.open(p).convert("RGB") for p in sys.argv[1:3])

@@ -128,43 +128,68 @@ def headline(q):
     return lines
 
 
+# The tables whose runs had no backdrop say so: their runs are what `--no-learn-background`
+# trains, bit for bit.
+NO_BACKDROP = ("These runs had no backdrop behind the samples (what `train --no-learn-background` trains, bit for bit); "
+               "the learned backdrop, the default, is not measured on them yet.")
+
+
 def mesh_section(rows):
-    """The mesh suite's table: per asset and mode, the training path against both baselines and the held-out views."""
+    """The mesh suite's table: per asset and mode, the training path against both baselines and the held-out views,
+    each of ours the mean over the training seeds with every seed's PSNR beside it."""
+    seeds = sorted({r["seed"] for r in rows}, key=int)
+
+    def runs(asset, mode, view, al, method="ours"):
+        return [r for r in rows if (r["asset"], r["mode"], r["view"], r["alignment"], r["method"]) == (asset, mode, view, al, method)]
+
     def cell(asset, mode, view, al, method="ours"):
-        r = next((r for r in rows if (r["asset"], r["mode"], r["view"], r["alignment"], r["method"]) == (asset, mode, view, al, method)), None)
-        return (f"{float(r['psnr']):.2f} / {float(r['ssim']):.3f}", r) if r else ("", None)
+        rs = runs(asset, mode, view, al, method)
+        if not rs:
+            return "", None
+        p, q = (statistics.mean(float(r[k]) for r in rs) for k in ("psnr", "ssim"))
+        per_seed = f" ({', '.join(r['psnr'] for r in sorted(rs, key=lambda r: int(r['seed'])))})" if method == "ours" and len(rs) > 1 else ""
+        return f"{p:.2f} / {q:.3f}{per_seed}", rs[0]
     first = rows[0]
+    bg = first.get("background", "")
+    given = ("the backdrop learned (`train`'s default), " if bg == "learned" else
+             f"`train --background {bg}` (the backdrop's known luminance, as EventNeRF's runs know theirs), " if bg else
+             "no backdrop (the last sample stops every ray), ")
     p = ["", "## Mesh scenes (`bench/mesh_suite.sh`)", "",
          "Real 3-D assets from Debian's `assimp-testmodels`, each normalised into the unit sphere and recorded by",
          "`evnerf simulate mesh` (346 × 260, one revolution of an orbit at 30° in one second, a grey background); grey",
          "with the default preset, colour (`--bayer`, an RGGB mosaic) with the `colour` preset; " + f"{first['steps']} steps, {first['threads']} threads, "
-         f"training seed {first['seed']}, " + (f"`train --background {first['background']}` (the backdrop's known luminance, as "
-         "EventNeRF's runs know theirs) and " if first.get("background") else "no background given to `train`, ") +
-         f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`, `--refractory 0` (an ideal sensor). The held-out views lie on a second orbit at 50°, never trained on; only the model",
+         f"training seed{'s' if len(seeds) > 1 else ''} {' and '.join(seeds)}, " + given +
+         f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`, an ideal sensor (the refractory period learned, as by default: it stays at or near 0). The held-out views lie on a second orbit at 50°, never trained on; only the model",
          "renders them, and beside it a flat frame (one brightness per channel, which the alignment fits) scores what",
-         "rendering nothing of the object would. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
+         "rendering nothing of the object would. Ours is the mean over the seeds (each seed's PSNR in brackets); the",
+         "baselines and the flat frame do not depend on the training seed. Three alignments: `global-log-affine` (eval's default), `eventnerf` (EventNeRF's fit) and",
          "`global-log-offset` (one log offset per channel, E-3DGS's correction). Training seconds are `train`'s wall time",
-         "on a shared machine (5–25 % between runs). A montage per asset and mode is in `bench/results/mesh/`: the",
+         "on a shared machine (other work running beside a run can make it 2–3 times as slow). A montage per asset and mode is in `bench/results/mesh/`: the",
          "training path's middle frame (truth | ours | direct integration | high-pass filter) above a held-out view",
-         "(truth | ours).", "",
+         "(truth | ours), at the first seed.", "",
          "| asset | mode | path: ours | direct integration | high-pass filter | held-out: ours | flat frame | eventnerf | global-log-offset | training s | samples/ray |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
-    means, flats = {}, {}
+    means, flats, spreads = {}, {}, {}
     for asset, mode in dict.fromkeys((r["asset"], r["mode"]) for r in rows):
         ours, r = cell(asset, mode, "path", "global-log-affine")
         novel, nr = cell(asset, mode, "novel", "global-log-affine")
         flat, fr = cell(asset, mode, "novel", "global-log-affine", "flat")
-        if nr:
-            means.setdefault(mode, []).append(float(nr["psnr"]))
+        held = [float(x["psnr"]) for x in runs(asset, mode, "novel", "global-log-affine")]
+        if held:
+            means.setdefault(mode, []).append(statistics.mean(held))
+            spreads.setdefault(mode, []).append(max(held) - min(held))
         if fr:
             flats.setdefault(mode, []).append(float(fr["psnr"]))
+        timed = runs(asset, mode, "path", "global-log-affine")
+        secs = statistics.mean(float(x["train_seconds"]) for x in timed) if timed else float("nan")
         p.append(f"| {asset} ({r['kind'] if r else ''}) | {mode} | {ours} | {cell(asset, mode, 'path', 'global-log-affine', 'direct_integration')[0]} | "
                  f"{cell(asset, mode, 'path', 'global-log-affine', 'high_pass_filter')[0]} | {novel} | {flat} | {cell(asset, mode, 'novel', 'eventnerf')[0]} | "
-                 f"{cell(asset, mode, 'novel', 'global-log-offset')[0]} | {float(r['train_seconds']):.0f} | {r['samples_per_ray']} |")
+                 f"{cell(asset, mode, 'novel', 'global-log-offset')[0]} | {secs:.0f} | {r['samples_per_ray']} |")
     p.append("")
     for mode, v in means.items():
         flat = f" (a flat frame: {statistics.mean(flats[mode]):.2f} dB)" if len(flats.get(mode, [])) == len(v) else ""
-        p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets{flat} (global-log-affine).")
+        spread = f"; the seeds differ by {statistics.mean(spreads[mode]):.2f} dB per asset on average" if len(seeds) > 1 else ""
+        p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets{flat}{spread} (global-log-affine).")
     return p
 
 
@@ -196,7 +221,7 @@ def factors_section(rows):
          f"Random scene {', '.join(scenes)} recorded by an ideal sensor with one effect of the random sensor added, then by the",
          "realistic and the random sensor whole; the default preset and steps, training seed 1, 2 threads, global-log-affine.",
          "By default training learns the refractory period; rows with `train --refractory` give it the sensor's and fix it",
-         "(`docs/method.md`). The period column is the one each run ended with.", "",
+         "(`docs/method.md`). The period column is the one each run ended with.", NO_BACKDROP, "",
          "| sensor | train | events | period µs | ours | direct integration | high-pass filter |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         p.append(f"| {r['what'].replace(', train --refractory', '')} | {('`' + r['train_flags'] + '`') if r['train_flags'] else 'default'} | "
@@ -256,7 +281,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
     else:
         p += ["Procedural scenes (`simulate random --seed N`), each recorded by every sensor named (`--sensor`), the",
               "default preset and steps, training seed 1, eval's default alignment; a scene passes when ours beats both",
-              "baselines by 3 dB PSNR and 0.10 SSIM. The refractory period: the sensor's, and the one training learned.", "",
+              "baselines by 3 dB PSNR and 0.10 SSIM. The refractory period: the sensor's, and the one training learned.",
+              NO_BACKDROP, "",
               "| scene | sensor | path | period µs: sensor / learned | ours | direct integration | high-pass filter | passes |",
               "|---|---|---|---|---|---|---|---|"]
         for r in robust:
@@ -299,6 +325,7 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
               "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it), `--refractory 0` (an ideal sensor);",
+              NO_BACKDROP,
               "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`; `time_to_quality_avx2.png`), from a run of its own:",
               "training seconds of separate runs on this shared machine compare only roughly (`bench/README.md`).", "",
               "| build | scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|"]

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Walks the training settings through the command line: every setting settings.json records is a flag of
-# `train --help` (its name with dashes), given its default it trains and is recorded under its name, and
+# `train --help` (its name with dashes), given a value (a switch: the one it does not have by default, so a
+# switch on by default is turned off by --no-<name>) it trains and is recorded under its name, and
 # given a value just outside the interval its help line shows it is refused with a message naming the flag.
 # Usage: tests/settings.sh path/to/evnerf
 set -euo pipefail
@@ -20,15 +21,18 @@ assert len(names) >= 20, names
 checked = refused = 0
 for name in names:
     flag = "--" + name.replace("_", "-")
-    line = next((l for l in help_text.splitlines() if re.match(r"\s*" + re.escape(flag) + r"(\s|$)", l)), None)
+    line = next((l for l in help_text.splitlines() if re.match(r"\s*" + re.escape(flag) + r"(\s|,|\{|$)", l)), None)
     assert line is not None, f"{flag} is not in train --help"
     value = entry[name]
     args = [ev, "train", f"{w}/rec", "--out", f"{w}/{name}", "--quiet"] + (["--threads", "1"] if name != "threads" else [])
     if name != "iterations":
         args += ["--iterations", "1"]
-    if isinstance(value, bool):
-        args += [flag] if not value else []
-        want = True
+    if isinstance(value, bool):  # a switch turns on; one that is on by default, its --no- form turns off
+        no = "--no-" + flag[2:]
+        args += [flag] if not value else [no]
+        want = not value
+        assert value or no not in help_text, f"{flag} is off by default, yet train --help offers {no}"
+        assert not value or no in line, f"{flag} is on by default, yet its help line offers no {no}: {line}"
     else:
         if name == "iterations":
             value = 1

@@ -173,6 +173,7 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     back_bg.deserialize(with.serialize("tiny", run), "b.ckpt");
     REQUIRE(back_bg.box().background.has_value());
     CHECK(*back_bg.box().background == 0.37);
+    CHECK_FALSE(back_bg.box().background_learned);  // a known backdrop is not learned
     const auto dirs = render::pixel_directions(f.td.camera);
     CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
           with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
@@ -180,7 +181,7 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   // A learned backdrop comes back with its values, and renders are the same.
   {
     train::Config cb = f.cfg;
-    cb.learn_background = true;
+    REQUIRE(cb.learn_background);  // the default
     Tiny with(f.td.slices.size(), train::scene_box(f.td, cb), 7), back_bg;
     for (int s = 0; s < 3; ++s) with.train_step(f.td, 128, 3);
     REQUIRE(with.params().values[Tiny::backdrop_offset()] != 0.f);  // it moved
@@ -191,7 +192,7 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     const auto dirs = render::pixel_directions(f.td.camera);
     CHECK(back_bg.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data ==
           with.render(f.td.camera, dirs, f.td.boundary_poses[0]).luminance.data);
-    CHECK_FALSE(t.box().background_learned);
+    CHECK(t.box().background_learned);  // the default Config learns it
   }
   // A refractory period comes back with its optimiser state, and a resumed step is the uninterrupted one's.
   CHECK_FALSE(t.refractory().active());

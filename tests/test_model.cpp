@@ -584,12 +584,15 @@ TEST_CASE("colour models: each pixel's channel follows the recording's Bayer pat
   const int in = Net::layer_in(Net::n_layers - 1);
   auto row = [&](int o, int i) { return i < in ? last + static_cast<std::size_t>(o + 3 * i) : last + 3 * in + o; };
   for (int i = 0; i <= in; ++i) std::swap(b.params().values[row(0, i)], b.params().values[row(2, i)]);
+  REQUIRE(a.renderer().learns_backdrop());  // the backdrop's R and B swap too
+  std::swap(b.params().values[M::backdrop_offset()], b.params().values[M::backdrop_offset() + 2]);
   evnerf::TrainingData bggr = f.td;
   REQUIRE(geometry::BayerPattern::parse("bggr", bggr.bayer));
   const auto sa = a.gradients(f.td, 64, 7, 2), sb = b.gradients(bggr, 64, 7, 2);
   CHECK(sb.loss == doctest::Approx(sa.loss).epsilon(1e-12));
   std::vector<double> ga = a.params().grads;
   for (int i = 0; i <= in; ++i) std::swap(ga[row(0, i)], ga[row(2, i)]);
+  std::swap(ga[M::backdrop_offset()], ga[M::backdrop_offset() + 2]);
   double worst = 0;
   for (std::size_t i = 0; i < ga.size(); ++i) worst = std::max(worst, std::abs(ga[i] - b.params().grads[i]));
   CHECK(worst < 1e-12);

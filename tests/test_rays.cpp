@@ -209,6 +209,9 @@ TEST_CASE("training rays that stop early: the samples before each stop as withou
   m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng_full.data(), n_rays, full);
   m.renderer().forward_train(m.params().values.data(), origin.data(), dir.data(), rng_stop.data(), n_rays, stop);
   const auto &pf = full.pass[0], &ps = stop.pass[0];
+  const auto shown = m.renderer().backdrop(m.params().values.data());  // the default Config learns one
+  REQUIRE(shown.has_value());
+  const float backdrop = (*shown)[0];
   for (int r = 0; r < n_rays; ++r) {  // the random streams end in the same place
     CHECK(rng_full[static_cast<std::size_t>(r)].state() == rng_stop[static_cast<std::size_t>(r)].state());
   }
@@ -249,8 +252,9 @@ TEST_CASE("training rays that stop early: the samples before each stop as withou
         wrong += ps.noise[i] != 0.f || ps.sig_full[i] != R::kSkippedDensity;
       }
     }
-    // The colour: the full pass's, less at most the cut's share of what lies behind the stop.
-    float behind = 0;
+    // The colour: the full pass's, less at most the cut's share of what lies behind the stop (the samples
+    // there and the backdrop).
+    float behind = backdrop;
     for (int k = end; k < S; ++k) behind = std::max(behind, pf.comp[r].lum[k]);
     CHECK(std::abs(ps.comp[r].color[0] - pf.comp[r].color[0]) <= R::kMinTransmittance * 1.01f * behind + 1e-6f * std::abs(pf.comp[r].color[0]));
   }

@@ -404,10 +404,6 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
     }
   };
   refused([](train::Config& c) { c.far = c.near / 2; }, "far must be greater than near");
-  refused([](train::Config& c) {
-    c.background = 0.5;
-    c.learn_background = true;
-  }, "give the backdrop's brightness (background) or learn it (learn_background), not both");
   refused([](train::Config& c) { c.iterations = 0; }, "iterations must be > 0, got 0");
   refused([](train::Config& c) { c.pixels = 0; }, "pixels must be in [1, 4194304], got 0");
   refused([](train::Config& c) { c.lr = -1; }, "lr must be > 0, got -1");

@@ -100,8 +100,8 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
 }
 
 /// The training settings (train::settings()) as flags of `sub`, each writing its member of `cfg`: a number
-/// is checked against its row's interval (a message naming the flag), a flag is a switch, the exchange one of
-/// its names. --help shows each with its default.
+/// is checked against its row's interval (a message naming the flag), a flag is a switch (one that is on by
+/// default is turned off by --no-<name>), the exchange one of its names. --help shows each with its default.
 inline void add_settings(CLI::App* sub, train::Config& cfg) {
   for (const auto& s : train::settings()) {
     const train::Setting* row = &s;
@@ -110,7 +110,7 @@ inline void add_settings(CLI::App* sub, train::Config& cfg) {
           auto& v = cfg.*m;
           using V = std::decay_t<decltype(v)>;
           if constexpr (std::is_same_v<V, bool>) {
-            sub->add_flag(s.flag(), v, s.help);
+            sub->add_flag(v ? s.flag() + ",!--no-" + s.flag().substr(2) : s.flag(), v, s.help);
           } else if constexpr (std::is_same_v<V, train::Exchange>) {
             sub->add_option_function<std::string>(
                    s.flag(), [&v, flag = s.flag()](const std::string& x) { v = train::parse_exchange(x, "train " + flag); }, s.help)

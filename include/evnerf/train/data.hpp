@@ -100,7 +100,7 @@ inline render::SceneBox scene_box(const TrainingData& td, const Config& cfg) {
   auto box = render::SceneBox::from_cameras(c, cfg.near, cfg.far);
   if (cfg.density_per_box) box.density_length = box.scale;
   box.background = cfg.background;
-  box.background_learned = cfg.learn_background;
+  box.background_learned = cfg.learn_background && !cfg.background;  // a known backdrop needs no learning
   return box;
 }
 

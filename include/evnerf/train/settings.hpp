@@ -44,7 +44,7 @@ struct Config {
   std::optional<double> refractory;  ///< unset: learned with the field (from 0); given: that period, fixed
   bool density_per_box = false;
   std::optional<double> background;  ///< unset: no background (the last sample stops every ray)
-  bool learn_background = false;     ///< a backdrop of unknown brightness, learned with the field
+  bool learn_background = true;      ///< a backdrop of unknown brightness, learned with the field (unless `background` is given)
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
   int shards = 0;
@@ -193,7 +193,8 @@ inline const std::vector<Setting>& settings() {
        "(an object before a plain background of known brightness; unset: none, the last sample stops every ray)"},
       {"learn_background", &Config::learn_background, -inf, inf, false, false,
        "a backdrop behind the scene whose brightness (one per channel) is learned with the field, where rays pass all samples "
-       "unstopped (an object before a plain background of unknown brightness; not with --background)"},
+       "unstopped (an object before a plain background of unknown brightness; on by default; --background gives a known one "
+       "instead; off: the last sample stops every ray)"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
        "steps between collapse checks (renders almost constant, or the event loss not falling; a multiple of 50; 0 = never)"},
       {"collapse_check_from", &Config::collapse_check_from, 0, inf, false, false, "the first step of a collapse check (a multiple of 50)"},
@@ -234,8 +235,6 @@ inline void check(const Config& c) {
     const double v = s.number(c);
     if (!s.allows(v)) throw Error("train: " + std::string(s.name) + " must be " + s.range_text() + ", got " + short_number(v));
   }
-  if (c.background && c.learn_background)
-    throw Error("train: give the backdrop's brightness (background) or learn it (learn_background), not both");
   if (!(c.far > c.near)) throw Error("train: far must be greater than near, got near " + short_number(c.near) + " and far " + short_number(c.far));
   if (c.group && c.shard_count() % c.group->size() != 0)
     throw Error("train: the shards per step (" + std::to_string(c.shard_count()) + ") must be a multiple of the processes (" +

@@ -408,7 +408,7 @@ class Trainer {
     cfg_.far = b.far;
     cfg_.density_per_box = b.density_length != 1.0;
     cfg_.background = b.background;
-    cfg_.learn_background = b.background_learned;
+    cfg_.learn_background = b.background_learned;  // a known background (above) is never learned
     const auto& r = model_.refractory();
     if (r.learned) cfg_.refractory.reset();
     else cfg_.refractory = r.active() ? r.seconds : 0.0;
