@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A real 3-D asset end to end through the command line (ctest cli.mesh): `simulate mesh` renders a textured
 # glTF file from Debian's assimp-testmodels along an orbit with held-out views off it, `train` runs a few
-# steps on it before its known grey backdrop (--background 0.5, within the object's depths), and `eval`
+# steps on it before its known grey backdrop (--background 0.5, within the object's depths) and a few before
+# a learned one (the default), and `eval`
 # scores the training path against the baselines and the held-out views apart; a file that is no mesh is
 # refused naming it, and leaves no output folder behind.
 # Usage: tests/mesh.sh EVNERF_BINARY    (exit 77, skipped, without assimp-testmodels)
@@ -24,6 +25,12 @@ events=$(wc -l < "$work/rec/events.txt")
 "$EV" train "$work/rec" --out "$work/run" --preset fast --iterations 20 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse \
   --background 0.5 --near 1.5 --far 4.5 > "$work/train.txt" 2>&1 || fail "train: $(tail -3 "$work/train.txt")"
 grep -q '"background": 0.5,' "$work/run/settings.json" || fail "settings.json does not record the background: $(cat "$work/run/settings.json")"
+grep -q "backdrop luminance" "$work/train.txt" && fail "a known backdrop was learned: $(cat "$work/train.txt")"
+# By default the backdrop's brightness is learned: train prints it and log.jsonl records it.
+"$EV" train "$work/rec" --out "$work/learned" --iterations 50 --pixels 256 --seed 1 --threads 2 --quiet --allow-collapse \
+  > "$work/learned.txt" 2>&1 || fail "train: $(tail -3 "$work/learned.txt")"
+grep -q "^backdrop luminance [0-9.e+-]* (learned)$" "$work/learned.txt" || fail "train did not print the learned backdrop: $(cat "$work/learned.txt")"
+grep -q '"background":\[[0-9.e+-]*\]' "$work/learned/log.jsonl" || fail "log.jsonl does not record the backdrop: $(tail -1 "$work/learned/log.jsonl")"
 "$EV" train "$work/rec" --out "$work/bad" --iterations 1 --background -1 > "$work/bad.txt" 2>&1 && fail "a negative background was taken"
 grep -q "background" "$work/bad.txt" || fail "the refusal of a negative background does not name it: $(cat "$work/bad.txt")"
 "$EV" eval "$work/run/model.ckpt" "$work/rec" --out "$work/eval" > "$work/eval.txt" 2>&1 || fail "eval: $(tail -3 "$work/eval.txt")"
