@@ -65,7 +65,8 @@ def test_round_trip_numpy_train_render_numpy(planes):
     assert evnerf.train(d, iterations=2, threads=2, seed=3, refractory=0).run["refractory"] is None
     img, depth = m.render(m.boundary_poses[5])
     assert img.shape == (H, W) and depth.shape == (H, W) and img.dtype == np.float32
-    assert np.all(np.isfinite(img)) and np.all(depth > 0) and img.std() > 0
+    # Depth is the samples' weighted depth: a ray that passes them all to the backdrop (learned by default) has less.
+    assert np.all(np.isfinite(img)) and np.all(depth >= 0) and depth.max() > 0 and img.std() > 0
     # Any pose: a 7-vector is the same pose as its matrix.
     P = m.boundary_poses[5]
     q = np.array([P[0, 3], P[1, 3], P[2, 3], *quaternion_of(P[:3, :3])])
