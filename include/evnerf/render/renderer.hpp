@@ -130,9 +130,9 @@ class Renderer {
   /// learned one, or nothing (std::nullopt) when rays stop at their last sample.
   std::optional<std::array<T, channels>> backdrop(const T* params) const {
     if (!has_backdrop()) return std::nullopt;
-    Workspace w;
-    set_backdrop(params, w);
-    return w.backdrop;
+    std::array<T, channels> b{}, db{};
+    backdrop_values(params, b, db);
+    return b;
   }
   /// Adds `scale` × the distortion of every ray's weights (distortion_loss) in every pass of the last
   /// training forward to the loss that backward() differentiates; returns that addition. Call after the
@@ -250,22 +250,23 @@ class Renderer {
   }
 
  private:
-  /// w.backdrop (and its derivatives) from the box's known backdrop or the learned raw values in params.
-  void set_backdrop(const T* params, Workspace& w) const {
+  /// The backdrop's luminance per channel and its derivative by the raw value: the box's known backdrop
+  /// (derivative 0) or the learned raw values in params.
+  void backdrop_values(const T* params, std::array<T, channels>& b, std::array<T, channels>& db) const {
     if (box_.background) {
-      w.backdrop.fill(static_cast<T>(*box_.background));
-      w.dbackdrop_draw.fill(T(0));
+      b.fill(static_cast<T>(*box_.background));
+      db.fill(T(0));
     } else if (learns_backdrop()) {
       for (int c = 0; c < channels; ++c) {
         const auto l = ad::value_and_grad(LuminanceOfRaw<typename FieldT::radiance::activation>{},
                                           std::array<double, 1>{double(params[backdrop_offset + c])});
-        w.backdrop[c] = static_cast<T>(l.value);
-        w.dbackdrop_draw[c] = static_cast<T>(l.grad[0]);
+        b[c] = static_cast<T>(l.value);
+        db[c] = static_cast<T>(l.grad[0]);
       }
     }
   }
   void forward(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
-    set_backdrop(params, w);
+    backdrop_values(params, w.backdrop, w.dbackdrop_draw);
     Pass& c = w.pass[0];
     c.S = n_coarse;
     c.t.resize(static_cast<std::size_t>(R) * n_coarse);
