@@ -78,8 +78,8 @@ class Renderer {
     /// no further backward (kMinTransmittance unless the model sets another, Model::set_ray_termination).
     T training_cut = kMinTransmittance;
     std::vector<T> one;                   ///< a ray's fine depths
-    /// The learned backdrop of the last forward (SceneBox::background_learned): its luminance per channel
-    /// and that luminance's derivative by its raw value.
+    /// The backdrop of the last forward (known or learned): its luminance per channel and that luminance's
+    /// derivative by its raw value (0 for a known one).
     std::array<T, channels> backdrop{}, dbackdrop_draw{};
   };
 
