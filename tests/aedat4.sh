@@ -5,7 +5,8 @@
 # (Zstd, none): `convert` reads exactly the events and frames written, on the clock of the whole second of the
 # first event, with the pose file beside it read in the file's clock; a time window read through the data
 # table keeps exactly its events; `inspect` describes a file without a calibration; evnerf's writer
-# round-trips (and the independent reader reads it back); bad files are refused naming the byte or packet.
+# round-trips (and the independent reader reads it back); a file cut short reads to its last whole packet;
+# bad files are refused naming the byte or packet.
 # ctest runs this as cli.aedat4. Usage: tests/aedat4.sh EVNERF_BINARY
 set -euo pipefail
 EV=$1
@@ -89,8 +90,16 @@ expect_error "$work/nosize.aedat4" "gives no sensor size \(sizeX, sizeY\): give 
 "$EV" convert "$work/nosize.aedat4" "$work/nosize_out" --sensor-size 64x48 > /dev/null || fail "--sensor-size did not rescue a file without sizeX/sizeY"
 at=$(cat "$work/corrupt_at.txt")
 expect_error "$work/corrupt.aedat4" "byte $at \(packet of stream 0\): (corrupt LZ4 frame|the LZ4 frame ends early)"
-head -c 5000 "$work/none.aedat4" > "$work/truncated.aedat4"
-expect_error "$work/truncated.aedat4" "truncated.aedat4:0: byte [0-9]+: (packet of [0-9]+ bytes runs past the end of the file|the file ends inside a packet header)"
+# A recording cut short (the LZ4 file has no data table, as a recorder that stopped leaves it) reads to its
+# last whole packet, with one warning naming the byte: its events are the whole file's first ones.
+head -c $(($(stat -c %s "$work/lz4.aedat4") * 2 / 3)) "$work/lz4.aedat4" > "$work/cut.aedat4"
+"$EV" convert "$work/cut.aedat4" "$work/cut_out" > "$work/cut.log" 2>&1 || { cat "$work/cut.log"; fail "a file cut short was refused"; }
+grep -qE "cut.aedat4: byte [0-9]+: (packet of [0-9]+ bytes runs past the end of the file|the file ends inside a packet header) \(a recording cut short\); read to the last whole packet, [0-9]+ bytes dropped" "$work/cut.log" ||
+  { cat "$work/cut.log"; fail "no warning naming where the file was cut"; }
+[ "$(grep -c "cut short" "$work/cut.log")" = 1 ] || { cat "$work/cut.log"; fail "more than one warning for one cut"; }
+n=$(wc -l < "$work/cut_out/events.txt")
+[ "$n" -gt 0 ] && [ "$n" -lt "$(wc -l < "$work/expected.txt")" ] || fail "a cut file read $n events"
+head -n "$n" "$work/expected.txt" | cmp -s - "$work/cut_out/events.txt" || fail "a cut file's events are not the whole file's first ones"
 printf '#!AER-DAT4.0\r\n\x10\x00\x00\x00abc' > "$work/header.aedat4"
 expect_error "$work/header.aedat4" "the IOHeader of 16 bytes runs past the end of the file"
 printf '#!AER-DAT3.1\r\n' > "$work/v3.aedat4"

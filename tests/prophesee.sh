@@ -2,8 +2,9 @@
 # Prophesee files: EVT 2.0 and EVT 3.0 .raw files and a .dat file, written here by an encoder of their own
 # (Python, from the published word layouts: periodic time-high words, vectorised EVT 3.0 words, trigger and
 # vendor words to skip, a wrap of EVT 3.0's 24-bit time), read by `convert` as exactly the events encoded;
-# evnerf's own writers round-trip through both .raw versions; bad files are refused naming the byte; a header
-# without a sensor size asks for --sensor-size; and, where ../shared/data has it, a real Gen3 EVT 2.0
+# evnerf's own writers round-trip through both .raw versions; bad files are refused naming the byte, and one
+# cut short reads to its last whole word with a warning; a header without a sensor size asks for
+# --sensor-size; and, where ../shared/data has it, a real Gen3 EVT 2.0
 # recording decodes to the SHA3-224 digests of an independent decoder, `inspect` describes it without a
 # calibration, a --time-window keeps exactly its events, and `train` runs on it with a static pose file.
 # ctest runs this as cli.prophesee. Usage: tests/prophesee.sh EVNERF_BINARY
@@ -144,8 +145,11 @@ open(f"{w}/bad/outside.raw", "wb").write(h + high(64) + cd(64, 70, 1))
 open(f"{w}/bad/version.raw", "wb").write(b"% evt 4.0\n% geometry 64x48\n" + high(64))
 open(f"{w}/bad/nosize.raw", "wb").write(b"% evt 2.0\n" + high(64) + cd(64, 3, 4))
 PY
+# A file cut short inside its last word reads to the word before, with one warning.
 off=$(cat "$work/bad/truncated.offset")
-refused "$work/bad/truncated.raw" "truncated.raw:0: byte $off: the file ends inside a 4-byte word"
+"$EV" inspect "$work/bad/truncated.raw" > "$work/cut.txt" 2>&1 || fail "a file cut short was refused: $(cat "$work/cut.txt")"
+grep -qF "truncated.raw: byte $off: the file ends 2 bytes into a 4-byte word (a recording cut short); read to the last whole word, 2 bytes dropped" "$work/cut.txt" ||
+  fail "no warning naming where the file was cut: $(cat "$work/cut.txt")"
 refused "$work/bad/backwards.raw" "backwards.raw:0: byte 35: time runs backwards (6405 µs after 6410 µs)"
 refused "$work/bad/high_backwards.raw" "high_backwards.raw:0: byte 35: EVT_TIME_HIGH runs backwards"
 refused "$work/bad/outside.raw" "outside.raw:0: byte 31: event at x 70, y 1 outside the 64x48 sensor"

@@ -347,6 +347,87 @@ TEST_CASE("a whole-file read reports its progress: monotonic, in the file's byte
   fs::remove_all(dir);
 }
 
+TEST_CASE("a recording cut short (a camera that lost power) reads to its last whole event, with one warning naming where") {
+  // 200 000 events: several of each writer's packets, chunks (a bag's are 768 KiB) and blocks, so that a cut
+  // in the middle leaves some whole.
+  const auto dir = temp_dir("cut");
+  fs::create_directories(dir / "rec");
+  std::string text;
+  for (int k = 0; k < 200000; ++k)
+    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
+  write(dir / "rec" / "events.txt", text);
+  write(dir / "rec" / "calib.txt", "100 100 16 12\n");
+  write(dir / "rec" / "sensor.txt", "32 24\n");
+  io::LoadOptions opt;
+  opt.use_cache = false;
+  const auto d = io::load(dir / "rec", opt);
+  // The formats a camera or a recorder writes as it goes; the others (HDF5, the EventNeRF and Robust e-NeRF
+  // layouts) are written whole by a script, and a file of them cut short is refused.
+  const std::set<std::string> streamed = {"ijrr", "evt2", "evt3", "rosbag", "aedat4"};
+  int checked = 0;
+  for (const auto& f : io::formats()) {
+    const std::string name = f.name;
+    if (!streamed.count(name) || !f.load) continue;
+    CAPTURE(name);
+    fs::path whole = dir / "rec" / "events.txt";
+    if (name != "ijrr") {
+      whole = dir / ("whole_" + name + (f.extensions.empty() ? "" : f.extensions.front()));
+      io::convert(whole, d);
+    }
+    const std::string bytes = read_file(whole);
+    int warned = 0;
+    for (const std::size_t cut : {bytes.size() / 2 + 1, bytes.size() * 9 / 10 + 3, bytes.size() - 3}) {
+      CAPTURE(cut);
+      // Beside the whole file (its calib.txt serves both), or a folder of its own for IJRR's layout.
+      fs::path in = dir / ("cut_" + whole.filename().string()), file = in;
+      if (name == "ijrr") {
+        fs::create_directories(dir / "cut");
+        fs::copy_file(dir / "rec" / "calib.txt", dir / "cut" / "calib.txt", fs::copy_options::overwrite_existing);
+        fs::copy_file(dir / "rec" / "sensor.txt", dir / "cut" / "sensor.txt", fs::copy_options::overwrite_existing);
+        in = dir / "cut", file = in / "events.txt";
+      }
+      write(file, bytes.substr(0, cut));
+      WarningCollector said;
+      const auto back = io::load(in, opt);
+      // The events read are the whole file's first ones; a cut in the middle loses the rest.
+      REQUIRE(back.events.size() <= d.events.size());
+      const auto n = static_cast<std::ptrdiff_t>(back.events.size());
+      CHECK(n > 0);
+      CHECK(std::equal(back.events.t.begin(), back.events.t.end(), d.events.t.begin()));
+      CHECK(std::equal(back.events.x.begin(), back.events.x.end(), d.events.x.begin()));
+      CHECK(std::equal(back.events.y.begin(), back.events.y.end(), d.events.y.begin()));
+      CHECK(std::equal(back.events.polarity.begin(), back.events.polarity.end(), d.events.polarity.begin()));
+      if (cut < bytes.size() * 3 / 4) CHECK(back.events.size() < d.events.size());
+      // At most one warning; it names the file, a place in it and what was dropped.
+      REQUIRE(said.messages().size() <= 1);
+      for (const auto& m : said.messages()) {
+        CHECK_CONTAINS(m, file.string() + ":");
+        CHECK_CONTAINS(m, "(a recording cut short)");
+        CHECK_CONTAINS(m, " dropped");
+        ++warned;
+      }
+    }
+    // The cut in the middle falls inside a word, line, packet or record of every one of these writers.
+    CHECK(warned >= 1);
+    ++checked;
+  }
+  CHECK(checked == static_cast<int>(streamed.size()));
+  // A cut middle line stays an error: only the last line may end early.
+  CHECK_CONTAINS(error_of([] { io::parse_events("0.1 1 2 1\n0.2 1 2\n0.3 1 2 1", "e.txt", 8, 8); }), "e.txt:2: line is truncated");
+  {
+    WarningCollector said;
+    CHECK(io::parse_events("0.1 1 2 1\n0.2 1 2 0", "e.txt", 8, 8).size() == 2);  // a whole last line without a line break
+    CHECK(io::parse_events("0.1 1 2 1\n# a comment", "e.txt", 8, 8).size() == 1);
+    CHECK(said.messages().empty());
+    CHECK(io::parse_events("0.1 1 2 1\n0.2 1 2", "e.txt", 8, 8).size() == 1);
+    REQUIRE(said.messages().size() == 1);
+    CHECK(said.messages()[0] == "e.txt:2: the file ends inside this line (a recording cut short); read to the line before, 7 bytes dropped");
+  }
+  // A whole last line with a wrong value is an error, not a cut.
+  CHECK_CONTAINS(error_of([] { io::parse_events("0.1 1 2 1\n0.2 1 2 7", "e.txt", 8, 8); }), "e.txt:2: unknown polarity code 7");
+  fs::remove_all(dir);
+}
+
 #ifdef EVNERF_HAVE_AEDAT4
 TEST_CASE("AEDAT4: a file of many packets reads the same on one or two threads, whole, through windows and packet by packet") {
   // 300 000 events: 74 of the writer's packets of 4096, several of the reader's batches of 32.

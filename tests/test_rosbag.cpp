@@ -166,12 +166,23 @@ TEST_CASE("ROS bag: a bag without its index (a recording that never closed) is s
   const auto topics = io::rosbag_topics(dir / "open.bag");
   REQUIRE(topics.size() == 4);
   CHECK(topics[1].messages == 4);
-  // An index position past the end is refused (not scanned silently): the index was damaged.
+  // An index position past the end (a bag cut short after it was closed) is scanned, and said so once.
   std::string bad = good;
   const std::uint64_t past = bad.size() + 10;
   std::memcpy(bad.data() + at, &past, 8);
   write(dir / "badidx.bag", bad);
-  CHECK_CONTAINS(error_of([&] { io::load(dir / "badidx.bag"); }), "lies outside the file's records");
+  {
+    WarningCollector said;
+    const auto c = io::load(dir / "badidx.bag");
+    CHECK(c.events.t == a.events.t);
+    REQUIRE(said.messages().size() == 1);
+    CHECK_CONTAINS(said.messages()[0], "badidx.bag: the bag header places its index at byte " + std::to_string(past) + ", past the end of the file");
+  }
+  // One before the first record is refused: nothing cut short puts it there.
+  const std::uint64_t before = 20;
+  std::memcpy(bad.data() + at, &before, 8);
+  write(dir / "badidx.bag", bad);
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "badidx.bag"); }), "index position 20 lies before the file's records");
   fs::remove_all(dir);
 }
 

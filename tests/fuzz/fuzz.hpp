@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <evnerf/core/error.hpp>
+#include <evnerf/core/warn.hpp>
 
 namespace evfuzz {
 
@@ -30,6 +31,18 @@ inline std::string to_file(const std::uint8_t* data, std::size_t size, const cha
   const bool ok = std::fwrite(data, 1, size, f) == size;
   return std::fclose(f) == 0 && ok ? path : std::string();
 }
+
+/// Warnings (a recording cut short, read to its last whole event) belong to a successful read: each is kept
+/// as short as an error's message, and none is printed (a fuzzer cuts files at every byte).
+inline const bool quiet_warnings = [] {
+  evnerf::set_warning_handler([](const std::string& m) {
+    if (m.size() > 700) {
+      std::fprintf(stderr, "warning of %zu characters: %.300s…\n", m.size(), m.c_str());
+      std::abort();
+    }
+  });
+  return true;
+}();
 
 /// Stops the run with a message when an invariant of a successful read does not hold.
 [[noreturn]] inline void broken(const char* what) {

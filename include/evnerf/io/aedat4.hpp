@@ -17,7 +17,9 @@
 // accessors do not check offsets unless its verifier runs, and the verifier needs flatc-generated code; four
 // small tables are read here with every offset checked, so that a corrupt file is an Error naming its byte
 // offset. LZ4 and Zstd frames go through Debian's liblz4 and libzstd. Compiled where CMake found both
-// (EVNERF_HAVE_AEDAT4). Depends on io/recording.hpp and io/prophesee.hpp (huge_pages, FileCloser).
+// (EVNERF_HAVE_AEDAT4). A file cut short inside its packets (no data table written) is read to its last whole
+// packet, with a warning. Depends on io/recording.hpp, io/prophesee.hpp (huge_pages, FileCloser) and
+// core/warn.hpp.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -35,6 +37,7 @@
 #include <lz4frame.h>
 #include <zstd.h>
 
+#include "../core/warn.hpp"
 #include "prophesee.hpp"
 #include "recording.hpp"
 
@@ -437,15 +440,30 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     }
   }
   if (!info.table_used) {
+    // Packets run to the end of the file where no data table follows them: a recording cut short (the
+    // recorder stopped before it wrote the table) ends inside its last packet, which is dropped with a warning.
+    const bool to_end = data_end == file_size;
+    auto cut_short = [&](std::uint64_t pos, const std::string& what) {
+      warn(file + ": byte " + std::to_string(pos) + ": " + what + " (a recording cut short); read to the last whole packet, " +
+           std::to_string(file_size - pos) + " bytes dropped");
+    };
     for (std::uint64_t pos = data_start; pos < data_end;) {
-      if (data_end - pos < 8) throw Error(file, 0, "byte " + std::to_string(pos) + ": the file ends inside a packet header");
+      if (data_end - pos < 8) {
+        if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": the data table starts inside a packet header");
+        cut_short(pos, "the file ends inside a packet header");
+        break;
+      }
       read_at(pos, 8, buf, "a packet header");
       detail::Aedat4Entry e;
       e.offset = static_cast<std::int64_t>(pos);
       std::memcpy(&e.stream, buf.data(), 4), std::memcpy(&e.size, buf.data() + 4, 4);
       if (e.size <= 0) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
-      if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size))
-        throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs past the end of the file");
+      if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size)) {
+        const std::string what = "packet of " + std::to_string(e.size) + " bytes runs past the end of the file";
+        if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
+        cut_short(pos, what);
+        break;
+      }
       e.t_begin = std::numeric_limits<std::int64_t>::min(), e.t_end = std::numeric_limits<std::int64_t>::max();
       entries.push_back(e);
       pos += 8 + static_cast<std::uint64_t>(e.size);

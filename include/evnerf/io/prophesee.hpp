@@ -11,10 +11,11 @@
 // microsecond time that wraps every 16.8 s. External triggers (0xA) and vendor words are skipped and counted.
 // .dat: after the header, a byte of event type and a byte of event size (8), then records of a 32-bit
 // microsecond time and x (bits 13–0), y (27–14), polarity (31–28). Times are held as integer microseconds and
-// given in seconds; a time that runs backwards, a coordinate outside the sensor, a truncated word or an unknown
-// version is an Error naming the file and the byte offset. A whole EVT 3.0 file is decoded on OpenMP's threads,
+// given in seconds; a time that runs backwards, a coordinate outside the sensor or an unknown version is an
+// Error naming the file and the byte offset; a file that ends inside a word (cut short) is read to its last
+// whole word, with a warning. A whole EVT 3.0 file is decoded on OpenMP's threads,
 // to the same events and errors as one thread (decode_evt3). A recording in one file takes calib.txt and
-// groundtruth.txt beside it (or --calib, --poses). Depends on io/recording.hpp and io/ijrr.hpp.
+// groundtruth.txt beside it (or --calib, --poses). Depends on io/recording.hpp, io/ijrr.hpp and core/warn.hpp.
 #pragma once
 #include <algorithm>
 #include <atomic>
@@ -33,6 +34,7 @@
 #include <omp.h>
 #endif
 
+#include "../core/warn.hpp"
 #include "ijrr.hpp"
 #include "recording.hpp"
 
@@ -257,8 +259,9 @@ class RawSink {
 };
 
 /// Reads `f` from its position in blocks of whole words of `word` bytes, calling `block(words, n, offset)`
-/// until it returns false or the file ends (and the sink's progress after each); a file that ends inside a
-/// word is an Error.
+/// until it returns false or the file ends (and the sink's progress after each). A file that ends inside a
+/// word is a recording cut short (a camera that lost power, a recorder that crashed): its whole words are
+/// read, and one warning names the byte offset and the bytes dropped.
 /// Blocks are `block_bytes` long (a multiple of the word).
 template <class Block>
 void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink,
@@ -276,7 +279,10 @@ void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::s
     sink.read_to(offset);
     keep = got - whole;
     if (got < kBlock) {
-      if (keep) throw Error(file, 0, "byte " + std::to_string(offset) + ": the file ends inside a " + std::to_string(word) + "-byte word");
+      if (keep)
+        warn(file + ": byte " + std::to_string(offset) + ": the file ends " + std::to_string(keep) + " byte" + (keep == 1 ? "" : "s") + " into a " +
+             std::to_string(word) + "-byte word (a recording cut short); read to the last whole word, " + std::to_string(keep) + " byte" +
+             (keep == 1 ? "" : "s") + " dropped");
       return;
     }
     std::memmove(buf.get(), buf.get() + whole, keep);

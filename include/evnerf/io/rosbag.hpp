@@ -14,7 +14,9 @@
 // to `origin_sec`, the whole second of the first time decoded, and is the double nearest the exact number
 // of nanoseconds (as a text reader of the time with nine decimals gets it). Memory: one chunk at a time (a few MB),
 // plus what is kept (events, frames in memory, poses). Every error names the file and the record, chunk,
-// topic or message. Compiled only where CMake found libbz2 and liblz4 (EVNERF_HAVE_ROSBAG).
+// topic or message. A bag cut short (a recorder that crashed or lost power: no index, or the index past the
+// end of the file) is read to its last whole record, with a warning. Compiled only where CMake found libbz2
+// and liblz4 (EVNERF_HAVE_ROSBAG).
 // Depends on core/, geometry/, events/ and io/ only.
 #pragma once
 #include <bzlib.h>
@@ -37,6 +39,7 @@
 
 #include "../core/error.hpp"
 #include "../core/types.hpp"
+#include "../core/warn.hpp"
 #include "../events/event_stream.hpp"
 #include "../core/fileio.hpp"
 #include "../geometry/bayer.hpp"
@@ -670,9 +673,10 @@ struct BagChunkInfo {
 };
 
 /// The file header and the index at the end (connections, chunk infos); `indexed` is false for a bag
-/// whose index was never written (a recording that did not close), which is then scanned.
+/// whose index was never written (a recording that did not close) or was cut off, which is then scanned up to
+/// `records_end`, the end of its last whole record.
 struct BagIndex {
-  std::uint64_t first_record = 0, index_pos = 0;
+  std::uint64_t first_record = 0, index_pos = 0, records_end = 0;
   bool indexed = false;
   std::map<std::uint32_t, BagConnection> conns;
   std::vector<BagChunkInfo> chunks;
@@ -701,6 +705,25 @@ inline void add_bag_connection(BagIndex& idx, BagConnection c, const std::string
   idx.conns.emplace(c.id, std::move(c));
 }
 
+/// Why the record at `off` runs past the end of the file (a file cut short), or "" when it is whole or wrong
+/// in another way (read_bag_record names that).
+inline std::string bag_record_cut(BagFile& f, std::uint64_t off) {
+  const std::uint64_t rest = f.size() - off;
+  unsigned char len[4];
+  if (rest < 4) return "the file ends inside a record's header length";
+  f.read(off, len, 4, "record header length");
+  const std::uint32_t hl = bag_u32(len);
+  if (hl > kBagMaxRecordHeader) return "";
+  if (hl > rest - 4) return "a record header of " + std::to_string(hl) + " bytes runs past the end of the file";
+  if (rest - 4 - hl < 4) return "the file ends inside a record's data length";
+  f.read(off + 4 + hl, len, 4, "record data length");
+  if (bag_u32(len) > rest - 8 - hl) return "a record of " + std::to_string(bag_u32(len)) + " data bytes runs past the end of the file";
+  return "";
+}
+
+/// Reads the bag header and the index. A bag without an index (never closed), or whose index lies past the end
+/// of the file or runs past it (cut short), is scanned: its records are walked here, headers only, to the last
+/// whole one, and what runs past the end of the file is dropped with one warning naming its byte offset.
 inline BagIndex read_bag_index(BagFile& f) {
   BagIndex idx;
   char magic[13] = {};
@@ -721,13 +744,39 @@ inline BagIndex read_bag_index(BagFile& f) {
   idx.index_pos = bag_field_u64(h, "index_pos", where);
   const std::uint32_t conn_count = bag_field_u32(h, "conn_count", where), chunk_count = bag_field_u32(h, "chunk_count", where);
   idx.first_record = data_off + dl;
-  if (idx.index_pos == 0) return idx;  // never closed: no index; read_rosbag scans
-  if (idx.index_pos < idx.first_record || idx.index_pos >= f.size())
-    throw Error(where + ": index position " + std::to_string(idx.index_pos) + " lies outside the file's records (" +
-                std::to_string(idx.first_record) + " to " + std::to_string(f.size()) + "); 'rosbag reindex' rebuilds it");
+  if (idx.index_pos != 0 && idx.index_pos < idx.first_record)
+    throw Error(where + ": index position " + std::to_string(idx.index_pos) + " lies before the file's records (at byte " +
+                std::to_string(idx.first_record) + "); 'rosbag reindex' rebuilds it");
+  // Never closed, or cut short: the records are walked (headers only) to `limit` or to the last whole one, and
+  // read_rosbag scans them. `cut` says what was cut short, for the one warning.
+  auto scanned = [&](std::uint64_t limit, std::string cut) {
+    idx.index_pos = 0, idx.indexed = false;
+    idx.conns.clear(), idx.chunks.clear();
+    std::uint64_t off = idx.first_record;
+    while (off < limit) {
+      const std::string why = bag_record_cut(f, off);
+      if (!why.empty()) {
+        cut += (cut.empty() ? "byte " : "; at byte ") + std::to_string(off) + ": " + why;
+        break;
+      }
+      const auto [doff, len] = read_bag_record(f, off, hb, h);
+      off = doff + len;
+    }
+    idx.records_end = off;
+    if (!cut.empty())
+      warn(f.name() + ": " + cut + " (a recording cut short); its records are read to the last whole one, " + std::to_string(f.size() - off) +
+           " bytes dropped" + (limit < f.size() ? " (the index only)" : ""));
+    return idx;
+  };
+  if (idx.index_pos == 0) return scanned(f.size(), "");
+  if (idx.index_pos >= f.size())
+    return scanned(f.size(), "the bag header places its index at byte " + std::to_string(idx.index_pos) + ", past the end of the file (" +
+                                 std::to_string(f.size()) + " bytes)");
   std::uint64_t off = idx.index_pos;
   std::string data;
   while (off < f.size()) {
+    if (const std::string why = bag_record_cut(f, off); !why.empty())
+      return scanned(idx.index_pos, "the index, at byte " + std::to_string(idx.index_pos) + ", is cut short at byte " + std::to_string(off) + ": " + why);
     const auto [doff, len] = read_bag_record(f, off, hb, h);
     const std::string at = f.name() + ": index record at byte " + std::to_string(off);
     const int op = bag_op(h, at);
@@ -761,6 +810,7 @@ inline BagIndex read_bag_index(BagFile& f) {
                 "; 'rosbag reindex' rebuilds it");
   std::sort(idx.chunks.begin(), idx.chunks.end(), [](const auto& a, const auto& b) { return a.pos < b.pos; });
   idx.indexed = true;
+  idx.records_end = idx.index_pos;
   return idx;
 }
 
@@ -814,7 +864,7 @@ void for_each_bag_message(BagFile& f, BagIndex& idx, Want&& want, Fn&& fn, const
     return;
   }
   std::uint64_t off = idx.first_record;
-  while (off < f.size()) {
+  while (off < idx.records_end) {
     const auto [doff, len] = read_bag_record(f, off, hb, h);
     const std::string at = f.name() + ": record at byte " + std::to_string(off);
     const int op = bag_op(h, at);
