@@ -2,7 +2,7 @@
 # The parts under examples/parts/ end to end through cli::main (custom_parts): a recording simulated, the
 # EventNeRF objective and the quiet-pixels regulariser each trained, rendered and evaluated; the log names the
 # regulariser's term, and a variant's checkpoint is refused by the other's loss; eval's output is one table
-# unless --verbose.
+# unless --verbose; a file format registered by the program (CSV) is written, read and trained on.
 # Usage: tests/parts.sh path/to/custom_parts
 set -euo pipefail
 EV=$1
@@ -42,4 +42,20 @@ if "$EV" train "$work/rec" --out "$work/fast-eventnerf" --variant fast-quiet --r
   echo "a checkpoint of another loss was resumed"; exit 1
 fi
 grep -q "trained with the loss" "$work/wrong.txt" || { cat "$work/wrong.txt"; exit 1; }
-echo "parts: fast-eventnerf and fast-quiet trained, rendered and evaluated"
+# A format of the user's own (parts/csv_events.hpp), registered by the program: convert writes it, inspect,
+# convert and train read it (by its content, and by --format csv), the events come back the same, and a bad
+# line is refused naming the file and the line.
+mkdir -p "$work/csv"
+"$EV" convert "$work/rec" "$work/csv/events.csv" > /dev/null
+[ "$(head -1 "$work/csv/events.csv")" = "t,x,y,p" ] || { echo "convert did not write the CSV format"; exit 1; }
+"$EV" convert "$work/csv/events.csv" "$work/csv_back" > /dev/null
+cmp -s "$work/rec/events.txt" "$work/csv_back/events.txt" || { echo "the CSV format does not round-trip"; exit 1; }
+"$EV" inspect "$work/csv/events.csv" --format csv > "$work/csv_inspect.txt"
+grep -q "csv" "$work/csv_inspect.txt" || { cat "$work/csv_inspect.txt"; echo "inspect does not name the CSV format"; exit 1; }
+"$EV" train "$work/csv/events.csv" --out "$work/csv_run" --variant fast-eventnerf --iterations 20 --pixels 256 --seed 1 --threads 2 --quiet \
+  --allow-collapse --checkpoint-every 0 > "$work/csv_train.txt" 2>&1 || { cat "$work/csv_train.txt"; echo "train refused the CSV file"; exit 1; }
+test -s "$work/csv_run/model.ckpt" || { echo "no checkpoint from the CSV file"; exit 1; }
+printf 't,x,y,p\n0.1,1,2,1\n0.2,1,y,1\n' > "$work/csv/bad.csv"
+if "$EV" inspect "$work/csv/bad.csv" > "$work/csv_bad.txt" 2>&1; then echo "a bad CSV file was read"; exit 1; fi
+grep -q "bad.csv:3: value 3 is not a finite number" "$work/csv_bad.txt" || { cat "$work/csv_bad.txt"; echo "the CSV error names no line"; exit 1; }
+echo "parts: fast-eventnerf and fast-quiet trained, rendered and evaluated; the CSV format read, written and trained on"

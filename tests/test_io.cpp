@@ -288,6 +288,16 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
   }
   CHECK(written >= 1);
   CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
+  // A format of the user's own (tests/parts.sh registers one end to end) must bring a new name, a detection
+  // and a reader; a refused one leaves the table as it was.
+  io::Format mine = io::formats()[3];
+  CHECK_CONTAINS(error_of([&] { io::register_format(mine); }), "register_format: there is already a format 'evt2'");
+  mine.name = "mine";
+  mine.load = nullptr;
+  CHECK_CONTAINS(error_of([&] { io::register_format(mine); }), "register_format: format 'mine' needs `detect` and `load`");
+  mine.name = "";
+  CHECK_CONTAINS(error_of([&] { io::register_format(mine); }), "a format needs a name and a description");
+  CHECK(io::format_names().size() == names.size());
   fs::remove_all(dir);
 }
 

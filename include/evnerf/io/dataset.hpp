@@ -2,8 +2,9 @@
 // an EventNeRF scene, a Robust e-NeRF sequence, Prophesee .raw (EVT 2.0, 3.0) and .dat files, an event HDF5
 // file, a ROS bag, an AEDAT4 file. io::load picks the reader from the content (or LoadOptions::format), io::convert the
 // writer from the output's name; --format, inspect, convert and the error texts that list formats come from
-// the table. A new format is one header
-// (its reader, `<name>_format()` returning its Format) and one line in formats(). Depends on io/.
+// the table. A new format of evnerf's is one header (its reader, `<name>_format()` returning its Format) and
+// one line in the table; a format of your own is registered from your own header (register_format), with no
+// edit here. Depends on io/.
 #pragma once
 #include <algorithm>
 #include <cctype>
@@ -310,11 +311,11 @@ inline constexpr const char* kHdf5Description = "an event HDF5 file (event_utils
 inline constexpr const char* kAedat4Description = "an iniVation AEDAT 4.0 file (DV, dv-processing: DAVIS346, DVXplorer)";
 inline constexpr const char* kRosbagDescription = "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)";
 
-/// The formats, in the order detection tries them (the folder layouts first; a folder that holds none of
-/// them is read as IJRR's, whose reader names what is missing).
-inline const std::vector<Format>& formats() {
+namespace detail {
+/// The table io::formats() shows: evnerf's formats, then those registered (register_format).
+inline std::vector<Format>& format_table() {
   namespace fs = std::filesystem;
-  static const std::vector<Format> table = {
+  static std::vector<Format> table = {
       {"ijrr", true, "an IJRR-layout folder (events.txt, calib.txt, groundtruth.txt, images.txt: the Event Camera Dataset's, the simulator's)",
        [](const fs::path& p) { return fs::exists(p / "events.txt"); }, &load_ijrr,
        [](const fs::path& p, const Dataset& d, const WriteOptions&) { write_ijrr(p, d); }},
@@ -345,6 +346,28 @@ inline const std::vector<Format>& formats() {
 #endif
   };
   return table;
+}
+}  // namespace detail
+
+/// The formats, in the order detection tries them (the folder layouts first; a folder that holds none of
+/// them is read as IJRR's, whose reader names what is missing), then the formats registered, in the order
+/// they were.
+inline const std::vector<Format>& formats() { return detail::format_table(); }
+
+/// Adds a format of your own to the table: `io::load`, `convert` and every command (inspect, train, eval,
+/// convert, --format NAME) then read it, detected by its `detect` after evnerf's own formats, and write it
+/// when it has a writer and extensions (examples/parts/csv_events.hpp). Register before the first read, not
+/// while another thread reads. Returns true, so that a header can register at static initialisation
+/// (`inline const bool registered = io::register_format(...)`). An Error when the name is taken or the
+/// entry has no name, description, detection or reader.
+inline bool register_format(Format f) {
+  require(f.name && *f.name && f.description && *f.description, "register_format: a format needs a name and a description");
+  require(f.detect && f.load, std::string("register_format: format '") + f.name + "' needs `detect` and `load`");
+  for (const auto& g : detail::format_table())
+    require(std::string_view(g.name) != f.name, std::string("register_format: there is already a format '") + f.name + "'");
+  f.unavailable = "";
+  detail::format_table().push_back(std::move(f));
+  return true;
 }
 
 /// The formats' names, as --format takes them.
