@@ -42,6 +42,8 @@ struct StepShards {
   int count = 1, rank = 0, ranks = 1;
 };
 
+/// What a training step reports (EvNerf::train_step): the means over its shards of the losses and of
+/// dloss/dτ, the sums of its counts, and its window.
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
   double distortion_loss = 0;  ///< the distortion regulariser's term (0 unless set_distortion() was given a weight)
@@ -58,6 +60,16 @@ struct StepStats {
   /// coarse pass's loss alone.
   std::array<double, 2> pass_event_loss{};
   double refractory_grad = 0;  ///< dloss/dτ of a learned refractory period (0 when none is learned)
+
+  /// Visits every field a step's shards add up, each once and in one fixed order: every loss, count and
+  /// gradient above but the window. A new statistic goes here, and shards and processes sum it.
+  template <class S, class F>
+  static constexpr void summed_fields(S& s, F&& f) {
+    f(s.loss), f(s.event_loss), f(s.threshold_loss), f(s.distortion_loss), f(s.refractory_grad);
+    f(s.rays), f(s.samples), f(s.backward_samples);
+    for (auto& v : s.pass_event_loss) f(v);
+    for (auto& v : s.term_loss) f(v);
+  }
 };
 
 /// The refractory period a model reads its counts with (EvNerf::set_refractory): `seconds` < 0 reads the
@@ -268,27 +280,27 @@ class EvNerf {
   /// The name of the objective's term k (0: the event term; log.jsonl writes `<name>_loss` for the others).
   static const char* term_name(int k) { return objective_type::term_name(k); }
  private:
-  /// train_step's statistics as a vector that processes can sum: loss, event loss, threshold loss, rays,
-  /// samples, backward samples and the two passes' event losses.
-  static constexpr std::size_t kTotals = 10 + StepStats::kMaxTerms;
+  /// train_step's statistics as a vector that shards add up and processes sum (StepStats::summed_fields'
+  /// order), then the slices' counts.
+  static constexpr std::size_t kTotals = [] {
+    StepStats s;
+    std::size_t n = 0;
+    StepStats::summed_fields(s, [&](auto&) { ++n; });
+    return n;
+  }();
   static void add_totals(std::vector<double>& t, const StepStats& s) {
-    const double v[10] = {s.loss, s.event_loss, s.threshold_loss, double(s.rays), double(s.samples), double(s.backward_samples),
-                          s.pass_event_loss[0], s.pass_event_loss[1], s.distortion_loss, s.refractory_grad};
-    for (std::size_t i = 0; i < 10; ++i) t[i] += v[i];
-    for (int k = 0; k < StepStats::kMaxTerms; ++k) t[10 + k] += s.term_loss[k];
+    std::size_t i = 0;
+    StepStats::summed_fields(s, [&](const auto& v) { t[i++] += static_cast<double>(v); });
   }
   StepStats from_totals(const std::vector<double>& t, int count) const {
     StepStats s;
-    s.loss = t[0] / count;
-    s.event_loss = t[1] / count;
-    s.threshold_loss = t[2] / count;
-    s.rays = static_cast<std::size_t>(t[3]);
-    s.samples = static_cast<std::size_t>(t[4]);
-    s.backward_samples = static_cast<std::size_t>(t[5]);
-    s.pass_event_loss = {t[6] / count, t[7] / count};
-    s.distortion_loss = t[8] / count;
-    s.refractory_grad = t[9] / count;
-    for (int k = 0; k < StepStats::kMaxTerms; ++k) s.term_loss[k] = t[10 + k] / count;
+    std::size_t i = 0;
+    StepStats::summed_fields(s, [&](auto& v) {
+      if constexpr (std::is_integral_v<std::remove_reference_t<decltype(v)>>)
+        v = static_cast<std::remove_reference_t<decltype(v)>>(t[i++]);
+      else
+        v = t[i++] / count;
+    });
     s.first_slice = window_.first;
     s.window = window_.len;
     return s;
