@@ -381,7 +381,7 @@ TEST_CASE("sensor: --sensor random draws every parameter inside its range, from 
     CHECK(c.threshold_pos <= R::threshold_pos[1]);
     CHECK(c.threshold_neg / c.threshold_pos >= R::ratio[0] - 1e-12);
     CHECK(c.threshold_neg / c.threshold_pos <= R::ratio[1] + 1e-12);
-    CHECK(c.threshold_sigma <= R::mismatch[1]);
+    CHECK(c.mismatch <= R::mismatch[1]);
     CHECK(c.refractory <= R::refractory[1]);
     CHECK(c.noise_rate <= R::noise_rate[1]);
     CHECK(c.hot_pixels >= R::hot_pixels[0]);
@@ -432,6 +432,20 @@ TEST_CASE("sensor: --sensor random draws every parameter inside its range, from 
   const auto text = sim::sensor_model_text(rec.sensor);
   CHECK_CONTAINS(text, "threshold_pos " + short_number(rec.sensor.threshold_pos, 9));
   CHECK_CONTAINS(text, "hot_pixels " + std::to_string(rec.sensor.hot_pixels));
+  // One table names every parameter: each is a line of the model's text, with the value the model has, and
+  // a value set through its SensorOptions field reaches its SensorConfig field.
+  int n = 0;
+  sim::sensor_params([&](const auto& p) {
+    CAPTURE(p.name);
+    CHECK_CONTAINS(text, std::string(p.name) + " " + short_number(static_cast<double>(rec.sensor.*p.value), 9) + "\n");
+    sim::SensorOptions one;
+    using T = typename std::remove_reference_t<decltype(one.*p.given)>::value_type;
+    one.*p.given = static_cast<T>(p.hi);
+    CHECK(static_cast<double>(sim::sensor_model(one, 1).*p.value) == p.hi);
+    ++n;
+  });
+  CHECK(n == 8);
+  CHECK(sim::sensor_param_names() == "threshold_pos, threshold_neg, mismatch, refractory, noise_rate, hot_pixels, hot_rate, jitter");
 }
 
 TEST_CASE("sensor: the hot pixels planted in a moving textured scene are the ones suspected, its texture is not") {

@@ -241,14 +241,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                        "span, from --seed); the flags below set single parameters; written to <out>/sensor_model.txt")
       ->check(CLI::IsMember({"ideal", "realistic", "random"}))
       ->capture_default_str();
-  simulate->add_option("--threshold-pos", so.sensor.threshold_pos, "C+: the log-intensity rise of an ON event");
-  simulate->add_option("--threshold-neg", so.sensor.threshold_neg, "C-: the log-intensity fall of an OFF event (positive)");
-  simulate->add_option("--mismatch", so.sensor.mismatch, "per-pixel threshold deviation: relative standard deviation (0.03 = 3 %)");
-  simulate->add_option("--refractory", so.sensor.refractory, "seconds a pixel is blind after it fires");
-  simulate->add_option("--noise-rate", so.sensor.noise_rate, "background activity: events per pixel per second");
-  simulate->add_option("--hot-pixels", so.sensor.hot_pixels, "pixels that fire on their own, at --hot-rate");
-  simulate->add_option("--hot-rate", so.sensor.hot_rate, "a hot pixel's events per second (200 unless given)");
-  simulate->add_option("--jitter", so.sensor.jitter, "timestamp noise: standard deviation in seconds");
+  sim::sensor_params([&](const auto& p) { simulate->add_option(p.flag(), so.sensor.*p.given, p.help); });
   simulate->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
   simulate->add_flag("--hdr", so.hdr,
                      "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "

@@ -112,6 +112,15 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
       "sensor_size (width, height) as --sensor-size; progress(bytes_read, bytes_total), if given, is called as a long read goes on "
       "(IJRR text, Prophesee, AEDAT4, ROS bags), and what it raises stops the read.");
 
+  // The docstring lists the sensor's keywords from their table (sim::sensor_params); static, as pybind11
+  // keeps the pointer.
+  static const std::string simulate_doc =
+      "A simulated recording of a built-in scene (evnerf.scenes), 'random', 'mesh' (mesh= a 3-D file, seen along an orbit as "
+      "`evnerf simulate mesh FILE` sees it, with held-out views when written to out) or a scene file, as `evnerf simulate` makes it; "
+      "width and height 0: the scene's default (240 x 180, 346 x 260 for a mesh). "
+      "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of " + sim::sensor_param_names() +
+      " as keywords (evnerf.sensor_model shows the result). "
+      "Without out it stays in memory (frames, no depth or linear truth); with out it is written there (IJRR layout) and loaded.";
   m.def(
       "simulate",
       [](const std::string& scene, std::optional<fs::path> out, const std::string& sensor, bool bayer, bool hdr, std::uint64_t seed, int width,
@@ -139,19 +148,14 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
       py::arg("scene") = "planes", py::kw_only(), py::arg("out") = py::none(), py::arg("sensor") = "ideal", py::arg("bayer") = false,
       py::arg("hdr") = false, py::arg("seed") = 1, py::arg("width") = 0, py::arg("height") = 0, py::arg("focal") = 0.0,
       py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(),
-      "A simulated recording of a built-in scene (evnerf.scenes), 'random', 'mesh' (mesh= a 3-D file, seen along an orbit as "
-      "`evnerf simulate mesh FILE` sees it, with held-out views when written to out) or a scene file, as `evnerf simulate` makes it; "
-      "width and height 0: the scene's default (240 x 180, 346 x 260 for a mesh). "
-      "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of threshold_pos, threshold_neg, mismatch, "
-      "refractory, noise_rate, hot_pixels, hot_rate, jitter as keywords (evnerf.sensor_model shows the result). "
-      "Without out it stays in memory (frames, no depth or linear truth); with out it is written there (IJRR layout) and loaded.");
+      simulate_doc.c_str());
   m.def(
       "sensor_model",
       [](const std::string& sensor, std::uint64_t seed, const py::kwargs& sensor_parameters) {
         const auto c = sim::sensor_model(sensor_options(sensor, sensor_parameters), seed);
-        return py::dict(py::arg("threshold_pos") = c.threshold_pos, py::arg("threshold_neg") = c.threshold_neg,
-                        py::arg("mismatch") = c.threshold_sigma, py::arg("refractory") = c.refractory, py::arg("noise_rate") = c.noise_rate,
-                        py::arg("hot_pixels") = c.hot_pixels, py::arg("hot_rate") = c.hot_rate, py::arg("jitter") = c.jitter);
+        py::dict d;
+        sim::sensor_params([&](const auto& p) { d[p.name] = c.*p.value; });
+        return d;
       },
       py::arg("sensor") = "ideal", py::kw_only(), py::arg("seed") = 1,
       "The sensor simulate() records with for these arguments (random: the values drawn from the seed), as a dict.");

@@ -307,17 +307,14 @@ inline sim::SensorOptions sensor_options(const std::string& model, const py::kwa
   o.model = model;
   for (const auto& [key, value] : kw) {
     const auto k = key.cast<std::string>();
-    if (k == "threshold_pos") o.threshold_pos = value.cast<double>();
-    else if (k == "threshold_neg") o.threshold_neg = value.cast<double>();
-    else if (k == "mismatch") o.mismatch = value.cast<double>();
-    else if (k == "refractory") o.refractory = value.cast<double>();
-    else if (k == "noise_rate") o.noise_rate = value.cast<double>();
-    else if (k == "hot_pixels") o.hot_pixels = value.cast<int>();
-    else if (k == "hot_rate") o.hot_rate = value.cast<double>();
-    else if (k == "jitter") o.jitter = value.cast<double>();
-    else
-      throw Error("simulate: unknown keyword '" + k + "' (the sensor's: threshold_pos, threshold_neg, mismatch, refractory, noise_rate, "
-                  "hot_pixels, hot_rate, jitter)");
+    bool known = false;
+    sim::sensor_params([&](const auto& p) {
+      if (k != p.name) return;
+      using T = typename std::remove_reference_t<decltype(o.*p.given)>::value_type;
+      o.*p.given = value.template cast<T>();
+      known = true;
+    });
+    if (!known) throw Error("simulate: unknown keyword '" + k + "' (the sensor's: " + sim::sensor_param_names() + ")");
   }
   return o;
 }

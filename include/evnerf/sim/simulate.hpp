@@ -14,21 +14,6 @@
 
 namespace evnerf::sim {
 
-/// The sensor `simulate` records with: a named model and any of its parameters set one by one. Each unset
-/// parameter keeps the model's value.
-struct SensorOptions {
-  /// ideal (thresholds 0.25 / 0.25, no mismatch, refractory period or noise), realistic
-  /// (SensorConfig::realistic) or random (every parameter drawn from what real cameras span, from the seed).
-  std::string model = "ideal";
-  std::optional<double> threshold_pos, threshold_neg;  ///< C⁺, C⁻ (log units)
-  std::optional<double> mismatch;                      ///< per-pixel threshold deviation, relative σ
-  std::optional<double> refractory;                    ///< seconds a pixel is blind after it fires
-  std::optional<double> noise_rate;                    ///< background activity, events per pixel per second
-  std::optional<int> hot_pixels;                       ///< pixels that fire on their own
-  std::optional<double> hot_rate;                      ///< their events per second
-  std::optional<double> jitter;                        ///< timestamp noise, standard deviation in seconds
-};
-
 /// The ranges `--sensor random` draws from (uniformly; the count of hot pixels as an integer): what DAVIS
 /// and Prophesee cameras span.
 struct RandomSensorRanges {
@@ -53,7 +38,7 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
     using R = RandomSensorRanges;
     c.threshold_pos = rng.uniform(R::threshold_pos[0], R::threshold_pos[1]);
     c.threshold_neg = c.threshold_pos * rng.uniform(R::ratio[0], R::ratio[1]);
-    c.threshold_sigma = rng.uniform(R::mismatch[0], R::mismatch[1]);
+    c.mismatch = rng.uniform(R::mismatch[0], R::mismatch[1]);
     c.refractory = rng.uniform(R::refractory[0], R::refractory[1]);
     c.noise_rate = rng.uniform(R::noise_rate[0], R::noise_rate[1]);
     c.hot_pixels = R::hot_pixels[0] + static_cast<int>(rng.below(static_cast<std::uint64_t>(R::hot_pixels[1] - R::hot_pixels[0] + 1)));
@@ -61,25 +46,15 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
   } else if (o.model != "ideal") {
     throw Error("simulate: --sensor '" + o.model + "': expected ideal, realistic or random");
   }
-  auto set = [](double& v, const std::optional<double>& x, const char* flag, double lo, double hi, bool lo_open) {
+  sensor_params([&](const auto& p) {
+    const auto& x = o.*p.given;
     if (!x) return;
-    if (!std::isfinite(*x) || (lo_open ? *x <= lo : *x < lo) || *x > hi)
-      throw Error(std::string("simulate: ") + flag + " must be in " + (lo_open ? "(" : "[") + short_number(lo) + ", " + short_number(hi) +
-                  "], got " + short_number(*x));
-    v = *x;
-  };
-  set(c.threshold_pos, o.threshold_pos, "--threshold-pos", 0, 5, true);
-  set(c.threshold_neg, o.threshold_neg, "--threshold-neg", 0, 5, true);
-  set(c.threshold_sigma, o.mismatch, "--mismatch", 0, 0.5, false);
-  set(c.refractory, o.refractory, "--refractory", 0, 1, false);
-  set(c.noise_rate, o.noise_rate, "--noise-rate", 0, 1e4, false);
-  set(c.hot_rate, o.hot_rate, "--hot-rate", 0, 1e6, false);
-  set(c.jitter, o.jitter, "--jitter", 0, 0.1, false);
-  if (o.hot_pixels) {
-    if (*o.hot_pixels < 0 || *o.hot_pixels > 1000000)
-      throw Error("simulate: --hot-pixels must be in [0, 1000000], got " + std::to_string(*o.hot_pixels));
-    c.hot_pixels = *o.hot_pixels;
-  }
+    const double v = static_cast<double>(*x);
+    if (!std::isfinite(v) || (p.lo_open ? v <= p.lo : v < p.lo) || v > p.hi)
+      throw Error("simulate: " + p.flag() + " must be in " + (p.lo_open ? "(" : "[") + short_number(p.lo) + ", " + short_number(p.hi) +
+                  "], got " + short_number(v));
+    c.*p.value = *x;
+  });
   return c;
 }
 

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,7 +30,7 @@ struct SensorConfig {
   int width = 240, height = 180;
   double fx = 200, fy = 200, cx = 120, cy = 90;  ///< cx, cy < 0 → image centre
   double threshold_pos = 0.25, threshold_neg = 0.25;  ///< contrast thresholds (log units, both > 0)
-  double threshold_sigma = 0.0;      ///< per-pixel mismatch: relative standard deviation
+  double mismatch = 0.0;             ///< per-pixel threshold deviation: relative standard deviation
   double refractory = 0.0;           ///< seconds
   double noise_rate = 0.0;           ///< background activity, events per pixel per second
   double noise_ratio = 0.0;          ///< extra uniform random events, as a fraction of the signal events
@@ -53,7 +54,7 @@ struct SensorConfig {
     SensorConfig c;
     c.threshold_pos = 0.22;
     c.threshold_neg = 0.28;
-    c.threshold_sigma = 0.03;
+    c.mismatch = 0.03;
     c.refractory = 1e-4;
     c.noise_rate = 0.1;
     c.hot_pixels = 3;
@@ -83,16 +84,76 @@ struct Recording {
   } novel;
 };
 
-/// The sensor's model as `name value` lines (sensor_model.txt): thresholds, mismatch, refractory period,
-/// background rate, hot pixels and their rate, jitter, and the seed of its noise.
+/// The sensor `simulate` records with: a named model and any of its parameters set one by one (each unset one
+/// keeps the model's value). The parameters are those of sensor_params().
+struct SensorOptions {
+  /// ideal (thresholds 0.25 / 0.25, no mismatch, refractory period or noise), realistic
+  /// (SensorConfig::realistic) or random (every parameter drawn from what real cameras span, from the seed).
+  std::string model = "ideal";
+  std::optional<double> threshold_pos, threshold_neg;  ///< C⁺, C⁻ (log units)
+  std::optional<double> mismatch;                      ///< per-pixel threshold deviation, relative σ
+  std::optional<double> refractory;                    ///< seconds a pixel is blind after it fires
+  std::optional<double> noise_rate;                    ///< background activity, events per pixel per second
+  std::optional<int> hot_pixels;                       ///< pixels that fire on their own
+  std::optional<double> hot_rate;                      ///< their events per second
+  std::optional<double> jitter;                        ///< timestamp noise, standard deviation in seconds
+};
+
+/// One parameter of the simulated sensor, as every interface names it: `name` is the Python keyword, the key
+/// in sensor_model.txt and (with '-' for '_') `simulate`'s flag; `given` its field in SensorOptions, `value`
+/// in SensorConfig; the values a sensor can have, [lo, hi] ((lo, hi] when lo_open); what it is.
+template <class T>
+struct SensorParam {
+  const char* name;
+  std::optional<T> SensorOptions::*given;
+  T SensorConfig::*value;
+  double lo, hi;
+  bool lo_open;
+  const char* help;
+  std::string flag() const {
+    std::string f = std::string("--") + name;
+    std::replace(f.begin(), f.end(), '_', '-');
+    return f;
+  }
+};
+
+/// The sensor's parameters, one table: `simulate`'s flags, Python's keywords (simulate, sensor_model),
+/// sensor_model.txt and the check of a given value come from it. Calls f(SensorParam<double or int>) for
+/// each, in one order.
+template <class F>
+void sensor_params(F&& f) {
+  using O = SensorOptions;
+  using C = SensorConfig;
+  f(SensorParam<double>{"threshold_pos", &O::threshold_pos, &C::threshold_pos, 0, 5, true, "C+: the log-intensity rise of an ON event"});
+  f(SensorParam<double>{"threshold_neg", &O::threshold_neg, &C::threshold_neg, 0, 5, true,
+                        "C-: the log-intensity fall of an OFF event (positive)"});
+  f(SensorParam<double>{"mismatch", &O::mismatch, &C::mismatch, 0, 0.5, false,
+                        "per-pixel threshold deviation: relative standard deviation (0.03 = 3 %)"});
+  f(SensorParam<double>{"refractory", &O::refractory, &C::refractory, 0, 1, false, "seconds a pixel is blind after it fires"});
+  f(SensorParam<double>{"noise_rate", &O::noise_rate, &C::noise_rate, 0, 1e4, false, "background activity: events per pixel per second"});
+  f(SensorParam<int>{"hot_pixels", &O::hot_pixels, &C::hot_pixels, 0, 1e6, false, "pixels that fire on their own, at --hot-rate"});
+  f(SensorParam<double>{"hot_rate", &O::hot_rate, &C::hot_rate, 0, 1e6, false, "a hot pixel's events per second (200 unless given)"});
+  f(SensorParam<double>{"jitter", &O::jitter, &C::jitter, 0, 0.1, false, "timestamp noise: standard deviation in seconds"});
+}
+
+/// The parameters' names, joined by ", " (the messages that list them).
+inline std::string sensor_param_names() {
+  std::string s;
+  sensor_params([&](const auto& p) { s.append(s.empty() ? "" : ", ").append(p.name); });
+  return s;
+}
+
+/// The sensor's model as `name value` lines (sensor_model.txt): every parameter of sensor_params(), the
+/// uniform noise's ratio and the seed of its noise.
 inline std::string sensor_model_text(const SensorConfig& c) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "threshold_pos %.9g\nthreshold_neg %.9g\nmismatch %.9g\nrefractory %.9g\nnoise_rate %.9g\nnoise_ratio %.9g\n"
-                "hot_pixels %d\nhot_rate %.9g\njitter %.9g\nseed %llu\n",
-                c.threshold_pos, c.threshold_neg, c.threshold_sigma, c.refractory, c.noise_rate, c.noise_ratio, c.hot_pixels, c.hot_rate,
-                c.jitter, static_cast<unsigned long long>(c.seed));
-  return buf;
+  std::string out;
+  char buf[96];
+  sensor_params([&](const auto& p) {
+    std::snprintf(buf, sizeof buf, "%s %.9g\n", p.name, static_cast<double>(c.*p.value));
+    out += buf;
+  });
+  std::snprintf(buf, sizeof buf, "noise_ratio %.9g\nseed %llu\n", c.noise_ratio, static_cast<unsigned long long>(c.seed));
+  return out + buf;
 }
 
 class Simulator {
@@ -151,10 +212,10 @@ class Simulator {
     Rng rng(cfg_.seed);
     // Per-pixel thresholds (mismatch) and state.
     std::vector<double> cpos(n, cfg_.threshold_pos), cneg(n, cfg_.threshold_neg);
-    if (cfg_.threshold_sigma > 0)
+    if (cfg_.mismatch > 0)
       for (std::size_t i = 0; i < n; ++i) {
-        cpos[i] = std::max(0.01, cfg_.threshold_pos * (1 + cfg_.threshold_sigma * rng.normal()));
-        cneg[i] = std::max(0.01, cfg_.threshold_neg * (1 + cfg_.threshold_sigma * rng.normal()));
+        cpos[i] = std::max(0.01, cfg_.threshold_pos * (1 + cfg_.mismatch * rng.normal()));
+        cneg[i] = std::max(0.01, cfg_.threshold_neg * (1 + cfg_.mismatch * rng.normal()));
       }
     std::vector<Vec3> rgb;
     std::vector<double> L0, L1, ref;
