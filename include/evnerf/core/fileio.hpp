@@ -1,5 +1,5 @@
-// core/fileio.hpp — whole-file reads and atomic writes (write to a temporary, fsync, rename), checksums.
-// Depends on the standard library and POSIX only.
+// core/fileio.hpp — whole-file reads and atomic writes (write to a temporary, fsync, rename), checksums, and
+// what the readers of large files share (FileCloser, huge_pages). Depends on the standard library and POSIX only.
 #pragma once
 #include <algorithm>
 #include <cerrno>
@@ -10,12 +10,36 @@
 #include <functional>
 #include <string>
 #include <string_view>
+#include <memory>
+#include <vector>
 #include <unistd.h>
 #include <fcntl.h>
+#include <sys/mman.h>
 
 #include "error.hpp"
 
 namespace evnerf {
+
+/// Closes a FILE held by a std::unique_ptr<std::FILE, FileCloser>.
+struct FileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+
+/// Asks the kernel for huge pages behind a large vector's reserved memory (where transparent huge pages are
+/// on request): the events of a long recording fill hundreds of megabytes, and a page fault per 4 KiB is
+/// most of the time of a read on machines where faults are dear.
+template <class T>
+void huge_pages(std::vector<T>& v) {
+#ifdef MADV_HUGEPAGE
+  constexpr std::uintptr_t kHuge = std::uintptr_t(1) << 21;
+  const auto a = reinterpret_cast<std::uintptr_t>(v.data()), e = a + v.capacity() * sizeof(T);
+  const std::uintptr_t b = (a + kHuge - 1) & ~(kHuge - 1), f = e & ~(kHuge - 1);
+  if (f > b) ::madvise(reinterpret_cast<void*>(b), f - b, MADV_HUGEPAGE);  // advice only: a refusal costs nothing
+#else
+  (void)v;
+#endif
+}
+
 
 /// A long read's progress: `done` bytes of the file's `total` read so far. The readers of whole recordings
 /// call it after each block they read (64 KiB to a few MiB; an AEDAT4 packet, a bag's chunk), from the

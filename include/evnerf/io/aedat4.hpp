@@ -18,8 +18,7 @@
 // small tables are read here with every offset checked, so that a corrupt file is an Error naming its byte
 // offset. LZ4 and Zstd frames go through Debian's liblz4 and libzstd. Compiled where CMake found both
 // (EVNERF_HAVE_AEDAT4). A file cut short inside its packets (no data table written) is read to its last whole
-// packet, with a warning. Depends on io/recording.hpp, io/prophesee.hpp (huge_pages, FileCloser) and
-// core/warn.hpp.
+// packet, with a warning. Depends on io/recording.hpp, io/prophesee.hpp and core/.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -350,7 +349,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
                                        std::int64_t& origin_sec) {
   const std::string file = path.string();
   info = {};
-  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
   std::error_code ec;
   const std::uint64_t file_size = std::filesystem::file_size(path, ec);
@@ -585,7 +584,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     info.packets_skipped += m - used;
     if (need > ev.t.capacity()) {  // growing by half at least (huge pages, as RawSink's)
       ev.reserve(std::max(need, ev.t.capacity() + ev.t.capacity() / 2));
-      detail::huge_pages(ev.t), detail::huge_pages(ev.x), detail::huge_pages(ev.y), detail::huge_pages(ev.polarity);
+      huge_pages(ev.t), huge_pages(ev.x), huge_pages(ev.y), huge_pages(ev.polarity);
     }
     ev.t.resize(need), ev.x.resize(need), ev.y.resize(need), ev.polarity.resize(need);
 #pragma omp parallel for schedule(dynamic, 1) if (used > 1)
@@ -613,7 +612,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     for (const auto& e : entries)
       if (e.stream == evs->id) count += std::min<std::uint64_t>(static_cast<std::uint64_t>(std::max<std::int64_t>(e.elements, 0)), std::uint64_t(e.size));
     ev.reserve(static_cast<std::size_t>(count));
-    detail::huge_pages(ev.t), detail::huge_pages(ev.x), detail::huge_pages(ev.y), detail::huge_pages(ev.polarity);
+    huge_pages(ev.t), huge_pages(ev.x), huge_pages(ev.y), huge_pages(ev.polarity);
   }
   std::vector<unsigned char> frame_raw;
   detail::Aedat4Inflater frame_body;
@@ -687,7 +686,7 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
 
 /// Whether a file starts with AEDAT 4.0's version line.
 inline bool is_aedat4(const std::filesystem::path& path) {
-  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   char head[detail::kAedat4MagicLen];
   return f && std::fread(head, 1, sizeof head, f.get()) == sizeof head && std::memcmp(head, detail::kAedat4Magic, sizeof head) == 0;
 }
@@ -952,7 +951,7 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
 }
 
 inline Format aedat4_format() {
-  return {"aedat4", false, "an iniVation AEDAT 4.0 file (DV, dv-processing: DAVIS346, DVXplorer)", &is_aedat4,
+  return {"aedat4", false, kAedat4Description, &is_aedat4,
           &load_aedat4, [](const std::filesystem::path& p, const Dataset& d, const WriteOptions& o) { write_aedat4(p, d, o.compression); },
           {".aedat4"}};
 }

@@ -34,6 +34,7 @@
 #include "../geometry/trajectory.hpp"
 #include "ijrr.hpp"
 #include "npy.hpp"
+#include "recording.hpp"
 
 namespace evnerf::io {
 
@@ -302,6 +303,29 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
   s.trajectory = geometry::Trajectory(times, std::move(ps), (split / "pose").string());
   if (!s.frames.empty()) s.frame_times = times;
   return s;
+}
+
+/// Loads an EventNeRF scene (io/eventnerf.hpp: its train split, views spread evenly over the events' time),
+/// with the calibration and poses LoadOptions names instead of the scene's own where given.
+inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
+  auto s = read_eventnerf(folder, opt.width, opt.height);
+  check_sensor_size(s.camera.width(), s.camera.height(),
+                    opt.width > 0 && opt.height > 0 ? folder.string() + " (the sensor size given)"
+                    : s.frames.empty()              ? folder.string() + " (EventNeRF's DAVIS346 size)"
+                                                    : s.frames[0].string() + " (the first frame, which gives the sensor size)");
+  Dataset d;
+  d.folder = folder;
+  d.camera = opt.calib.empty() ? s.camera : read_calib_source(opt.calib, s.camera.width(), s.camera.height());
+  d.events = std::move(s.events);
+  d.frames.t = std::move(s.frame_times);
+  d.frames.paths = std::move(s.frames);
+  d.trajectory = opt.poses.empty() ? std::move(s.trajectory) : read_pose_source(opt.poses, d.frames);
+  return d;
+}
+
+/// The format's line in io::formats().
+inline Format eventnerf_format() {
+  return {"eventnerf", true, "an EventNeRF scene folder (train/events/*.npz, train/pose, train/intrinsics)", &is_eventnerf, &load_eventnerf};
 }
 
 }  // namespace evnerf::io

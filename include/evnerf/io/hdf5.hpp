@@ -12,7 +12,7 @@
 // (filter 32001), which Debian's hdf5-filter-plugin-blosc-serial provides; a filter the library cannot load
 // is an Error naming it and the package. Every error names the file and the dataset. Compiled only where
 // CMake found HDF5 (EVNERF_HAVE_HDF5).
-// Depends on core/, events/ and io/ only.
+// Its line of the format table is hdf5_format(). Depends on core/, geometry/, events/ and io/ only.
 #pragma once
 #include <hdf5.h>
 
@@ -36,6 +36,7 @@
 #include "../core/types.hpp"
 #include "../events/event_stream.hpp"
 #include "ijrr.hpp"
+#include "recording.hpp"
 
 namespace evnerf::io {
 
@@ -674,6 +675,37 @@ inline void write_hdf5(const std::filesystem::path& path, const events::EventStr
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) fail("cannot rename the temporary file into place: " + ec.message());
+}
+
+/// Loads an event HDF5 file (io/hdf5.hpp: event_utils/HQF or DSEC layout) with the calibration and poses
+/// LoadOptions names, or calib.txt and groundtruth.txt beside it. Frames, when the file has them, are
+/// kept in memory.
+inline Dataset load_hdf5(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  auto rec = opt.hdf5_check_in_child ? read_hdf5_checked(path, opt.width, opt.height, opt.t_begin, opt.t_end, opt.progress)
+                                     : read_hdf5(path, opt.width, opt.height, opt.t_begin, opt.t_end, opt.progress);
+  check_sensor_size(rec.width, rec.height, path.string() + " (the sensor size it gives)");
+  Dataset d;
+  d.frames.t = std::move(rec.frame_times);
+  d.frames.images = std::move(rec.frames);
+  attach_calibration_and_poses(path, opt, d, rec.width, rec.height, "an HDF5 recording");
+  d.events = std::move(rec.events);
+  return d;
+}
+
+/// Writes a recording as an event_utils/HQF HDF5 file (write_hdf5) with calib.txt and, when there are
+/// poses, groundtruth.txt beside it, so that io::load reads it back.
+inline void write_hdf5_recording(const std::filesystem::path& path, const Dataset& d) {
+  std::vector<double> times = d.frames.t;
+  std::vector<Image> frames;
+  for (std::size_t f = 0; f < d.frames.size(); ++f) frames.push_back(frame_image(d.frames, f));
+  write_hdf5(path, d.events, d.camera.width(), d.camera.height(), times, frames);
+  write_calibration_and_poses_beside(path, d);
+}
+
+/// The format's line in io::formats(): written for an output ending in .h5 or .hdf5.
+inline Format hdf5_format() {
+  return {"hdf5", false, kHdf5Description, &is_hdf5, &load_hdf5,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); }, {".h5", ".hdf5"}};
 }
 
 }  // namespace evnerf::io

@@ -29,7 +29,6 @@
 #include <string>
 #include <vector>
 
-#include <sys/mman.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -135,20 +134,6 @@ inline void sensor_geometry(const PercentHeader& h, const LoadOptions& opt, cons
   check_sensor_size(info.width, info.height, file + " (the sensor size of its header)");
 }
 
-/// Asks the kernel for huge pages behind a large vector's reserved memory (where transparent huge pages are
-/// on request): the events of a long recording fill hundreds of megabytes, and a page fault per 4 KiB is
-/// most of the time of a read on machines where faults are dear.
-template <class T>
-void huge_pages(std::vector<T>& v) {
-#ifdef MADV_HUGEPAGE
-  constexpr std::uintptr_t kHuge = std::uintptr_t(1) << 21;
-  const auto a = reinterpret_cast<std::uintptr_t>(v.data()), e = a + v.capacity() * sizeof(T);
-  const std::uintptr_t b = (a + kHuge - 1) & ~(kHuge - 1), f = e & ~(kHuge - 1);
-  if (f > b) ::madvise(reinterpret_cast<void*>(b), f - b, MADV_HUGEPAGE);  // advice only: a refusal costs nothing
-#else
-  (void)v;
-#endif
-}
 
 /// Collects decoded events: times in microseconds (as the file holds them) into seconds, only those of the
 /// window; checks order and coordinates. `done` once a time passes the window's end. room(n) before a block
@@ -678,10 +663,6 @@ inline void decode_dat(std::FILE* f, std::size_t offset, RawSink& sink, const st
   });
 }
 
-struct FileCloser {
-  void operator()(std::FILE* f) const { std::fclose(f); }
-};
-
 /// Opens a Prophesee file and reads its header: the kind ("evt 2.0", "evt 3.0", "dat") or "" when it is none.
 inline std::string prophesee_kind(const PercentHeader& h) {
   std::string v;
@@ -699,7 +680,7 @@ inline std::string prophesee_kind(const PercentHeader& h) {
 /// past its end); `info` gets what the header and words said.
 inline events::EventStream read_prophesee_events(const std::filesystem::path& path, const LoadOptions& opt, PropheseeInfo& info) {
   const std::string file = path.string();
-  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
   const auto h = detail::read_percent_header(f.get(), file);
   info.kind = detail::prophesee_kind(h);
@@ -731,7 +712,7 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
 /// Whether a file's '%' header says `kind`: "evt 2.0", "evt 3.0", "dat", or "evt 3.0+" for any EVT version but
 /// 2.0 (a version evnerf does not read goes to the EVT 3.0 entry, whose reader names it).
 inline bool is_prophesee(const std::filesystem::path& path, const char* kind) {
-  std::unique_ptr<std::FILE, detail::FileCloser> f(std::fopen(path.c_str(), "rb"));
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) return false;
   try {
     const auto k = detail::prophesee_kind(detail::read_percent_header(f.get(), path.string()));

@@ -287,6 +287,18 @@ struct Format {
   const char* unavailable = "";  ///< why this build has no reader (the Debian package to install), or ""
 };
 
+/// What the formats that need a library are: their table lines with and without it (`<name>_format()`,
+/// unavailable_format) say it alike.
+inline constexpr const char* kHdf5Description = "an event HDF5 file (event_utils/HQF or DSEC layout)";
+inline constexpr const char* kAedat4Description = "an iniVation AEDAT 4.0 file (DV, dv-processing: DAVIS346, DVXplorer)";
+inline constexpr const char* kRosbagDescription = "a ROS bag 2.0 (dvs_msgs or prophesee event arrays, images, camera info, poses)";
+
+/// The table line of a format this build cannot read (CMake did not find its library): its name, what it
+/// is and its extensions, no reader or writer, and `why` (the Debian package to install).
+inline Format unavailable_format(const char* name, const char* description, std::vector<std::string> extensions, const char* why) {
+  return {name, false, description, nullptr, nullptr, nullptr, std::move(extensions), nullptr, why};
+}
+
 /// A recording held in one file (HDF5, Prophesee): its calibration from LoadOptions::calib, else calib.txt
 /// beside it; its poses from LoadOptions::poses, else groundtruth.txt beside it (when present). Without a
 /// calibration, an Error naming the file to give, unless LoadOptions::calibration_optional: then a pinhole

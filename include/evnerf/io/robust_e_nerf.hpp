@@ -22,6 +22,7 @@
 #include "../geometry/trajectory.hpp"
 #include "eventnerf.hpp"
 #include "npy.hpp"
+#include "recording.hpp"
 
 namespace evnerf::io {
 
@@ -145,6 +146,34 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
     s.trajectory = geometry::Trajectory(std::move(times), std::move(poses), pose_path.string());
   }
   return s;
+}
+
+/// Loads a Robust e-NeRF sequence folder (io/robust_e_nerf.hpp), with the calibration and poses LoadOptions
+/// names instead of its own where given (a pose file's times in the sequence's clock, seconds).
+inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
+  auto s = read_robust_e_nerf(folder, opt.width, opt.height);
+  check_sensor_size(s.camera.width(), s.camera.height(),
+                    opt.width > 0 && opt.height > 0 ? folder.string() + " (the sensor size given)"
+                                                    : (folder / "camera_calibration.npz").string() + " (its img_width and img_height)");
+  Dataset d;
+  d.folder = folder;
+  d.time_origin = s.origin_sec;
+  d.bayer_pattern = s.bayer_pattern;
+  for (auto& c : d.bayer_pattern) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  d.camera = opt.calib.empty() ? s.camera : read_calib_source(opt.calib, s.camera.width(), s.camera.height());
+  d.events = std::move(s.events);
+  if (!opt.poses.empty()) {
+    d.trajectory = read_pose_source(opt.poses, d.frames, static_cast<double>(s.origin_sec));
+  } else {
+    d.trajectory = std::move(s.trajectory);
+  }
+  return d;
+}
+
+/// The format's line in io::formats().
+inline Format robust_e_nerf_format() {
+  return {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)", &is_robust_e_nerf,
+          &load_robust_e_nerf};
 }
 
 }  // namespace evnerf::io
