@@ -6,7 +6,8 @@
 # offset oracle (the score with the truth's log offsets per image row, and per row and column). A scene
 # passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Each scene is recorded by every sensor
 # of SENSORS (`simulate --sensor`: ideal, realistic, and random, drawn from the scene's seed), side by side in the
-# table. Writes $OUT/robustness.csv and prints a Markdown table.
+# table, and the backdrop each run had (learned, the default; known; none). Writes $OUT/robustness.csv and prints a
+# Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)
 # Environment: SENSORS ("ideal realistic random"), PRESET (the default preset), STEPS (train's default), SEED (training
 #              seed, 1), THREADS (2),
@@ -28,7 +29,7 @@ TRAIN_ARGS+=("${TRAIN_EXTRA[@]}")
 [ -n "${STEPS:-}" ] && TRAIN_ARGS+=(--iterations "$STEPS")
 mkdir -p "$OUT"
 CSV="$OUT/robustness.csv"
-echo "scene_seed,sensor,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr,sensor_period_us,period_us" > "$CSV"
+echo "scene_seed,sensor,path,events,truth,train_seconds,collapse_fired,psnr,ssim,di_psnr,di_ssim,hpf_psnr,hpf_ssim,pass,coarse_psnr,fine_psnr,oracle_rows_psnr,oracle_both_psnr,sensor_period_us,period_us,backdrop" > "$CSV"
 for n in "${SEEDS[@]}"; do
  for sensor in "${SENSORS[@]}"; do
   dir="$OUT/random-$n-$sensor"
@@ -52,13 +53,15 @@ sensor_period = next((float(l.split()[1]) * 1e6 for l in open(f"{d}/scene/sensor
 train = open(f"{d}/train.txt").read()
 secs = train.split(" steps in ")[1].split(" s")[0] if " steps in " in train else "nan"
 path = next((l.split()[1] for l in open(f"{d}/scene/scene.txt") if l.startswith("path")), "?")
+run = json.load(open(f"{d}/run/settings.json"))["runs"][-1]  # the backdrop: learned, known (a luminance given) or none
+backdrop = "known" if run.get("background") is not None else "learned" if run.get("learn_background") else "none"
 events = sum(1 for _ in open(f"{d}/scene/events.txt"))
 ok = all(ours["psnr"] >= b["psnr"] + 3 and ours["ssim"] >= b["ssim"] + 0.10 for b in (di, hpf))
 scales = metrics.get("error_scales", {}).get("methods", {}).get(name, {})
 db = lambda key: "" if key not in scales else "inf" if scales[key] is None else f"{scales[key]:.2f}"  # null: no error; absent: older eval
 print(f"{n},{sensor},{path},{events},{truth},{secs},{int(fired)},{ours['psnr']:.2f},{ours['ssim']:.3f},{di['psnr']:.2f},{di['ssim']:.3f},"
       f"{hpf['psnr']:.2f},{hpf['ssim']:.3f},{int(ok)},{db('coarse_psnr')},{db('fine_psnr')},{db('oracle_rows_psnr')},{db('oracle_both_psnr')},"
-      f"{sensor_period:.1f},{period}")
+      f"{sensor_period:.1f},{period},{backdrop}")
 PY
   tail -n 1 "$CSV"
  done
