@@ -301,19 +301,27 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
   fs::remove_all(dir);
 }
 
+/// An IJRR folder of `n` events on a 32 × 24 sensor, 10 µs apart, read back (no cache): the recording the
+/// whole-file tests write in every format.
+static io::Dataset many_events_folder(const fs::path& folder, int n) {
+  fs::create_directories(folder);
+  std::string text;
+  for (int k = 0; k < n; ++k)
+    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
+  write(folder / "events.txt", text);
+  write(folder / "calib.txt", "100 100 16 12\n");
+  write(folder / "sensor.txt", "32 24\n");
+  io::LoadOptions plain;
+  plain.use_cache = false;
+  return io::load(folder, plain);
+}
+
 TEST_CASE("a whole-file read reports its progress: monotonic, in the file's bytes, to the end") {
   // 150 000 events: several of the Prophesee reader's 64 KiB blocks, of AEDAT4's packets and of a bag's chunks.
   const auto dir = temp_dir("progress");
-  fs::create_directories(dir / "rec");
-  std::string text;
-  for (int k = 0; k < 150000; ++k)
-    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
-  write(dir / "rec" / "events.txt", text);
-  write(dir / "rec" / "calib.txt", "100 100 16 12\n");
-  write(dir / "rec" / "sensor.txt", "32 24\n");
   io::LoadOptions plain;
   plain.use_cache = false;
-  const auto d = io::load(dir / "rec", plain);
+  const auto d = many_events_folder(dir / "rec", 150000);
   // The readers that report (those evnerf also writes: Prophesee DAT reports through the same block reader
   // as EVT 2.0 and 3.0; HDF5 through its read in a child process and its own), and the file whose bytes they count.
   const std::set<std::string> reporting = {"ijrr", "evt2", "evt3", "rosbag", "aedat4", "hdf5"};
@@ -361,16 +369,9 @@ TEST_CASE("a recording cut short (a camera that lost power) reads to its last wh
   // 200 000 events: several of each writer's packets, chunks (a bag's are 768 KiB) and blocks, so that a cut
   // in the middle leaves some whole.
   const auto dir = temp_dir("cut");
-  fs::create_directories(dir / "rec");
-  std::string text;
-  for (int k = 0; k < 200000; ++k)
-    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
-  write(dir / "rec" / "events.txt", text);
-  write(dir / "rec" / "calib.txt", "100 100 16 12\n");
-  write(dir / "rec" / "sensor.txt", "32 24\n");
   io::LoadOptions opt;
   opt.use_cache = false;
-  const auto d = io::load(dir / "rec", opt);
+  const auto d = many_events_folder(dir / "rec", 200000);
   // The formats a camera or a recorder writes as it goes; the others (HDF5, the EventNeRF and Robust e-NeRF
   // layouts) are written whole by a script, and a file of them cut short is refused.
   const std::set<std::string> streamed = {"ijrr", "evt2", "evt3", "rosbag", "aedat4"};
