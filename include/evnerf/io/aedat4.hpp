@@ -458,9 +458,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
       std::memcpy(&e.stream, buf.data(), 4), std::memcpy(&e.size, buf.data() + 4, 4);
       if (e.size <= 0) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
       if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size)) {
-        const std::string what = "packet of " + std::to_string(e.size) + " bytes runs past the end of the file";
         if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
-        cut_short(pos, what);
+        cut_short(pos, "packet of " + std::to_string(e.size) + " bytes runs past the end of the file");
         break;
       }
       e.t_begin = std::numeric_limits<std::int64_t>::min(), e.t_end = std::numeric_limits<std::int64_t>::max();
