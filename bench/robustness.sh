@@ -79,6 +79,24 @@ for sensor in dict.fromkeys(r["sensor"] for r in rows):
     print(f"{sensor} sensor: passed {sum(r['pass'] == '1' for r in rs)} of {len(rs)}, mean PSNR {sum(float(r['psnr']) for r in rs) / len(rs):.2f}; "
           f"collapse fired on {sum(r['collapse_fired'] == '1' for r in rs)}")
 PY
-# The current table is kept in the repository (RESULTS, default bench/results; empty: not copied).
+# The current table is kept in the repository (RESULTS, default bench/results; empty: not copied): this run's
+# rows replace those of the same scene, sensor and backdrop, and the table's other rows stay.
 RESULTS=${RESULTS-bench/results}
-if [ -n "$RESULTS" ]; then mkdir -p "$RESULTS" && cp "$CSV" "$RESULTS/" && echo "copied to $RESULTS/robustness.csv"; fi
+if [ -n "$RESULTS" ]; then
+  mkdir -p "$RESULTS"
+  python3 - "$CSV" "$RESULTS/robustness.csv" <<'PY'
+import csv, os, sys
+new = list(csv.DictReader(open(sys.argv[1])))
+key = lambda r: (int(r["scene_seed"]), r["sensor"], r.get("backdrop") or "none")
+rows = {key(r): r for r in (csv.DictReader(open(sys.argv[2])) if os.path.exists(sys.argv[2]) else [])}
+rows.update({key(r): r for r in new})
+order = {"ideal": 0, "realistic": 1, "random": 2}
+with open(sys.argv[2] + ".tmp", "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(new[0].keys()), restval="none", extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for k in sorted(rows, key=lambda k: (k[0], order.get(k[1], 3), k[1], k[2] != "learned")):
+        w.writerow(rows[k])
+os.replace(sys.argv[2] + ".tmp", sys.argv[2])
+PY
+  echo "merged into $RESULTS/robustness.csv"
+fi
