@@ -7,9 +7,7 @@
 // edit here. Depends on io/.
 #pragma once
 #include <algorithm>
-#include <cctype>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -34,7 +32,6 @@ namespace evnerf::io {
 namespace detail {
 /// The table io::formats() shows: evnerf's formats, then those registered (register_format).
 inline std::vector<Format>& format_table() {
-  namespace fs = std::filesystem;
   static std::vector<Format> table = {
       ijrr_format(), eventnerf_format(), robust_e_nerf_format(), evt2_format(), evt3_format(), dat_format(),
 #ifdef EVNERF_HAVE_HDF5

@@ -10,6 +10,7 @@
 // time_origin), exactly. The posed images of views/ (NeRF's transforms_*.json) are not on the trajectory in
 // time and are not read. Depends on core/, geometry/, events/ and io/ only.
 #pragma once
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>

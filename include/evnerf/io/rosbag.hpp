@@ -14,8 +14,8 @@
 // to `origin_sec`, the whole second of the first time decoded, and is the double nearest the exact number
 // of nanoseconds (as a text reader of the time with nine decimals gets it). Memory: one chunk at a time (a few MB),
 // plus what is kept (events, frames in memory, poses). Every error names the file and the record, chunk,
-// topic or message. A bag cut short (a recorder that crashed or lost power: no index, or the index past the
-// end of the file) is read to its last whole record, with a warning. Compiled only where CMake found libbz2
+// topic or message. A bag cut short (a recorder that crashed or lost power: no index, or an index that lies or
+// runs past the end of the file) is read to its last whole record, with a warning. Compiled only where CMake found libbz2
 // and liblz4 (EVNERF_HAVE_ROSBAG).
 // Its line of the format table is rosbag_format(). Depends on core/, geometry/, events/ and io/ only.
 #pragma once
