@@ -21,10 +21,40 @@ namespace evnerf::io {
 
 namespace fs = std::filesystem;
 
+namespace detail {
+
+/// A recording cut short (a recorder that crashed or lost power) ends inside its last line: a last line
+/// without its line break that does not hold the four fields is dropped, with one warning naming its line
+/// and bytes. A whole last line without a line break is kept: it is an event like any other.
+inline std::string_view drop_cut_last_line(std::string_view text, const std::string& file) {
+  if (!text.empty() && text.back() != '\n') {
+    const std::size_t nl = text.rfind('\n'), start = nl == std::string_view::npos ? 0 : nl + 1;
+    LineScanner last(text.substr(start), file);
+    bool cut = false;
+    if (start > 0 && last.next_line()) try {
+        last.real("t"), last.integer("x"), last.integer("y"), last.integer("polarity");
+        last.expect_end();
+      } catch (const Error&) {
+        cut = true;
+      }
+    if (cut) {
+      const auto line = 1 + static_cast<std::size_t>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(start), '\n'));
+      warn(file + ":" + std::to_string(line) + ": the file ends inside this line (a recording cut short); read to the line before, " +
+           std::to_string(text.size() - start) + " bytes dropped");
+      return text.substr(0, start);
+    }
+  }
+  return text;
+}
+
+}  // namespace detail
+
 /// The plain reference parser for `t x y p` lines: one LineScanner field at a time. It defines what is
-/// accepted and every error message; the fast path below must agree with it bit for bit.
+/// accepted and every error message; the fast path below must agree with it bit for bit. A cut last line
+/// is dropped first (detail::drop_cut_last_line).
 inline events::EventStream parse_events_reference(std::string_view text, const std::string& file, int width,
                                                   int height) {
+  text = detail::drop_cut_last_line(text, file);
   events::EventStream ev;
   ev.width = width;
   ev.height = height;
@@ -163,27 +193,10 @@ inline bool fast_parse_chunk(const char* p, const char* end, int width, int heig
 /// handle (including every error), the whole text goes through parse_events_reference instead, so the
 /// accepted inputs, the values and the error messages are exactly the reference's.
 ///
-/// A recording cut short (a recorder that crashed or lost power) ends inside its last line: a last line
-/// without its line break that does not hold the four fields is dropped, with one warning naming its line
-/// and bytes. A whole last line without a line break is an event like any other.
+/// A recording cut short loses its cut last line with one warning (detail::drop_cut_last_line), in both
+/// parsers alike.
 inline events::EventStream parse_events(std::string_view text, const std::string& file, int width, int height) {
-  if (!text.empty() && text.back() != '\n') {
-    const std::size_t nl = text.rfind('\n'), start = nl == std::string_view::npos ? 0 : nl + 1;
-    LineScanner last(text.substr(start), file);
-    bool cut = false;
-    if (start > 0 && last.next_line()) try {
-        last.real("t"), last.integer("x"), last.integer("y"), last.integer("polarity");
-        last.expect_end();
-      } catch (const Error&) {
-        cut = true;
-      }
-    if (cut) {
-      const auto line = 1 + static_cast<std::size_t>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(start), '\n'));
-      warn(file + ":" + std::to_string(line) + ": the file ends inside this line (a recording cut short); read to the line before, " +
-           std::to_string(text.size() - start) + " bytes dropped");
-      text = text.substr(0, start);
-    }
-  }
+  text = detail::drop_cut_last_line(text, file);
   constexpr std::size_t kMinPerThread = std::size_t{1} << 20;
   const std::size_t n = text.size();
   const int pieces = static_cast<int>(std::clamp<std::size_t>(n / kMinPerThread, 1, static_cast<std::size_t>(thread_count())));
