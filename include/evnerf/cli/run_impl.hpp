@@ -145,28 +145,19 @@ const char* const kAlignHelp = "alignment of the primary scores: global-log-affi
                                "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
                                "global-log-offset (E-3DGS's: one log offset per channel over the sequence, gain 1), min-max, none";
 
-}  // namespace detail
 
-EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train::Group* group) {
-  using namespace detail;
-  if (programme.variants.empty()) throw Error("cli::run: a program needs at least one variant");
-  std::string variant_list;
-  for (const auto& v : programme.variants) variant_list += (variant_list.empty() ? "" : ", ") + v.name;
-  const std::string default_variant = programme.variants.front().name;
-
-  CLI::App app{programme.description};
-  app.require_subcommand(1);
-  app.fallthrough(false);
-
-  // The recording every verb reads, and how to read it (any format io::load reads).
+/// The recording a verb reads and how to read it (any format io::load reads): its flags, and the options
+/// they fill.
+struct RecordingArgs {
   std::string folder;
-  io::LoadOptions load_opt;
+  io::LoadOptions load;
   std::vector<double> time_window;
-  auto add_recording = [&](CLI::App* sub, const std::string& help) {
+
+  void add(CLI::App* sub, const std::string& help) {
     sub->add_option("recording", folder, help)->required();
-    sub->add_option("--calib", load_opt.calib,
+    sub->add_option("--calib", load.calib,
                     "calibration instead of the recording's own: a calib.txt file (fx fy cx cy [k1 k2 p1 p2 [k3]]) or COLMAP's cameras.txt");
-    sub->add_option("--poses", load_opt.poses,
+    sub->add_option("--poses", load.poses,
                     "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
                     "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
     sub->add_option("--time-window", time_window,
@@ -175,170 +166,435 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
         ->expected(2);
     sub->add_option_function<std::string>(
            "--sensor-size",
-           [&](const std::string& v) {
+           [this](const std::string& v) {
              int w = 0, h = 0;
              char end = 0;
              if (std::sscanf(v.c_str(), "%dx%d%c", &w, &h, &end) != 2 || w <= 0 || h <= 0 || w > 65535 || h > 65535)
                throw CLI::ValidationError("--sensor-size", "expected WxH (for example 1280x720), got '" + v + "'");
-             load_opt.width = w, load_opt.height = h;
+             load.width = w, load.height = h;
            },
            "the sensor's size WxH, where the recording does not give it (a Prophesee file whose header names no geometry)")
         ->type_name("WxH");
-    sub->add_option("--format", load_opt.format,
+    sub->add_option("--format", load.format,
                     "the reader, where the content does not decide it (a folder holding two layouts): " + io::format_list())
         ->check(CLI::IsMember(io::format_names()));
-    sub->add_option("--events-topic", load_opt.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
-    sub->add_option("--images-topic", load_opt.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
-    sub->add_option("--camera-info-topic", load_opt.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
-    sub->add_option("--poses-topic", load_opt.poses_topic,
+    sub->add_option("--events-topic", load.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
+    sub->add_option("--images-topic", load.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
+    sub->add_option("--camera-info-topic", load.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
+    sub->add_option("--poses-topic", load.poses_topic,
                     "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
-  };
-  const std::string rec_help = [] {
-    std::string h = "recording: ";
-    for (const auto& f : io::formats()) h += std::string(f.description) + "; ";
-    return h + "calib.txt and groundtruth.txt beside a file that lacks them";
-  }();
+  }
+  /// The options a read takes once the flags are parsed: the time window, and a progress line that shows a
+  /// read longer than a second, unless `quiet`.
+  io::LoadOptions options(bool quiet = false) const {
+    io::LoadOptions o = load;
+    if (time_window.size() == 2) o.t_begin = time_window[0], o.t_end = time_window[1];
+    if (!quiet) o.progress = ReadProgressLine(folder);
+    return o;
+  }
+};
 
-  // inspect
-  auto* inspect = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
-  add_recording(inspect, rec_help);
+/// The help of a verb's recording: every format's description.
+inline std::string recording_help() {
+  std::string h = "recording: ";
+  for (const auto& f : io::formats()) h += std::string(f.description) + "; ";
+  return h + "calib.txt and groundtruth.txt beside a file that lacks them";
+}
 
-  // convert
-  fs::path convert_out;
-  auto* convert = app.add_subcommand("convert", [] {
-    std::string h = "write a recording in another format, chosen by the output's name:";
-    for (const auto& f : io::formats())
-      if (!f.extensions.empty()) {
-        h += std::string(" ") + f.name + " (";
-        for (std::size_t k = 0; k < f.extensions.size(); ++k) h += (k ? ", " : "") + f.extensions[k];
-        h += "),";
-      }
-    return h + " else an IJRR-layout folder";
-  }());
-  add_recording(convert, "recording to read (any format evnerf reads)");
-  convert->add_option("output", convert_out,
-                      "output: a folder (IJRR layout) or a file whose extension names its format (calib.txt and groundtruth.txt are written beside a file that has no place for them)")
-      ->required();
-  std::string bag_compression = "lz4";
-  convert->add_option("--compression", bag_compression, "ROS bag output: chunk compression (none, bz2, lz4); AEDAT4 output: packet compression (none, lz4, zstd)")
-      ->check(CLI::IsMember({"none", "bz2", "lz4", "zstd"}))
-      ->capture_default_str();
+/// `inspect`: a summary of a recording.
+struct InspectVerb {
+  RecordingArgs rec;
+  CLI::App* sub = nullptr;
 
-  // simulate
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("inspect", "summary of a recording: sensor, events, frames, poses, warnings");
+    rec.add(sub, recording_help());
+    return sub;
+  }
+  int run() const {
+    io::LoadOptions opt = rec.options();
+    const io::Format& format = io::detect_format(rec.folder, opt.format);
+    if (format.inspect) std::fputs(format.inspect(rec.folder).c_str(), stdout);
+    opt.calibration_optional = true;  // inspect describes a file without calibration; training will ask for it
+    auto d = io::load(rec.folder, opt);
+    fmt::print("recording     {}{}\n", rec.folder, d.from_cache ? " (events from cache)" : "");
+    fmt::print("format        {}\n", format.name);
+    for (const auto& note : d.notes) fmt::print("{}\n", note);
+    if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
+    if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
+    std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
+    return 0;
+  }
+};
+
+
+/// `convert`: a recording written in another format, chosen by the output's name.
+struct ConvertVerb {
+  RecordingArgs rec;
+  fs::path output;
+  std::string compression = "lz4";
+  CLI::App* sub = nullptr;
+
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("convert", [] {
+      std::string h = "write a recording in another format, chosen by the output's name:";
+      for (const auto& f : io::formats())
+        if (!f.extensions.empty()) {
+          h += std::string(" ") + f.name + " (";
+          for (std::size_t k = 0; k < f.extensions.size(); ++k) h += (k ? ", " : "") + f.extensions[k];
+          h += "),";
+        }
+      return h + " else an IJRR-layout folder";
+    }());
+    rec.add(sub, "recording to read (any format evnerf reads)");
+    sub->add_option("output", output,
+                    "output: a folder (IJRR layout) or a file whose extension names its format (calib.txt and groundtruth.txt are written beside a file that has no place for them)")
+        ->required();
+    sub->add_option("--compression", compression, "ROS bag output: chunk compression (none, bz2, lz4); AEDAT4 output: packet compression (none, lz4, zstd)")
+        ->check(CLI::IsMember({"none", "bz2", "lz4", "zstd"}))
+        ->capture_default_str();
+    return sub;
+  }
+  int run() const {
+    const auto d = io::load(rec.folder, rec.options());
+    io::WriteOptions wo;
+    wo.compression = compression;
+    io::convert(output, d, wo);
+    fmt::print("wrote {} events, {} frames, {} poses → {}\n", d.events.size(), d.frames.size(), d.trajectory.size(), output.string());
+    return 0;
+  }
+};
+
+/// `simulate`: a recording of a built-in, random, mesh or described scene (IJRR layout).
+struct SimulateVerb {
   std::vector<std::string> scene_args;
   fs::path out;
   sim::SimulateOptions so;  // the flags fill it in
-  auto* simulate = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
-  simulate->add_option("scene", scene_args,
-                       "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt), "
-                       "'mesh FILE' (any 3-D file assimp reads, seen along an orbit; saved as <out>/scene.txt) or a scene description file")
-      ->required()
-      ->expected(1, 2);
-  simulate->add_option("--out", out, "output folder")->required();
-  simulate->add_option("--sensor", so.sensor.model,
-                       "the sensor: ideal (thresholds 0.25 / 0.25, nothing else), realistic (C+ 0.22, C- 0.28, 3 % mismatch, 0.1 ms "
-                       "refractory, 0.1 Hz background, 3 hot pixels, 20 us jitter) or random (each parameter drawn from what cameras "
-                       "span, from --seed); the flags below set single parameters; written to <out>/sensor_model.txt")
-      ->check(CLI::IsMember({"ideal", "realistic", "random"}))
-      ->capture_default_str();
-  sim::sensor_params([&](const auto& p) { simulate->add_option(p.flag(), so.sensor.*p.given, p.help); });
-  simulate->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
-  simulate->add_flag("--hdr", so.hdr,
-                     "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
-                     "frames); writes the unclipped linear truth that eval scores against");
-  simulate->add_option("--seed", so.seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
-  simulate->add_option("--textures", so.textures, "with 'random': photos (.png) to texture some surfaces with");
-  simulate->add_option("--log-offset", so.log_offset, "the sensor's dark end: pixels see log(I + offset)")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  simulate->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  simulate->add_option("--width", so.width, "sensor width (pixels; 240, or 346 for a mesh)")->check(CLI::Range(8, 8192));
-  simulate->add_option("--height", so.height, "sensor height (pixels; 180, or 260 for a mesh)")->check(CLI::Range(8, 8192));
-  simulate->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
-  const std::string mesh_group = "Mesh capture (simulate mesh FILE)";
-  simulate->add_option("--up", so.mesh.up, "the mesh file's up axis")->check(CLI::IsMember({"+y", "+z", "-y"}))->capture_default_str()->group(mesh_group);
-  simulate->add_option("--path", so.mesh.path, "orbit (one revolution a second at --elevation) or spiral (5 to 75 degrees, one revolution a second)")
-      ->check(CLI::IsMember({"orbit", "spiral"}))
-      ->capture_default_str()
-      ->group(mesh_group);
-  simulate->add_option("--orbit-radius", so.mesh.radius, "camera distance from the object's centre (the object fills the unit sphere)")
-      ->capture_default_str()
-      ->group(mesh_group);
-  simulate->add_option("--elevation", so.mesh.elevation, "orbit elevation above the horizon, degrees")->capture_default_str()->group(mesh_group);
-  simulate->add_option("--wobble", so.mesh.wobble, "degrees the orbit's elevation swings, once over the path")->capture_default_str()->group(mesh_group);
-  simulate->add_option("--duration", so.mesh.duration, "seconds of capture")->capture_default_str()->group(mesh_group);
-  simulate->add_option("--novel-elevation", so.mesh.novel_elevation,
-                       "elevation of the held-out orbit whose views (novel/: frames and depth, never trained on) eval scores apart")
-      ->capture_default_str()
-      ->group(mesh_group);
-  simulate->add_option("--background", so.mesh.background, "behind the object: black, white, grey or an equirectangular environment (.png, taken as linear)")
-      ->capture_default_str()
-      ->group(mesh_group);
+  CLI::App* sub = nullptr;
 
-  // baselines
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
+    sub->add_option("scene", scene_args,
+                    "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt), "
+                    "'mesh FILE' (any 3-D file assimp reads, seen along an orbit; saved as <out>/scene.txt) or a scene description file")
+        ->required()
+        ->expected(1, 2);
+    sub->add_option("--out", out, "output folder")->required();
+    sub->add_option("--sensor", so.sensor.model,
+                    "the sensor: ideal (thresholds 0.25 / 0.25, nothing else), realistic (C+ 0.22, C- 0.28, 3 % mismatch, 0.1 ms "
+                    "refractory, 0.1 Hz background, 3 hot pixels, 20 us jitter) or random (each parameter drawn from what cameras "
+                    "span, from --seed); the flags below set single parameters; written to <out>/sensor_model.txt")
+        ->check(CLI::IsMember({"ideal", "realistic", "random"}))
+        ->capture_default_str();
+    sim::sensor_params([&](const auto& p) { sub->add_option(p.flag(), so.sensor.*p.given, p.help); });
+    sub->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");
+    sub->add_flag("--hdr", so.hdr,
+                  "high dynamic range lighting (ambient ×0.05, directional light ×4: deep shadows, highlights that clip the "
+                  "frames); writes the unclipped linear truth that eval scores against");
+    sub->add_option("--seed", so.seed, "random seed (sensor noise; with 'random', also the scene)")->capture_default_str();
+    sub->add_option("--textures", so.textures, "with 'random': photos (.png) to texture some surfaces with");
+    sub->add_option("--log-offset", so.log_offset, "the sensor's dark end: pixels see log(I + offset)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    sub->add_option("--width", so.width, "sensor width (pixels; 240, or 346 for a mesh)")->check(CLI::Range(8, 8192));
+    sub->add_option("--height", so.height, "sensor height (pixels; 180, or 260 for a mesh)")->check(CLI::Range(8, 8192));
+    sub->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
+    const std::string mesh_group = "Mesh capture (simulate mesh FILE)";
+    sub->add_option("--up", so.mesh.up, "the mesh file's up axis")->check(CLI::IsMember({"+y", "+z", "-y"}))->capture_default_str()->group(mesh_group);
+    sub->add_option("--path", so.mesh.path, "orbit (one revolution a second at --elevation) or spiral (5 to 75 degrees, one revolution a second)")
+        ->check(CLI::IsMember({"orbit", "spiral"}))
+        ->capture_default_str()
+        ->group(mesh_group);
+    sub->add_option("--orbit-radius", so.mesh.radius, "camera distance from the object's centre (the object fills the unit sphere)")
+        ->capture_default_str()
+        ->group(mesh_group);
+    sub->add_option("--elevation", so.mesh.elevation, "orbit elevation above the horizon, degrees")->capture_default_str()->group(mesh_group);
+    sub->add_option("--wobble", so.mesh.wobble, "degrees the orbit's elevation swings, once over the path")->capture_default_str()->group(mesh_group);
+    sub->add_option("--duration", so.mesh.duration, "seconds of capture")->capture_default_str()->group(mesh_group);
+    sub->add_option("--novel-elevation", so.mesh.novel_elevation,
+                    "elevation of the held-out orbit whose views (novel/: frames and depth, never trained on) eval scores apart")
+        ->capture_default_str()
+        ->group(mesh_group);
+    sub->add_option("--background", so.mesh.background, "behind the object: black, white, grey or an equirectangular environment (.png, taken as linear)")
+        ->capture_default_str()
+        ->group(mesh_group);
+    return sub;
+  }
+  int run() {
+    std::string scene_text;
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::string& scene = scene_args.front();
+    if (scene == "mesh") {
+      if (scene_args.size() != 2) throw Error("simulate mesh: the mesh file is missing (simulate mesh FILE --out DIR)");
+      so.mesh.file = scene_args[1];
+    } else if (scene_args.size() != 1) {
+      throw Error("simulate: one scene expected, got '" + scene_args[0] + "' and '" + scene_args[1] + "' (a mesh file goes after 'mesh')");
+    }
+    auto rec = sim::simulate(scene, so, &scene_text);
+    sim::write_recording(out, rec);
+    if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
+    if (!rec.linear.empty())
+      fmt::print("{}: wrote the unclipped linear truth (linear/){}; eval scores against it\n", out.string(),
+                 rec.clipped ? ", as highlights clip the frames" : "");
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", rec.scene_name, rec.events.size(),
+               rec.events.count_positive(), rec.duration, rec.frames.size(), rec.renders, secs, out.string());
+    if (!rec.novel.poses.empty())
+      fmt::print("{} held-out views off the training path → {}/novel (eval scores them apart)\n", rec.novel.poses.size(), out.string());
+    return 0;
+  }
+};
+
+/// `baselines`: direct integration and the high-pass filter of the recording's events, scored against its
+/// frames.
+struct BaselinesVerb {
+  RecordingArgs rec;
+  fs::path out;
   std::string align = "global-log-affine";
   double contrast = 0.2;
-  fs::path baselines_out;
-  auto* baselines = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
-  add_recording(baselines, rec_help);
-  baselines->add_option("--out", baselines_out, "output folder (default: <folder>/baselines)");
-  baselines->add_option("--align", align, kAlignHelp)->capture_default_str();
-  baselines->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  CLI::App* sub = nullptr;
 
-  // train
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("baselines", "direct integration and the high-pass filter, scored against the frames");
+    rec.add(sub, recording_help());
+    sub->add_option("--out", out, "output folder (default: <folder>/baselines)");
+    sub->add_option("--align", align, kAlignHelp)->capture_default_str();
+    sub->add_option("--contrast", contrast, "contrast threshold the baselines integrate with (log units)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+    return sub;
+  }
+  int run() const {
+    const auto d = io::load(rec.folder, rec.options());
+    const auto b = run_baselines(d, alignments_from(align), contrast);
+    print_scores(b.scored, b.truth, true);
+    const fs::path rec_path(rec.folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
+    const fs::path bo = !out.empty()                  ? out
+                        : fs::is_directory(rec_path) ? rec_path / "baselines"
+                                                     : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
+    write_file_atomic(bo / "baselines.json", b.scored.json.dump(2) + "\n");
+    const std::size_t mid = b.ids.size() / 2;
+    const auto& aligned = b.scored.primary.aligned;
+    io::write_png(bo / "montage.png", io::montage({b.truth.shown(mid), aligned[0][mid], aligned[1][mid]}, b.colour ? 3 : 1));
+    fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
+    return 0;
+  }
+};
+
+/// `train`: a variant of the program trained on a recording (one model, or one per colour channel).
+struct TrainVerb {
+  RecordingArgs rec;
+  fs::path out;
   train::Config cfg;
-  std::string variant = default_variant;
-  bool resume = false, quiet = false;
-  auto* trainc = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
-  add_recording(trainc, rec_help);
-  trainc->add_option("--out", out, "output folder")->required();
-  trainc->add_option("--preset,--variant", variant, "variant: " + variant_list)->capture_default_str();
-  add_settings(trainc, cfg);
-  bool per_channel = false;
-  trainc->add_flag("--per-channel", per_channel,
-                   "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
-                   "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
+  std::string variant;
+  bool resume = false, quiet = false, per_channel = false;
   std::string green_sites = "first";
-  trainc->add_option("--green-sites", green_sites,
-                     "--per-channel: green's model trains on the first of its two sites per 2x2 block, a quarter-resolution sensor "
-                     "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
-      ->check(CLI::IsMember({"first", "both"}))
-      ->capture_default_str();
-  trainc->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
-  trainc->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
+  CLI::App* sub = nullptr;
 
-  // render
-  fs::path ckpt;
+  CLI::App* add(CLI::App& app, const Programme& programme) {
+    variant = programme.variants.front().name;
+    sub = app.add_subcommand("train", "train a variant on a recording; writes model.ckpt and log.jsonl to --out");
+    rec.add(sub, recording_help());
+    sub->add_option("--out", out, "output folder")->required();
+    sub->add_option("--preset,--variant", variant, "variant: " + variant_list(programme))->capture_default_str();
+    add_settings(sub, cfg);
+    sub->add_flag("--per-channel", per_channel,
+                  "colour recording, the paper's way: a grey model per colour channel on that channel's quarter-resolution sites "
+                  "(<out>/r, g, b), listed in <out>/channels.json, which render and eval take as the checkpoint");
+    sub->add_option("--green-sites", green_sites,
+                    "--per-channel: green's model trains on the first of its two sites per 2x2 block, a quarter-resolution sensor "
+                    "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
+        ->check(CLI::IsMember({"first", "both"}))
+        ->capture_default_str();
+    sub->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
+    sub->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
+    return sub;
+  }
+  /// The variants' names, for --help and the message on an unknown one.
+  static std::string variant_list(const Programme& programme) {
+    std::string list;
+    for (const auto& v : programme.variants) list += (list.empty() ? "" : ", ") + v.name;
+    return list;
+  }
+  int run(const Programme& programme, train::Group* group, bool lead) {
+    cfg.progress = !quiet;
+    if (group) {
+      cfg.group = group;
+      // The processes on one machine share its cores: each takes its part unless --threads says.
+      if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
+    }
+    require(cfg.far > cfg.near, "train: --far must be greater than --near");
+    const auto d = io::load(rec.folder, rec.options(quiet));
+    // The variant named by --preset, as with_variant finds it.
+    const VariantEntry* entry = nullptr;
+    for (const auto& v : programme.variants)
+      if (v.name == variant) entry = &v;
+    if (!entry) throw Error("unknown variant '" + variant + "' (this program has: " + variant_list(programme) + ")");
+    TrainJob job;
+    job.cfg = &cfg;
+    job.recording = fs::absolute(rec.folder).string();
+    job.resume = resume;
+    job.lead = lead;
+    job.group = group;
+    if (!per_channel) return entry->train(job, entry->name, train::prepare(d, cfg), out, d.events.size());
+    if (entry->channels != 1)
+      throw Error("train --per-channel: the variant '" + entry->name + "' renders colour; name a grey one (each channel gets a grey model)");
+    const auto pattern = io::bayer_of(d);
+    for (int c = 0; c < 3; ++c) {
+      const auto channel = io::channel_dataset(d, pattern, c, io::parse_green_sites(green_sites));
+      if (lead)
+        fmt::print(stderr, "channel {}: {}x{} {}, {} events\n", "RGB"[c], channel.camera.width(), channel.camera.height(),
+                   channel.sites.empty() ? "sites" : "sensor, both green sites", channel.events.size());
+      const int code = entry->train(job, entry->name, train::prepare(channel, cfg), out / kChannelDirs[c], channel.events.size());
+      if (code != 0) return code;
+    }
+    if (!lead) return 0;
+    write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern, io::parse_green_sites(green_sites)).dump(2) + "\n");
+    fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
+    return 0;
+  }
+};
+
+const char* const kUpsamplingHelp =
+    "with channels.json: each channel's volume rendered at every pixel of the sensor (volume), or at its own "
+    "quarter-resolution sites and interpolated bilinearly (sites)";
+
+/// `render`: a checkpoint's intensity and depth at every slice boundary and along a novel path.
+struct RenderVerb {
+  fs::path checkpoint, out;
   int novel = 8;
-  auto* renderc = app.add_subcommand("render", "intensity and depth at every slice boundary and along a novel path");
-  renderc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
-  renderc->add_option("--out", out, "output folder")->required();
-  renderc->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
   std::string channel_up = "volume";
-  const std::string up_help =
-      "with channels.json: each channel's volume rendered at every pixel of the sensor (volume), or at its own "
-      "quarter-resolution sites and interpolated bilinearly (sites)";
-  renderc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+  CLI::App* sub = nullptr;
 
-  // eval
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("render", "intensity and depth at every slice boundary and along a novel path");
+    sub->add_option("checkpoint", checkpoint, "model.ckpt, or channels.json of train --per-channel")->required();
+    sub->add_option("--out", out, "output folder")->required();
+    sub->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
+    sub->add_option("--channel-upsampling", channel_up, kUpsamplingHelp)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+    return sub;
+  }
+  int run(const Programme& programme) const {
+    const auto model = load_renderable(checkpoint, parse_channel_upsampling(channel_up), programme.open);
+    const auto& desc = model.desc;
+    const float dlo = float(model.near), dhi = float(model.far * 0.6);
+    for (std::size_t i = 0; i < desc.poses.size(); ++i)
+      write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
+    for (int k = 0; k < novel; ++k)
+      write_rendering(out, fmt::format("novel_{:04d}", k), model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)),
+                      dlo, dhi);
+    fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel, out.string());
+    return 0;
+  }
+};
+
+/// The fine error by true depth of metrics.json, as eval --verbose prints it: a band reads "lo-hi m", or
+/// "at z m" where its edges meet (a depth that a third of the pixels share, such as a back wall).
+inline void print_fine_by_depth(const nlohmann::json& fd) {
+  const auto z = fd.at("edges_m").template get<std::vector<double>>();
+  const auto p = fd.at("pixel_share").template get<std::vector<double>>();
+  std::string bands;
+  for (std::size_t b = 0; b + 1 < z.size() && b < p.size(); ++b) {
+    const std::string lo = fmt::format("{:.2f}", z[b]), hi = fmt::format("{:.2f}", z[b + 1]);
+    bands += fmt::format("{}{} ({:.0f} %{})", b ? ", " : "", lo == hi ? "at " + lo + " m" : lo + "-" + hi + " m", 100 * p[b], b ? "" : " of pixels");
+  }
+  fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {}\n", bands);
+  for (const auto& [name, v] : fd.at("methods").items()) {
+    std::string row = fmt::format("{:<22}", name);
+    for (const double f : v.at("fine_mse").template get<std::vector<double>>()) row += fmt::format(" {:>8.3f}", f * 1e3);
+    fmt::print("{}\n", row);
+  }
+}
+
+/// `eval`: a checkpoint rendered at the recording's frames (and its held-out views), scored beside both
+/// baselines; metrics.json, renders and montages.
+struct EvalVerb {
+  RecordingArgs rec;
+  fs::path checkpoint, out;
+  std::string align = "global-log-affine", channel_up = "volume";
   int holdout = 0;
-  auto* evalc = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
-  evalc->add_option("checkpoint", ckpt, "model.ckpt, or channels.json of train --per-channel")->required();
-  add_recording(evalc, rec_help);
-  evalc->add_option("--out", out, "output folder")->required();
-  evalc->add_option("--align", align, kAlignHelp)->capture_default_str();
-  evalc->add_option("--channel-upsampling", channel_up, up_help)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
-  evalc->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
   bool verbose = false;
-  evalc->add_flag("--verbose", verbose,
+  CLI::App* sub = nullptr;
+
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("eval", "render at the frames; metrics.json (ours and both baselines) and a montage");
+    sub->add_option("checkpoint", checkpoint, "model.ckpt, or channels.json of train --per-channel")->required();
+    rec.add(sub, recording_help());
+    sub->add_option("--out", out, "output folder")->required();
+    sub->add_option("--align", align, kAlignHelp)->capture_default_str();
+    sub->add_option("--channel-upsampling", channel_up, kUpsamplingHelp)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+    sub->add_option("--holdout", holdout, "as given to train: also score the never-trained frames on their own")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    sub->add_flag("--verbose", verbose,
                   "also print the other alignments, the error by scale, the row/column offset oracle, the grey scores of a colour "
                   "recording and the fine error by depth (metrics.json has them all)");
+    return sub;
+  }
+  int run(const Programme& programme) const {
+    const auto d = io::load(rec.folder, rec.options());
+    const auto model = load_renderable(checkpoint, parse_channel_upsampling(channel_up), programme.open);
+    auto e = evaluate(model, d, alignments_from(align), holdout);
+    print_scores(e.scored, e.truth, verbose);
+    if (verbose && e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth"))
+      print_fine_by_depth(e.json.at("error_scales").at("fine_by_depth"));
+    const float dlo = float(model.near), dhi = float(model.far * 0.6);
+    for (std::size_t q = 0; q < e.ids.size(); ++q) write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], dlo, dhi);
+    write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");
+    const std::size_t mid = e.ids.size() / 2;
+    const auto& al = e.scored.primary.aligned;
+    io::write_png(out / "montage.png", io::montage({e.truth.shown(mid), al[0][mid], al[1][mid], al[2][mid]}, e.colour ? 3 : 1));
+    if (!e.heldout.empty()) {
+      fmt::print("held-out frames only ({}, novel views):\n", e.heldout.size());
+      print_table(e.scored.primary, e.heldout);
+    }
+    if (e.novel) {
+      fmt::print("views off the training path ({}, the recording's novel/; ours beside a flat frame, each alignment fitted over "
+                 "these views):\n",
+                 e.novel_renders.size());
+      print_table(e.novel->primary);
+      if (verbose)
+        for (const auto& o : e.novel->others) print_table(o);
+      if (verbose && e.json.at("novel_views").contains("depth_absrel_median_scaled"))
+        fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n", e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
+      for (std::size_t k = 0; k < e.novel_renders.size(); ++k)
+        write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], dlo, dhi);
+      const std::size_t m = e.novel_renders.size() / 2;
+      io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
+    }
+    fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "
+               "prints them), montage.png (ground truth | ours | direct integration | high-pass filter), renders/\n",
+               e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
+    return 0;
+  }
+};
+
+}  // namespace detail
+
+EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train::Group* group) {
+  using namespace detail;
+  if (programme.variants.empty()) throw Error("cli::run: a program needs at least one variant");
+  CLI::App app{programme.description};
+  app.require_subcommand(1);
+  app.fallthrough(false);
+  // Every verb's flags, in the order --help lists them.
+  InspectVerb inspect;
+  ConvertVerb convert;
+  SimulateVerb simulate;
+  BaselinesVerb baselines;
+  TrainVerb training;
+  RenderVerb rendering;
+  EvalVerb evaluating;
+  inspect.add(app);
+  convert.add(app);
+  simulate.add(app);
+  baselines.add(app);
+  training.add(app, programme);
+  rendering.add(app);
+  evaluating.add(app);
 
   if (group && group->size() <= 1) group = nullptr;
   const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
@@ -356,180 +612,14 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
                  group->size(), cmd);
     return 2;
   }
-  if (time_window.size() == 2) {
-    load_opt.t_begin = time_window[0];
-    load_opt.t_end = time_window[1];
-  }
-  if (!quiet) load_opt.progress = ReadProgressLine(folder);  // shows only a read longer than a second
   try {
-    if (*inspect) {
-      const io::Format& format = io::detect_format(folder, load_opt.format);
-      if (format.inspect) std::fputs(format.inspect(folder).c_str(), stdout);
-      load_opt.calibration_optional = true;  // inspect describes a file without calibration; training will ask for it
-      auto d = io::load(folder, load_opt);
-      fmt::print("recording     {}{}\n", folder, d.from_cache ? " (events from cache)" : "");
-      fmt::print("format        {}\n", format.name);
-      for (const auto& note : d.notes) fmt::print("{}\n", note);
-      if (d.time_origin != 0) fmt::print("time origin   {} s (the recording's clock at t = 0)\n", d.time_origin);
-      if (!d.bayer_pattern.empty()) fmt::print("colour filter {} (events through a Bayer mosaic)\n", d.bayer_pattern);
-      std::fputs(io::format_summary(io::summarize(d)).c_str(), stdout);
-      return 0;
-    }
-    if (*convert) {
-      const auto d = io::load(folder, load_opt);
-      io::WriteOptions wo;
-      wo.compression = bag_compression;
-      io::convert(convert_out, d, wo);
-      fmt::print("wrote {} events, {} frames, {} poses → {}\n", d.events.size(), d.frames.size(), d.trajectory.size(), convert_out.string());
-      return 0;
-    }
-    if (*simulate) {
-      std::string scene_text;
-      const auto t0 = std::chrono::steady_clock::now();
-      const std::string& scene = scene_args.front();
-      if (scene == "mesh") {
-        if (scene_args.size() != 2) throw Error("simulate mesh: the mesh file is missing (simulate mesh FILE --out DIR)");
-        so.mesh.file = scene_args[1];
-      } else if (scene_args.size() != 1) {
-        throw Error("simulate: one scene expected, got '" + scene_args[0] + "' and '" + scene_args[1] + "' (a mesh file goes after 'mesh')");
-      }
-      auto rec = sim::simulate(scene, so, &scene_text);
-      sim::write_recording(out, rec);
-      if (!scene_text.empty()) write_file_atomic(out / "scene.txt", scene_text);
-      if (!rec.linear.empty())
-        fmt::print("{}: wrote the unclipped linear truth (linear/){}; eval scores against it\n", out.string(),
-                   rec.clipped ? ", as highlights clip the frames" : "");
-      const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      fmt::print("scene {}: {} events ({} ON) over {:.2f} s, {} frames, {} renders, {:.1f} s wall → {}\n", rec.scene_name,
-                 rec.events.size(), rec.events.count_positive(), rec.duration, rec.frames.size(), rec.renders, secs,
-                 out.string());
-      if (!rec.novel.poses.empty())
-        fmt::print("{} held-out views off the training path → {}/novel (eval scores them apart)\n", rec.novel.poses.size(), out.string());
-      return 0;
-    }
-    if (*baselines) {
-      const auto d = io::load(folder, load_opt);
-      const auto als = alignments_from(align);
-      const auto b = run_baselines(d, als, contrast);
-      print_scores(b.scored, b.truth, true);
-      const auto& j = b.scored.json;
-      const auto& ids = b.ids;
-      const auto& primary = b.scored.primary;
-      const auto& truth = b.truth;
-      const bool colour = b.colour;
-      const fs::path rec_path(folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
-      const fs::path bo = !baselines_out.empty()          ? baselines_out
-                          : fs::is_directory(rec_path) ? rec_path / "baselines"
-                                                       : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
-      write_file_atomic(bo / "baselines.json", j.dump(2) + "\n");
-      const std::size_t mid = ids.size() / 2;
-      io::write_png(bo / "montage.png", io::montage({truth.shown(mid), primary.aligned[0][mid], primary.aligned[1][mid]}, colour ? 3 : 1));
-      fmt::print("wrote {}/baselines.json and montage.png (ground truth | direct integration | high-pass filter)\n", bo.string());
-      return 0;
-    }
-    if (*trainc) {
-      cfg.progress = !quiet;
-      if (group) {
-        cfg.group = group;
-        // The processes on one machine share its cores: each takes its part unless --threads says.
-        if (cfg.threads == 0) cfg.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / group->local_size());
-      }
-      require(cfg.far > cfg.near, "train: --far must be greater than --near");
-      const auto d = io::load(folder, load_opt);
-      // The variant named by --preset, as with_variant finds it.
-      const VariantEntry* entry = nullptr;
-      for (const auto& v : programme.variants)
-        if (v.name == variant) entry = &v;
-      if (!entry) throw Error("unknown variant '" + variant + "' (this program has: " + variant_list + ")");
-      TrainJob job;
-      job.cfg = &cfg;
-      job.recording = fs::absolute(folder).string();
-      job.resume = resume;
-      job.lead = lead;
-      job.group = group;
-      if (!per_channel) return entry->train(job, entry->name, train::prepare(d, cfg), out, d.events.size());
-      if (entry->channels != 1)
-        throw Error("train --per-channel: the variant '" + entry->name + "' renders colour; name a grey one (each channel gets a grey model)");
-      const auto pattern = io::bayer_of(d);
-      for (int c = 0; c < 3; ++c) {
-        const auto sub = io::channel_dataset(d, pattern, c, io::parse_green_sites(green_sites));
-        if (lead)
-          fmt::print(stderr, "channel {}: {}x{} {}, {} events\n", "RGB"[c], sub.camera.width(), sub.camera.height(),
-                     sub.sites.empty() ? "sites" : "sensor, both green sites", sub.events.size());
-        const int code = entry->train(job, entry->name, train::prepare(sub, cfg), out / kChannelDirs[c], sub.events.size());
-        if (code != 0) return code;
-      }
-      if (!lead) return 0;
-      write_file_atomic(out / "channels.json", per_channel_manifest(d.camera, pattern, io::parse_green_sites(green_sites)).dump(2) + "\n");
-      fmt::print("wrote {} (render and eval take it as the checkpoint)\n", (out / "channels.json").string());
-      return 0;
-    }
-    if (*renderc) {
-      const auto model = load_renderable(ckpt, parse_channel_upsampling(channel_up), programme.open);
-      const auto& desc = model.desc;
-      const float dlo = float(model.near), dhi = float(model.far * 0.6);
-      for (std::size_t i = 0; i < desc.poses.size(); ++i)
-        write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
-      for (int k = 0; k < novel; ++k)
-        write_rendering(out, fmt::format("novel_{:04d}", k), model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)),
-                        dlo, dhi);
-      fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
-                 out.string());
-      return 0;
-    }
-    if (*evalc) {
-      const auto d = io::load(folder, load_opt);
-      const auto als = alignments_from(align);
-      const auto model = load_renderable(ckpt, parse_channel_upsampling(channel_up), programme.open);
-      auto e = evaluate(model, d, als, holdout);
-      print_scores(e.scored, e.truth, verbose);
-      if (verbose && e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth")) {
-        const auto& fd = e.json.at("error_scales").at("fine_by_depth");
-        const auto z = fd.at("edges_m").template get<std::vector<double>>();
-        const auto p = fd.at("pixel_share").template get<std::vector<double>>();
-        // A band reads "lo-hi m", or "at z m" where its edges meet (a depth that a third of the pixels share,
-        // such as a back wall).
-        std::string bands;
-        for (std::size_t b = 0; b + 1 < z.size() && b < p.size(); ++b) {
-          const std::string lo = fmt::format("{:.2f}", z[b]), hi = fmt::format("{:.2f}", z[b + 1]);
-          bands += fmt::format("{}{} ({:.0f} %{})", b ? ", " : "", lo == hi ? "at " + lo + " m" : lo + "-" + hi + " m", 100 * p[b], b ? "" : " of pixels");
-        }
-        fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {}\n", bands);
-        for (const auto& [name, v] : fd.at("methods").items()) {
-          std::string row = fmt::format("{:<22}", name);
-          for (const double f : v.at("fine_mse").template get<std::vector<double>>()) row += fmt::format(" {:>8.3f}", f * 1e3);
-          fmt::print("{}\n", row);
-        }
-      }
-      for (std::size_t q = 0; q < e.ids.size(); ++q)
-        write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], float(model.near), float(model.far * 0.6));
-      write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");
-      const std::size_t mid = e.ids.size() / 2;
-      const auto& al = e.scored.primary.aligned;
-      io::write_png(out / "montage.png", io::montage({e.truth.shown(mid), al[0][mid], al[1][mid], al[2][mid]}, e.colour ? 3 : 1));
-      if (!e.heldout.empty()) {
-        fmt::print("held-out frames only ({}, novel views):\n", e.heldout.size());
-        print_table(e.scored.primary, e.heldout);
-      }
-      if (e.novel) {
-        fmt::print("views off the training path ({}, the recording's novel/; ours beside a flat frame, each alignment fitted over "
-                   "these views):\n",
-                   e.novel_renders.size());
-        print_table(e.novel->primary);
-        if (verbose)
-          for (const auto& o : e.novel->others) print_table(o);
-        if (verbose && e.json.at("novel_views").contains("depth_absrel_median_scaled"))
-          fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n", e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
-        for (std::size_t k = 0; k < e.novel_renders.size(); ++k)
-          write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], float(model.near), float(model.far * 0.6));
-        const std::size_t m = e.novel_renders.size() / 2;
-        io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
-      }
-      fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "
-                 "prints them), montage.png (ground truth | ours | direct integration | high-pass filter), renders/\n",
-                 e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
-      return 0;
-    }
+    if (*inspect.sub) return inspect.run();
+    if (*convert.sub) return convert.run();
+    if (*simulate.sub) return simulate.run();
+    if (*baselines.sub) return baselines.run();
+    if (*training.sub) return training.run(programme, group, lead);
+    if (*rendering.sub) return rendering.run(programme);
+    if (*evaluating.sub) return evaluating.run(programme);
   } catch (const std::exception& e) {
     // In a group the others may be waiting in a sum this process will never join: end them all.
     if (group) group->abort(fmt::format("evnerf {}: error (rank {} of {}): {}", cmd, group->rank(), group->size(), e.what()), 1);
