@@ -10,6 +10,7 @@
 # Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
 # Environment: MODES ("grey colour"), THREADS (2), SEEDS (training seeds, "1 2": each asset and mode is recorded once and
 #              trained once per seed, in OUT/<asset>-<mode>/s<seed>), STEPS (train's default),
+#              PRESET_GREY (fast), PRESET_COLOUR (colour): the variants trained (with EVNERF, a program's own),
 #              BACKGROUND (empty: none; 0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs
 #              know theirs), DEPTHS (empty: train's near and far; "1.5 4.5": where the object can lie seen
 #              from the orbit, radius 3 ± 1.5), TRAIN_FLAGS (more train options, split at spaces), BUILD
@@ -48,8 +49,8 @@ while read -r key kind file; do
   for mode in "${MODES[@]}"; do
     dir="$OUT/$key-$mode"
     flags=()
-    preset=fast
-    if [ "$mode" = colour ]; then flags=(--bayer); preset=colour; fi
+    preset=${PRESET_GREY:-fast}
+    if [ "$mode" = colour ]; then flags=(--bayer); preset=${PRESET_COLOUR:-colour}; fi
     mkdir -p "$dir"
     if [ "$KEEP" != 1 ] || [ ! -f "$dir/rec/events.txt" ]; then
       rm -rf "$dir/rec"
