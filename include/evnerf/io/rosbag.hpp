@@ -1039,6 +1039,291 @@ inline std::string join_topics(const std::vector<std::string>& v) {
   return s;
 }
 
+/// A bag's topics: the connections of each, their message definitions (parsed when first asked for), and
+/// the choice of the topic that plays each role of a recording.
+class BagTopics {
+ public:
+  BagTopics(const BagFile& f, const BagIndex& idx) : name_(f.name()), idx_(idx) {
+    for (const auto& [id, c] : idx.conns) {
+      auto& v = conns_[c.topic];
+      if (!v.empty() && idx.conns.at(v.front()).type != c.type)
+        throw Error(name_, 0, "topic " + bag_shown(c.topic) + " carries two types (" + bag_shown(idx.conns.at(v.front()).type) + ", " + bag_shown(c.type) + ")");
+      v.push_back(id);
+    }
+    for (const auto& [topic, ids] : conns_) listing_.push_back(bag_shown(topic) + " (" + bag_shown(idx.conns.at(ids.front()).type) + ")");
+  }
+  /// A topic's connections (one or more, all of one type).
+  const std::vector<std::uint32_t>& connections(const std::string& topic) const { return conns_.at(topic); }
+  std::string type_of(const std::string& topic) const { return idx_.conns.at(conns_.at(topic).front()).type; }
+  /// A connection's message definition, parsed; null where it does not parse (schema_error says why).
+  const MsgSchema* schema(std::uint32_t id) {
+    if (auto it = schemas_.find(id); it != schemas_.end()) return &it->second;
+    if (schema_errors_.count(id)) return nullptr;
+    const auto& c = idx_.conns.at(id);
+    try {
+      return &schemas_.emplace(id, parse_msg_definition(c.type, c.definition, name_ + ": topic " + bag_shown(c.topic) + " (" + bag_shown(c.type) + ")")).first->second;
+    } catch (const Error& e) {
+      schema_errors_[id] = e.what();
+      return nullptr;
+    }
+  }
+  const std::string& schema_error(std::uint32_t id) const { return schema_errors_.at(id); }
+  /// Whether a topic's messages are arrays of events (x, y, ts, polarity); `why` says why not.
+  bool fits_events(const std::string& topic, std::string& why) {
+    const auto* s = schema(conns_.at(topic).front());
+    if (!s) return why = schema_errors_.at(conns_.at(topic).front()), false;
+    EventLayout L;
+    return event_layout(*s, L, why);
+  }
+  /// A test of a topic's type against `types`, for choose.
+  auto of_type(std::initializer_list<std::string_view> types) const {
+    return [this, types = std::vector<std::string_view>(types)](const std::string& topic, std::string& why) {
+      const std::string t = type_of(topic);
+      for (auto k : types)
+        if (t == k) return true;
+      why = "its type is not ";
+      for (std::size_t i = 0; i < types.size(); ++i) why += (i ? " or " : "") + std::string(types[i]);
+      return false;
+    };
+  }
+  /// The topic that plays `role`: the one `requested` (its flag), which must fit; else the one topic that
+  /// fits; empty where none does and the role is not required, or where 'none' is requested.
+  template <class Fits>
+  std::string choose(const std::string& role, const std::string& flag, const std::string& requested, Fits&& fits, bool required) {
+    if (requested == "none") {
+      if (required) throw Error(name_, 0, "the " + role + " topic cannot be 'none'");
+      return std::string();
+    }
+    std::string why;
+    if (!requested.empty()) {
+      if (!conns_.count(requested))
+        throw Error(name_, 0, "no topic '" + bag_shown(requested) + "' (" + flag + "); the bag's topics: " + join_topics(listing_));
+      if (!fits(requested, why)) throw Error(name_, 0, "topic " + bag_shown(requested) + " (" + bag_shown(type_of(requested)) + ") cannot be the " + role + ": " + why);
+      return requested;
+    }
+    std::vector<std::string> c, shown;
+    for (const auto& [topic, ids] : conns_)
+      if (fits(topic, why)) c.push_back(topic), shown.push_back(bag_shown(topic));
+    if (c.size() > 1)
+      throw Error(name_, 0, "several topics could be the " + role + " (" + join_topics(shown) + "): choose one with " + flag +
+                                (required ? "" : " (or 'none')"));
+    if (c.empty()) {
+      if (required) {
+        std::string unread;  // definitions that could not be parsed may hide the topic looked for
+        if (!schema_errors_.empty()) unread = "; " + schema_errors_.begin()->second;
+        throw Error(name_, 0, "no " + role + " topic (an array of events with x, y, ts, polarity); the bag's topics: " + join_topics(listing_) + unread);
+      }
+      return std::string();
+    }
+    return c.front();
+  }
+
+ private:
+  std::string name_;
+  const BagIndex& idx_;
+  std::map<std::string, std::vector<std::uint32_t>> conns_;
+  std::vector<std::string> listing_;
+  std::map<std::uint32_t, MsgSchema> schemas_;
+  std::map<std::uint32_t, std::string> schema_errors_;
+};
+
+/// What read_rosbag gathers from its topics' messages, one member function per kind of message, and the
+/// times on one clock: seconds from the first time read (rec.origin_sec).
+struct BagGatherer {
+  BagRecording& rec;
+  std::uint64_t event_messages = 0;  ///< from the index: to size the event arrays after the first message
+  std::uint64_t file_size = 0;
+  bool have_origin = false;
+  bool unsorted = false;  ///< event messages out of time order
+  std::vector<std::pair<double, Image>> frames;
+  std::vector<std::pair<double, geometry::Pose>> poses;
+
+  BagGatherer(BagRecording& r, std::uint64_t bytes) : rec(r), file_size(bytes) {}
+
+  /// Whole nanoseconds divided by 1e9: the double nearest the exact time, the same a text reader gets
+  /// from the time printed with nine decimals (exact below 2^53 ns, 104 days, from the origin).
+  double rel(RosTime t) {
+    if (!have_origin) rec.origin_sec = t.sec, have_origin = true;
+    return static_cast<double>((static_cast<std::int64_t>(t.sec) - rec.origin_sec) * 1000000000 + static_cast<std::int64_t>(t.nsec)) / 1e9;
+  }
+  /// An array of events (the layout event_layout finds), appended to rec.events.
+  void events(const MsgSchema& s, MsgCursor& c, const std::string& where) {
+    auto& ev = rec.events;
+    EventLayout L;
+    std::string why;
+    event_layout(s, L, why);
+    msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
+      if ((fl.name == "width" || fl.name == "height") && is_number_field(fl)) {
+        const double v = msg_read_number(fl, cc);
+        if (v < 0 || v > 65535) throw Error(where + ": field '" + bag_shown(fl.name) + "' is " + short_number(v) + " (expected 0 to 65535)");
+        (fl.name == "width" ? rec.array_width : rec.array_height) = static_cast<int>(v);
+        return true;
+      }
+      if (fl.name != "events") return false;
+      const std::uint64_t n = cc.u32();
+      cc.need(n * static_cast<std::uint64_t>(L.stride));
+      const std::size_t base = ev.size();
+      if (base + n > ev.t.capacity()) {  // grown rarely: every reallocation copies the stream
+        std::size_t want = std::max<std::size_t>(base + n, ev.t.capacity() + ev.t.capacity() / 2);
+        if (base == 0 && event_messages > 1)  // the index's message count times this message's events, and a margin
+          want = std::max<std::size_t>(want, std::min<std::uint64_t>(n * event_messages + n * event_messages / 4,
+                                                                     file_size / static_cast<std::uint64_t>(L.stride) + 1));
+        ev.reserve(want);
+      }
+      ev.t.resize(base + n);
+      ev.x.resize(base + n);
+      ev.y.resize(base + n);
+      ev.polarity.resize(base + n);
+      double last = base ? ev.t[base - 1] : -INFINITY;
+      const unsigned char* q = cc.p;
+      for (std::uint64_t i = 0; i < n; ++i, q += L.stride) {
+        const std::int64_t x = msg_int_at(L.px, q + L.ox), y = msg_int_at(L.py, q + L.oy);
+        const double t = rel(RosTime{bag_u32(q + L.ots), bag_u32(q + L.ots + 4)});
+        if (x < 0 || y < 0 || x > 65535 || y > 65535)
+          throw Error(where + ", event " + std::to_string(i) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") out of range");
+        if (t < last) {
+          if (i > 0)
+            throw Error(where + ", event " + std::to_string(i) + ": time goes back (" + short_number(t) + " s after " + short_number(last) +
+                        " s, relative to " + std::to_string(rec.origin_sec) + " s)");
+          unsorted = true;  // messages out of order: sorted below
+        }
+        last = t;
+        rec.max_x = std::max(rec.max_x, x);
+        rec.max_y = std::max(rec.max_y, y);
+        ev.t[base + i] = t;
+        ev.x[base + i] = static_cast<std::uint16_t>(x);
+        ev.y[base + i] = static_cast<std::uint16_t>(y);
+        ev.polarity[base + i] = msg_int_at(L.pp, q + L.op) > 0 ? 1 : -1;
+      }
+      cc.p = q;
+      return true;
+    });
+  }
+  /// A sensor_msgs/Image, at its header stamp (else the record time).
+  void image(const MsgSchema& s, MsgCursor& c, const std::string& where, RosTime record_time) {
+    bool stamped = false;
+    RosTime stamp;
+    std::uint64_t w = 0, h = 0, step = 0, len = 0;
+    bool big = false;
+    std::string enc;
+    const unsigned char* data = nullptr;
+    msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
+      if (fl.name == "header" && fl.prim == Prim::Struct && fl.array == 0) return stamp = msg_read_header_stamp(s, fl, cc, stamped), true;
+      if (fl.name == "encoding" && fl.prim == Prim::String) return enc = msg_read_string(fl, cc, 64), true;
+      if (fl.name == "data" && fl.array == -1 && (fl.prim == Prim::UInt8 || fl.prim == Prim::Int8)) {
+        len = cc.u32();
+        cc.need(len);
+        data = cc.p;
+        cc.p += len;
+        return true;
+      }
+      if (!is_number_field(fl)) return false;
+      if (fl.name == "width") return w = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
+      if (fl.name == "height") return h = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
+      if (fl.name == "step") return step = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
+      if (fl.name == "is_bigendian") return big = msg_read_number(fl, cc) != 0, true;
+      return false;
+    });
+    if (!data) throw Error(where + ": image without a 'data' array");
+    Image img = bag_image(w, h, enc, big, step, data, len, where);
+    if (!frames.empty() && (img.width != frames.front().second.width || img.height != frames.front().second.height ||
+                            img.channels != frames.front().second.channels))
+      throw Error(where + ": frame of " + std::to_string(img.width) + "x" + std::to_string(img.height) + "x" + std::to_string(img.channels) +
+                  " after frames of " + std::to_string(frames.front().second.width) + "x" + std::to_string(frames.front().second.height) + "x" +
+                  std::to_string(frames.front().second.channels));
+    if (rec.frame_encoding.empty()) rec.frame_encoding = enc;
+    frames.emplace_back(rel(stamped && !stamp.zero() ? stamp : record_time), std::move(img));
+  }
+  /// The first sensor_msgs/CameraInfo: intrinsics and distortion (the others are skipped).
+  void camera_info(const MsgSchema& s, MsgCursor& c, const std::string& where) {
+    if (rec.has_camera_info) return;  // the first is used
+    std::string model;
+    std::vector<double> D, K;
+    double binx = 0, biny = 0;
+    msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
+      if (fl.name == "distortion_model" && fl.prim == Prim::String) return model = msg_read_string(fl, cc, 64), true;
+      if (fl.name == "D") return D = msg_read_f64s(fl, cc, -1, "sensor_msgs/CameraInfo"), true;
+      if (fl.name == "K") return K = msg_read_f64s(fl, cc, 9, "sensor_msgs/CameraInfo"), true;
+      if (!is_number_field(fl)) return false;
+      if (fl.name == "width") return rec.info_width = static_cast<int>(std::clamp(msg_read_number(fl, cc), 0.0, 1e6)), true;
+      if (fl.name == "height") return rec.info_height = static_cast<int>(std::clamp(msg_read_number(fl, cc), 0.0, 1e6)), true;
+      if (fl.name == "binning_x") return binx = msg_read_number(fl, cc), true;
+      if (fl.name == "binning_y") return biny = msg_read_number(fl, cc), true;
+      return false;
+    });
+    if (K.size() != 9) throw Error(where + ": camera info without K (float64[9])");
+    if (!(K[0] > 0) || !(K[4] > 0) || !std::isfinite(K[0]) || !std::isfinite(K[4]) || !std::isfinite(K[2]) || !std::isfinite(K[5]))
+      throw Error(where + ": camera info K has no positive, finite focal lengths (fx " + short_number(K[0]) + ", fy " + short_number(K[4]) + ")");
+    if (binx > 1 || biny > 1) throw Error(where + ": binned camera info (binning " + short_number(binx) + "x" + short_number(biny) + ") is not read");
+    for (double v : D)
+      if (!std::isfinite(v)) throw Error(where + ": camera info D holds a value that is not finite");
+    const bool zero = std::all_of(D.begin(), D.end(), [](double v) { return v == 0; });
+    std::array<double, 5> k{0, 0, 0, 0, 0};
+    if (model == "plumb_bob" || model == "rational_polynomial" || (zero && D.size() <= 14)) {
+      if (!zero && model == "plumb_bob" && D.size() != 5 && D.size() != 4)
+        throw Error(where + ": plumb_bob distortion with " + std::to_string(D.size()) + " coefficients (expected 5)");
+      for (std::size_t i = 0; i < D.size() && i < 5; ++i) k[i] = D[i];
+      for (std::size_t i = 5; i < D.size(); ++i)
+        if (D[i] != 0) throw Error(where + ": rational_polynomial distortion with k4..k6 not zero is not read (the camera model has k1 k2 p1 p2 k3)");
+    } else {
+      throw Error(where + ": distortion model '" + model + "' is not read (plumb_bob, or rational_polynomial with k4..k6 zero)");
+    }
+    rec.has_camera_info = true;
+    rec.fx = K[0], rec.fy = K[4], rec.cx = K[2], rec.cy = K[5];
+    rec.distortion = k;
+  }
+  /// A pose message of `type`, at its stamp (else the record time).
+  void pose(const MsgSchema& s, MsgCursor& c, const std::string& where, RosTime record_time, const std::string& type) {
+    PoseRead p;
+    msg_read_pose(s, 0, c, p, 0);
+    if (!p.has_pos || !p.has_rot) throw Error(where + ": no position and orientation in a " + type);
+    for (double v : {p.p[0], p.p[1], p.p[2], p.q[0], p.q[1], p.q[2], p.q[3]})
+      if (!std::isfinite(v)) throw Error(where + ": pose holds a value that is not finite");
+    const double n = std::sqrt(p.q[0] * p.q[0] + p.q[1] * p.q[1] + p.q[2] * p.q[2] + p.q[3] * p.q[3]);
+    if (n < 0.5 || n > 1.5) throw Error(where + ": quaternion is far from unit length (norm " + short_number(n) + ")");
+    geometry::Pose pose;
+    pose.t = Vec3(p.p[0], p.p[1], p.p[2]);
+    pose.q = Quat(p.q[3] / n, p.q[0] / n, p.q[1] / n, p.q[2] / n);
+    poses.emplace_back(rel(p.has_stamp && !p.stamp.zero() ? p.stamp : record_time), pose);
+  }
+  /// The events, frames and poses in time order, into rec.
+  void finish() {
+    auto& ev = rec.events;
+    if (unsorted) {  // messages out of time order (two connections, or a recorder that reordered them)
+      std::vector<std::size_t> order(ev.size());
+      std::iota(order.begin(), order.end(), std::size_t{0});
+      std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ev.t[a] < ev.t[b]; });
+      events::EventStream sorted;
+      sorted.reserve(ev.size());
+      for (auto i : order) sorted.push_back(ev.t[i], ev.x[i], ev.y[i], ev.polarity[i]);
+      ev = std::move(sorted);
+    }
+    if (ev.t.capacity() > ev.size() + ev.size() / 2) {  // only a wasteful estimate is worth a copy
+      ev.t.shrink_to_fit();
+      ev.x.shrink_to_fit();
+      ev.y.shrink_to_fit();
+      ev.polarity.shrink_to_fit();
+    }
+    // Frames and poses in time order (stable: by time, then as read). Sorted through an index: a stable
+    // sort's temporary buffer would not respect the alignment of Eigen's types.
+    auto by_time = [](const auto& v) {
+      std::vector<std::size_t> order(v.size());
+      std::iota(order.begin(), order.end(), std::size_t{0});
+      std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return v[a].first != v[b].first ? v[a].first < v[b].first : a < b; });
+      return order;
+    };
+    for (auto i : by_time(frames)) {
+      rec.frame_times.push_back(frames[i].first);
+      rec.frames.push_back(std::move(frames[i].second));
+    }
+    for (auto i : by_time(poses)) {
+      if (!rec.pose_times.empty() && poses[i].first == rec.pose_times.back()) continue;  // a repeated stamp: the first pose stands
+      rec.pose_times.push_back(poses[i].first);
+      rec.poses.push_back(poses[i].second);
+    }
+  }
+};
+
 }  // namespace detail
 
 /// Reads a bag: the events of one topic (required), and where the bag has them, frames, the first camera
@@ -1051,286 +1336,49 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
     for_each_bag_message(f, idx, [](std::uint32_t) { return false; }, [](std::uint32_t, RosTime, std::string_view, const std::string&) {});
   if (idx.conns.empty()) throw Error(f.name(), 0, "the bag has no connections (no topics)");
 
-  std::map<std::string, std::vector<std::uint32_t>> topic_conns;
-  for (const auto& [id, c] : idx.conns) {
-    auto& v = topic_conns[c.topic];
-    if (!v.empty() && idx.conns.at(v.front()).type != c.type)
-      throw Error(f.name(), 0, "topic " + bag_shown(c.topic) + " carries two types (" + bag_shown(idx.conns.at(v.front()).type) + ", " + bag_shown(c.type) + ")");
-    v.push_back(id);
-  }
-  std::vector<std::string> listing;
-  for (const auto& [topic, ids] : topic_conns) listing.push_back(bag_shown(topic) + " (" + bag_shown(idx.conns.at(ids.front()).type) + ")");
-
-  std::map<std::uint32_t, MsgSchema> schemas;
-  std::map<std::uint32_t, std::string> schema_errors;
-  auto schema = [&](std::uint32_t id) -> const MsgSchema* {
-    if (auto it = schemas.find(id); it != schemas.end()) return &it->second;
-    if (schema_errors.count(id)) return nullptr;
-    const auto& c = idx.conns.at(id);
-    try {
-      return &schemas.emplace(id, parse_msg_definition(c.type, c.definition, f.name() + ": topic " + bag_shown(c.topic) + " (" + bag_shown(c.type) + ")")).first->second;
-    } catch (const Error& e) {
-      schema_errors[id] = e.what();
-      return nullptr;
-    }
-  };
-  auto type_of = [&](const std::string& topic) { return idx.conns.at(topic_conns.at(topic).front()).type; };
-  auto fits_events = [&](const std::string& topic, std::string& why) {
-    const auto* s = schema(topic_conns.at(topic).front());
-    if (!s) return why = schema_errors.at(topic_conns.at(topic).front()), false;
-    EventLayout L;
-    return event_layout(*s, L, why);
-  };
-  auto fits_type = [&](std::initializer_list<std::string_view> types) {
-    return [&, types = std::vector<std::string_view>(types)](const std::string& topic, std::string& why) {
-      const std::string t = type_of(topic);
-      for (auto k : types)
-        if (t == k) return true;
-      why = "its type is not ";
-      for (std::size_t i = 0; i < types.size(); ++i) why += (i ? " or " : "") + std::string(types[i]);
-      return false;
-    };
-  };
-  auto choose = [&](const std::string& role, const std::string& flag, const std::string& requested, auto&& fits, bool required) {
-    if (requested == "none") {
-      if (required) throw Error(f.name(), 0, "the " + role + " topic cannot be 'none'");
-      return std::string();
-    }
-    std::string why;
-    if (!requested.empty()) {
-      if (!topic_conns.count(requested))
-        throw Error(f.name(), 0, "no topic '" + bag_shown(requested) + "' (" + flag + "); the bag's topics: " + join_topics(listing));
-      if (!fits(requested, why)) throw Error(f.name(), 0, "topic " + bag_shown(requested) + " (" + bag_shown(type_of(requested)) + ") cannot be the " + role + ": " + why);
-      return requested;
-    }
-    std::vector<std::string> c, shown;
-    for (const auto& [topic, ids] : topic_conns)
-      if (fits(topic, why)) c.push_back(topic), shown.push_back(bag_shown(topic));
-    if (c.size() > 1)
-      throw Error(f.name(), 0, "several topics could be the " + role + " (" + join_topics(shown) + "): choose one with " + flag +
-                                   (required ? "" : " (or 'none')"));
-    if (c.empty()) {
-      if (required) {
-        std::string unread;  // definitions that could not be parsed may hide the topic looked for
-        if (!schema_errors.empty()) unread = "; " + schema_errors.begin()->second;
-        throw Error(f.name(), 0, "no " + role + " topic (an array of events with x, y, ts, polarity); the bag's topics: " + join_topics(listing) + unread);
-      }
-      return std::string();
-    }
-    return c.front();
-  };
+  BagTopics topics(f, idx);
   BagRecording rec;
-  rec.events_topic = choose("events", "--events-topic", opt.events_topic, fits_events, true);
-  rec.images_topic = choose("frames", "--images-topic", opt.images_topic, fits_type({"sensor_msgs/Image"}), false);
-  rec.camera_info_topic = choose("camera info", "--camera-info-topic", opt.camera_info_topic, fits_type({"sensor_msgs/CameraInfo"}), false);
-  rec.poses_topic = choose("poses", "--poses-topic", opt.poses_topic,
-                           fits_type({"geometry_msgs/PoseStamped", "nav_msgs/Odometry", "geometry_msgs/TransformStamped",
-                                      "geometry_msgs/PoseWithCovarianceStamped"}),
-                           false);
+  rec.events_topic = topics.choose("events", "--events-topic", opt.events_topic,
+                                   [&](const std::string& t, std::string& why) { return topics.fits_events(t, why); }, true);
+  rec.images_topic = topics.choose("frames", "--images-topic", opt.images_topic, topics.of_type({"sensor_msgs/Image"}), false);
+  rec.camera_info_topic = topics.choose("camera info", "--camera-info-topic", opt.camera_info_topic, topics.of_type({"sensor_msgs/CameraInfo"}), false);
+  rec.poses_topic = topics.choose("poses", "--poses-topic", opt.poses_topic,
+                                  topics.of_type({"geometry_msgs/PoseStamped", "nav_msgs/Odometry", "geometry_msgs/TransformStamped",
+                                                  "geometry_msgs/PoseWithCovarianceStamped"}),
+                                  false);
 
   enum Role : int { kNone, kEvents, kImages, kInfo, kPoses };
   std::map<std::uint32_t, Role> role;
   for (const auto& [topic, r] : {std::pair{rec.events_topic, kEvents}, {rec.images_topic, kImages}, {rec.camera_info_topic, kInfo},
                                  {rec.poses_topic, kPoses}})
     if (!topic.empty())
-      for (auto id : topic_conns.at(topic)) {
-        if (!schema(id)) throw Error(schema_errors.at(id));
+      for (auto id : topics.connections(topic)) {
+        if (!topics.schema(id)) throw Error(topics.schema_error(id));
         role[id] = r;
       }
-  std::uint64_t event_messages = 0;  // from the index: to size the event arrays after the first message
+  BagGatherer gather(rec, f.size());
   for (const auto& ci : idx.chunks)
     for (const auto& [conn, n] : ci.counts)
-      if (auto it = role.find(conn); it != role.end() && it->second == kEvents) event_messages += n;
+      if (auto it = role.find(conn); it != role.end() && it->second == kEvents) gather.event_messages += n;
 
-  bool have_origin = false;
-  // Whole nanoseconds divided by 1e9: the double nearest the exact time, the same a text reader gets
-  // from the time printed with nine decimals (exact below 2^53 ns, 104 days, from the origin).
-  auto rel = [&](RosTime t) {
-    if (!have_origin) rec.origin_sec = t.sec, have_origin = true;
-    return static_cast<double>((static_cast<std::int64_t>(t.sec) - rec.origin_sec) * 1000000000 + static_cast<std::int64_t>(t.nsec)) / 1e9;
-  };
-  auto& ev = rec.events;
-  bool unsorted = false;
   std::uint64_t counts[5] = {0, 0, 0, 0, 0};
-  std::vector<std::pair<double, Image>> frames;
-  std::vector<std::pair<double, geometry::Pose>> poses;
-
   for_each_bag_message(
       f, idx, [&](std::uint32_t conn) { return role.count(conn) > 0; },
       [&](std::uint32_t conn, RosTime record_time, std::string_view body, const std::string& at) {
         const Role r = role.at(conn);
-        const MsgSchema& s = *schema(conn);
+        const MsgSchema& s = *topics.schema(conn);
         const std::string where = at + " (topic " + bag_shown(idx.conns.at(conn).topic) + ", message " + std::to_string(counts[r]) + ")";
         ++counts[r];
         MsgCursor c{reinterpret_cast<const unsigned char*>(body.data()), reinterpret_cast<const unsigned char*>(body.data()) + body.size(), &where};
-        if (r == kEvents) {
-          EventLayout L;
-          std::string why;
-          event_layout(s, L, why);
-          msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
-            if ((fl.name == "width" || fl.name == "height") && is_number_field(fl)) {
-              const double v = msg_read_number(fl, cc);
-              if (v < 0 || v > 65535) throw Error(where + ": field '" + bag_shown(fl.name) + "' is " + short_number(v) + " (expected 0 to 65535)");
-              (fl.name == "width" ? rec.array_width : rec.array_height) = static_cast<int>(v);
-              return true;
-            }
-            if (fl.name != "events") return false;
-            const std::uint64_t n = cc.u32();
-            cc.need(n * static_cast<std::uint64_t>(L.stride));
-            const std::size_t base = ev.size();
-            if (base + n > ev.t.capacity()) {  // grown rarely: every reallocation copies the stream
-              std::size_t want = std::max<std::size_t>(base + n, ev.t.capacity() + ev.t.capacity() / 2);
-              if (base == 0 && event_messages > 1)  // the index's message count times this message's events, and a margin
-                want = std::max<std::size_t>(want, std::min<std::uint64_t>(n * event_messages + n * event_messages / 4,
-                                                                           f.size() / static_cast<std::uint64_t>(L.stride) + 1));
-              ev.reserve(want);
-            }
-            ev.t.resize(base + n);
-            ev.x.resize(base + n);
-            ev.y.resize(base + n);
-            ev.polarity.resize(base + n);
-            double last = base ? ev.t[base - 1] : -INFINITY;
-            const unsigned char* q = cc.p;
-            for (std::uint64_t i = 0; i < n; ++i, q += L.stride) {
-              const std::int64_t x = msg_int_at(L.px, q + L.ox), y = msg_int_at(L.py, q + L.oy);
-              const double t = rel(RosTime{bag_u32(q + L.ots), bag_u32(q + L.ots + 4)});
-              if (x < 0 || y < 0 || x > 65535 || y > 65535)
-                throw Error(where + ", event " + std::to_string(i) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") out of range");
-              if (t < last) {
-                if (i > 0)
-                  throw Error(where + ", event " + std::to_string(i) + ": time goes back (" + short_number(t) + " s after " + short_number(last) +
-                              " s, relative to " + std::to_string(rec.origin_sec) + " s)");
-                unsorted = true;  // messages out of order: sorted below
-              }
-              last = t;
-              rec.max_x = std::max(rec.max_x, x);
-              rec.max_y = std::max(rec.max_y, y);
-              ev.t[base + i] = t;
-              ev.x[base + i] = static_cast<std::uint16_t>(x);
-              ev.y[base + i] = static_cast<std::uint16_t>(y);
-              ev.polarity[base + i] = msg_int_at(L.pp, q + L.op) > 0 ? 1 : -1;
-            }
-            cc.p = q;
-            return true;
-          });
-        } else if (r == kImages) {
-          bool stamped = false;
-          RosTime stamp;
-          std::uint64_t w = 0, h = 0, step = 0, len = 0;
-          bool big = false;
-          std::string enc;
-          const unsigned char* data = nullptr;
-          msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
-            if (fl.name == "header" && fl.prim == Prim::Struct && fl.array == 0) return stamp = msg_read_header_stamp(s, fl, cc, stamped), true;
-            if (fl.name == "encoding" && fl.prim == Prim::String) return enc = msg_read_string(fl, cc, 64), true;
-            if (fl.name == "data" && fl.array == -1 && (fl.prim == Prim::UInt8 || fl.prim == Prim::Int8)) {
-              len = cc.u32();
-              cc.need(len);
-              data = cc.p;
-              cc.p += len;
-              return true;
-            }
-            if (!is_number_field(fl)) return false;
-            if (fl.name == "width") return w = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
-            if (fl.name == "height") return h = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
-            if (fl.name == "step") return step = static_cast<std::uint64_t>(std::max(0.0, msg_read_number(fl, cc))), true;
-            if (fl.name == "is_bigendian") return big = msg_read_number(fl, cc) != 0, true;
-            return false;
-          });
-          if (!data) throw Error(where + ": image without a 'data' array");
-          Image img = bag_image(w, h, enc, big, step, data, len, where);
-          if (!frames.empty() && (img.width != frames.front().second.width || img.height != frames.front().second.height ||
-                                  img.channels != frames.front().second.channels))
-            throw Error(where + ": frame of " + std::to_string(img.width) + "x" + std::to_string(img.height) + "x" + std::to_string(img.channels) +
-                        " after frames of " + std::to_string(frames.front().second.width) + "x" + std::to_string(frames.front().second.height) + "x" +
-                        std::to_string(frames.front().second.channels));
-          if (rec.frame_encoding.empty()) rec.frame_encoding = enc;
-          frames.emplace_back(rel(stamped && !stamp.zero() ? stamp : record_time), std::move(img));
-        } else if (r == kInfo) {
-          if (rec.has_camera_info) return;  // the first is used
-          std::string model;
-          std::vector<double> D, K;
-          double binx = 0, biny = 0;
-          msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
-            if (fl.name == "distortion_model" && fl.prim == Prim::String) return model = msg_read_string(fl, cc, 64), true;
-            if (fl.name == "D") return D = msg_read_f64s(fl, cc, -1, "sensor_msgs/CameraInfo"), true;
-            if (fl.name == "K") return K = msg_read_f64s(fl, cc, 9, "sensor_msgs/CameraInfo"), true;
-            if (!is_number_field(fl)) return false;
-            if (fl.name == "width") return rec.info_width = static_cast<int>(std::clamp(msg_read_number(fl, cc), 0.0, 1e6)), true;
-            if (fl.name == "height") return rec.info_height = static_cast<int>(std::clamp(msg_read_number(fl, cc), 0.0, 1e6)), true;
-            if (fl.name == "binning_x") return binx = msg_read_number(fl, cc), true;
-            if (fl.name == "binning_y") return biny = msg_read_number(fl, cc), true;
-            return false;
-          });
-          if (K.size() != 9) throw Error(where + ": camera info without K (float64[9])");
-          if (!(K[0] > 0) || !(K[4] > 0) || !std::isfinite(K[0]) || !std::isfinite(K[4]) || !std::isfinite(K[2]) || !std::isfinite(K[5]))
-            throw Error(where + ": camera info K has no positive, finite focal lengths (fx " + short_number(K[0]) + ", fy " + short_number(K[4]) + ")");
-          if (binx > 1 || biny > 1) throw Error(where + ": binned camera info (binning " + short_number(binx) + "x" + short_number(biny) + ") is not read");
-          for (double v : D)
-            if (!std::isfinite(v)) throw Error(where + ": camera info D holds a value that is not finite");
-          const bool zero = std::all_of(D.begin(), D.end(), [](double v) { return v == 0; });
-          std::array<double, 5> k{0, 0, 0, 0, 0};
-          if (model == "plumb_bob" || model == "rational_polynomial" || (zero && D.size() <= 14)) {
-            if (!zero && model == "plumb_bob" && D.size() != 5 && D.size() != 4)
-              throw Error(where + ": plumb_bob distortion with " + std::to_string(D.size()) + " coefficients (expected 5)");
-            for (std::size_t i = 0; i < D.size() && i < 5; ++i) k[i] = D[i];
-            for (std::size_t i = 5; i < D.size(); ++i)
-              if (D[i] != 0) throw Error(where + ": rational_polynomial distortion with k4..k6 not zero is not read (the camera model has k1 k2 p1 p2 k3)");
-          } else {
-            throw Error(where + ": distortion model '" + model + "' is not read (plumb_bob, or rational_polynomial with k4..k6 zero)");
-          }
-          rec.has_camera_info = true;
-          rec.fx = K[0], rec.fy = K[4], rec.cx = K[2], rec.cy = K[5];
-          rec.distortion = k;
-        } else if (r == kPoses) {
-          PoseRead p;
-          msg_read_pose(s, 0, c, p, 0);
-          if (!p.has_pos || !p.has_rot) throw Error(where + ": no position and orientation in a " + idx.conns.at(conn).type);
-          for (double v : {p.p[0], p.p[1], p.p[2], p.q[0], p.q[1], p.q[2], p.q[3]})
-            if (!std::isfinite(v)) throw Error(where + ": pose holds a value that is not finite");
-          const double n = std::sqrt(p.q[0] * p.q[0] + p.q[1] * p.q[1] + p.q[2] * p.q[2] + p.q[3] * p.q[3]);
-          if (n < 0.5 || n > 1.5) throw Error(where + ": quaternion is far from unit length (norm " + short_number(n) + ")");
-          geometry::Pose pose;
-          pose.t = Vec3(p.p[0], p.p[1], p.p[2]);
-          pose.q = Quat(p.q[3] / n, p.q[0] / n, p.q[1] / n, p.q[2] / n);
-          poses.emplace_back(rel(p.has_stamp && !p.stamp.zero() ? p.stamp : record_time), pose);
-        }
+        if (r == kEvents) gather.events(s, c, where);
+        else if (r == kImages) gather.image(s, c, where, record_time);
+        else if (r == kInfo) gather.camera_info(s, c, where);
+        else if (r == kPoses) gather.pose(s, c, where, record_time, idx.conns.at(conn).type);
       },
       opt.progress);
-
-  if (ev.empty()) throw Error(f.name(), 0, "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
-  if (unsorted) {  // messages out of time order (two connections, or a recorder that reordered them)
-    std::vector<std::size_t> order(ev.size());
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ev.t[a] < ev.t[b]; });
-    events::EventStream sorted;
-    sorted.reserve(ev.size());
-    for (auto i : order) sorted.push_back(ev.t[i], ev.x[i], ev.y[i], ev.polarity[i]);
-    ev = std::move(sorted);
-  }
-  if (ev.t.capacity() > ev.size() + ev.size() / 2) {  // only a wasteful estimate is worth a copy
-    ev.t.shrink_to_fit();
-    ev.x.shrink_to_fit();
-    ev.y.shrink_to_fit();
-    ev.polarity.shrink_to_fit();
-  }
-  // Frames and poses in time order (stable: by time, then as read). Sorted through an index: a stable
-  // sort's temporary buffer would not respect the alignment of Eigen's types.
-  auto by_time = [](const auto& v) {
-    std::vector<std::size_t> order(v.size());
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return v[a].first != v[b].first ? v[a].first < v[b].first : a < b; });
-    return order;
-  };
-  for (auto i : by_time(frames)) {
-    rec.frame_times.push_back(frames[i].first);
-    rec.frames.push_back(std::move(frames[i].second));
-  }
-  for (auto i : by_time(poses)) {
-    if (!rec.pose_times.empty() && poses[i].first == rec.pose_times.back()) continue;  // a repeated stamp: the first pose stands
-    rec.pose_times.push_back(poses[i].first);
-    rec.poses.push_back(poses[i].second);
-  }
+  if (rec.events.empty())
+    throw Error(f.name(), 0, "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
+  gather.finish();
   return rec;
 }
 
