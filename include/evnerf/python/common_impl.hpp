@@ -19,16 +19,10 @@
 
 namespace evnerf::python {
 
-EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string>& names) {
-  using namespace detail;
-  // Module-local: a second module of one's own variants (examples/python/custom_module.cpp) keeps its own
-  // Error and classes beside this one.
-  py::register_local_exception<Error>(m, "Error", PyExc_ValueError);
-  m.attr("__version__") = version;
-  m.attr("variants") = names;
-  m.attr("scenes") = sim::builtin_scenes();
-  m.attr("alignments") = std::vector<std::string>{"global-log-affine", "log-affine", "eventnerf", "global-log-offset", "min-max", "none"};
+namespace detail {
 
+/// evnerf.Dataset: a recording's arrays, read-only, and its summary.
+inline void define_dataset(py::module_& m) {
   py::class_<Dataset> ds(m, "Dataset", "A recording: camera, events, poses, optional frames.", py::module_local());
   ds.def(py::init(&make_dataset), py::arg("x"), py::arg("y"), py::arg("t"), py::arg("p"), py::kw_only(), py::arg("width"),
          py::arg("height"), py::arg("intrinsics"), py::arg("poses") = py::none(), py::arg("frame_times") = py::none(),
@@ -77,7 +71,10 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
            ", " + std::to_string(d.events.size()) + " events, " + std::to_string(d.trajectory.size()) + " poses, " +
            std::to_string(d.frames.size()) + " frames>";
   });
+}
 
+/// evnerf.load, evnerf.simulate and evnerf.sensor_model: recordings read or made.
+inline void define_recordings(py::module_& m) {
   m.def(
       "load",
       [](const fs::path& path, std::optional<fs::path> calib, std::optional<fs::path> poses, std::optional<std::pair<double, double>> window,
@@ -159,7 +156,10 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
       },
       py::arg("sensor") = "ideal", py::kw_only(), py::arg("seed") = 1,
       "The sensor simulate() records with for these arguments (random: the values drawn from the seed), as a dict.");
+}
 
+/// evnerf.Model and what trains, opens, renders and scores one.
+inline void define_models(py::module_& m) {
   py::class_<Model> model(m, "Model", "A trained or loaded model of any of this module's variants.", py::module_local());
   model.def_readonly("variant", &Model::variant);
   model.def_readonly("channels", &Model::channels);
@@ -286,6 +286,23 @@ EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string
       "oracle=True adds eval's offset oracle (oracle: rows_psnr, columns_psnr, both_psnr): the PSNR with gains per image row, "
       "per column and both, constant over the sequence, fitted to the truth; what a straight motion never shows the events "
       "(a diagnosis, never a score).");
+}
+
+}  // namespace detail
+
+EVNERF_COMPILED void define_common(py::module_& m, const std::vector<std::string>& names) {
+  using namespace detail;
+  // Module-local: a second module of one's own variants (examples/python/custom_module.cpp) keeps its own
+  // Error and classes beside this one.
+  py::register_local_exception<Error>(m, "Error", PyExc_ValueError);
+  m.attr("__version__") = version;
+  m.attr("variants") = names;
+  m.attr("scenes") = sim::builtin_scenes();
+  m.attr("alignments") = std::vector<std::string>{"global-log-affine", "log-affine", "eventnerf", "global-log-offset", "min-max", "none"};
+
+  define_dataset(m);
+  define_recordings(m);
+  define_models(m);
 }
 
 }  // namespace evnerf::python
