@@ -59,8 +59,10 @@ void run_fused(std::vector<float>& params, const std::vector<float>& xe, const s
       const float* h = Net::Trunk::forward(params.data(), &xe[static_cast<std::size_t>(j0) * 63], m, wt);
       vin.resize(static_cast<std::size_t>(W + 27) * m);
       for (int j = 0; j < m; ++j) {
-        std::copy(h + static_cast<std::size_t>(j) * (W + 1) + 1, h + static_cast<std::size_t>(j + 1) * (W + 1), &vin[static_cast<std::size_t>(j) * (W + 27)]);
-        std::copy(&de[static_cast<std::size_t>(j0 + j) * 27], &de[static_cast<std::size_t>(j0 + j) * 27] + 27, &vin[static_cast<std::size_t>(j) * (W + 27) + W]);
+        std::copy(h + static_cast<std::size_t>(j) * (W + 1) + 1, h + static_cast<std::size_t>(j + 1) * (W + 1),
+                  &vin[static_cast<std::size_t>(j) * (W + 27)]);
+        std::copy(&de[static_cast<std::size_t>(j0 + j) * 27], &de[static_cast<std::size_t>(j0 + j) * 27] + 27,
+                  &vin[static_cast<std::size_t>(j) * (W + 27) + W]);
       }
       Net::View::forward(params.data() + Net::Trunk::n_params, vin.data(), m, wv);
       std::fill(dy.begin(), dy.end(), 1.f);
@@ -69,7 +71,8 @@ void run_fused(std::vector<float>& params, const std::vector<float>& xe, const s
       dtr.resize(static_cast<std::size_t>(W + 1) * m);
       for (int j = 0; j < m; ++j) {
         dtr[static_cast<std::size_t>(j) * (W + 1)] = 1.f;  // d(sum of density)
-        std::copy(&dvin[static_cast<std::size_t>(j) * (W + 27)], &dvin[static_cast<std::size_t>(j) * (W + 27)] + W, &dtr[static_cast<std::size_t>(j) * (W + 1) + 1]);
+        std::copy(&dvin[static_cast<std::size_t>(j) * (W + 27)], &dvin[static_cast<std::size_t>(j) * (W + 27)] + W,
+                  &dtr[static_cast<std::size_t>(j) * (W + 1) + 1]);
       }
       Net::Trunk::backward(params.data(), wt, dtr.data(), g, static_cast<float*>(nullptr));
     }
@@ -108,7 +111,8 @@ void BM_mlp_reference(benchmark::State& st) {
     parallel_blocks(2, 1, [&](std::size_t b, std::size_t e, int) {
       for (std::size_t h = b; h < e; ++h) {
         const int m = n / 2;
-        std::vector<float> x(xe.begin() + static_cast<std::ptrdiff_t>(h * m * 63), xe.begin() + static_cast<std::ptrdiff_t>((h + 1) * m * 63));
+        std::vector<float> x(xe.begin() + static_cast<std::ptrdiff_t>(h * m * 63),
+                             xe.begin() + static_cast<std::ptrdiff_t>((h + 1) * m * 63));
         std::vector<float> d(dy.begin(), dy.begin() + static_cast<std::ptrdiff_t>(m) * (W + 1));
         benchmark::DoNotOptimize(nn::reference_mlp_forward_backward<typename Net::Trunk>(params, x, m, d));
       }
@@ -159,7 +163,8 @@ void BM_fma_peak(benchmark::State& st) {
       benchmark::DoNotOptimize(s);
     });
   }
-  st.counters["gflops"] = benchmark::Counter(double(thread_count()) * iters * 12 * F::lanes * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["gflops"] =
+      benchmark::Counter(double(thread_count()) * iters * 12 * F::lanes * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 #else
   st.SkipWithError("no FMA vectors in this build");
 #endif
@@ -220,7 +225,8 @@ void BM_bf16_peak(benchmark::State& st) {
       benchmark::DoNotOptimize(s);
     });
   }
-  st.counters["gflops"] = benchmark::Counter(double(thread_count()) * iters * 12 * 32 * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["gflops"] =
+      benchmark::Counter(double(thread_count()) * iters * 12 * 32 * 2 / 1e9, benchmark::Counter::kIsIterationInvariantRate);
 }
 #endif
 
@@ -299,8 +305,7 @@ const Model& warmed_model() {
     train::Config cfg;
     Model w(td.slices.size(), train::scene_box(td, cfg), 1, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
     if constexpr (Model::sampler_type::skips_samples)
-      for (int s = 0; s < Model::sampler_type::warmup_steps + 2 * Model::sampler_type::update_interval; ++s)
-        w.train_step(td, 1024, 1);
+      for (int s = 0; s < Model::sampler_type::warmup_steps + 2 * Model::sampler_type::update_interval; ++s) w.train_step(td, 1024, 1);
     return w;
   }();
   return m;
@@ -318,8 +323,7 @@ void BM_train_step(benchmark::State& st) {
   st.counters["rays_per_s"] = benchmark::Counter(2048, benchmark::Counter::kIsIterationInvariantRate);
   st.counters["samples_per_ray"] = samples / static_cast<double>(st.iterations()) / 2048;
   st.counters["backward_per_ray"] = backward / static_cast<double>(st.iterations()) / 2048;
-  if constexpr (Model::sampler_type::skips_samples)
-    st.counters["occupied"] = m.sampler().occupied_fraction();
+  if constexpr (Model::sampler_type::skips_samples) st.counters["occupied"] = m.sampler().occupied_fraction();
 }
 /// The same step with every sample evaluated (a fresh model: the grid is not active yet).
 template <class Model>

@@ -55,12 +55,12 @@ int main(int argc, char** argv) {
       rows.push_back({"without noise injection", train_and_score<presets::FastNoNoiseInjection>(d, cfg, "no-noise")});
       rows.push_back({"without total variation", train_and_score<presets::FastNoTv>(d, cfg, "no-tv")});
     }
-    std::printf("%-26s %8s %8s %8s | %8s %8s %8s   (%s preset, %ld iterations)\n", "variant", "MSE", "SSIM", "PSNR", "MSE",
-                "SSIM", "PSNR", paper ? "Paper" : "Fast", cfg.iterations);
+    std::printf("%-26s %8s %8s %8s | %8s %8s %8s   (%s preset, %ld iterations)\n", "variant", "MSE", "SSIM", "PSNR", "MSE", "SSIM", "PSNR",
+                paper ? "Paper" : "Fast", cfg.iterations);
     std::printf("%-26s %26s | %26s\n", "", "global-log-affine alignment", "min-max alignment");
     for (auto& r : rows)
-      std::printf("%-26s %8.4f %8.4f %8.2f | %8.4f %8.4f %8.2f\n", r.name, r.s[0].mse, r.s[0].ssim, r.s[0].psnr, r.s[1].mse,
-                  r.s[1].ssim, r.s[1].psnr);
+      std::printf("%-26s %8.4f %8.4f %8.2f | %8.4f %8.4f %8.2f\n", r.name, r.s[0].mse, r.s[0].ssim, r.s[0].psnr, r.s[1].mse, r.s[1].ssim,
+                  r.s[1].psnr);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ablation: %s\n", e.what());
     return 1;

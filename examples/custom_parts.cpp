@@ -24,8 +24,8 @@
 #include "parts/triangle_wave.hpp"
 
 using namespace evnerf;
-using FastInverseDepth = EvNerf<presets::FastField<>, mylab::InverseDepth<64>, loss::ProjectedThresholds, loss::DefaultNoise,
-                                presets::FastObjective>;
+using FastInverseDepth =
+    EvNerf<presets::FastField<>, mylab::InverseDepth<64>, loss::ProjectedThresholds, loss::DefaultNoise, presets::FastObjective>;
 using TriangleField = field::FieldOf<mylab::TriangleWave<8>, nn::SphericalHarmonics<3>, nn::MlpShape{.width = 128, .hidden_layers = 4}, 16,
                                      nn::MlpShape{.width = 64, .hidden_layers = 1}>;
 using Triangles = EvNerf<TriangleField, render::Stratified<64>, loss::ProjectedThresholds, loss::DefaultNoise, presets::FastObjective>;

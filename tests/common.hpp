@@ -9,9 +9,9 @@
 #include <vector>
 
 /// Checks that string `s` contains `sub`, printing `s` on failure.
-#define CHECK_CONTAINS(s, sub)                                   \
-  do {                                                           \
-    const std::string evtest_s_ = (s);                           \
+#define CHECK_CONTAINS(s, sub)                                          \
+  do {                                                                  \
+    const std::string evtest_s_ = (s);                                  \
     CHECK_MESSAGE(evtest_s_.find(sub) != std::string::npos, evtest_s_); \
   } while (0)
 

@@ -84,8 +84,7 @@ int transpose_mismatches() {
       gemm::transpose(src.data(), rows, cols, ld, dst.data(), ldd);
       bool same = true;
       for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < ldd; ++j)
-          same = same && dst[j + i * ldd] == (j < cols ? src[i + j * ld] : -7.f);
+        for (int j = 0; j < ldd; ++j) same = same && dst[j + i * ldd] == (j < cols ? src[i + j * ld] : -7.f);
       bad += !same;
       ++checked;
     }
@@ -157,7 +156,8 @@ int main(int argc, char** argv) {
   for (auto& v : params) v = static_cast<float>(rng.uniform(-1, 1));
   for (auto& v : pts) v = static_cast<float>(rng.uniform(-0.1, 1.1));
   G::forward_batch(params.data(), pts.data(), n, yb.data());
-  for (int j = 0; j < n; ++j) G::forward(params.data(), &pts[3 * static_cast<std::size_t>(j)], &yp[static_cast<std::size_t>(j) * G::out_dims]);
+  for (int j = 0; j < n; ++j)
+    G::forward(params.data(), &pts[3 * static_cast<std::size_t>(j)], &yp[static_cast<std::size_t>(j) * G::out_dims]);
   std::printf("hash grid batch == point by point: %s\n", yb == yp ? "yes" : "no");
   ok = ok && yb == yp;
   ok = transpose_mismatches() == 0 && ok;

@@ -7,8 +7,8 @@ using namespace evnerf;
 TEST_CASE("ad: every operation's generated gradient matches finite differences") {
   auto f = [](auto a, auto b, auto c) {
     using ad::exp, ad::log, ad::sqrt, ad::relu, ad::sigmoid, ad::softplus, ad::square, ad::sin, ad::cos;
-    return exp(a * b) / (2.0 + square(c)) + log(1.5 + sigmoid(a - c)) - sqrt(3.0 + b * b) * softplus(c) +
-           relu(a + 0.3) * sin(b) + cos(c) * ad::max(a, b) - ad::min(b, c) * 0.7 - (-a);
+    return exp(a * b) / (2.0 + square(c)) + log(1.5 + sigmoid(a - c)) - sqrt(3.0 + b * b) * softplus(c) + relu(a + 0.3) * sin(b) +
+           cos(c) * ad::max(a, b) - ad::min(b, c) * 0.7 - (-a);
   };
   for (const std::array<double, 3> x : {std::array<double, 3>{0.3, -0.7, 1.1}, {-0.2, 0.9, -0.4}, {1.3, 0.1, 0.6}}) {
     CAPTURE(x[0]);

@@ -44,8 +44,8 @@ TEST_CASE("checkpoint_variant: a file goes to the variant of its architecture, b
   auto pick = [](const std::filesystem::path& p) {
     return [&]<class... V>(std::tuple<V...>*) { return checkpoint_variant<V...>(p); }(static_cast<List*>(nullptr));
   };
-  CHECK(pick(old_fast) == "dense");  // its name is a label; its grid decides
-  CHECK(pick(new_fast) == "fast-prune");       // two names of one type: the file's own name
+  CHECK(pick(old_fast) == "dense");       // its name is a label; its grid decides
+  CHECK(pick(new_fast) == "fast-prune");  // two names of one type: the file's own name
   // Without a variant of the old grid, the old file is refused with what it was written by.
   using OnlyNew = Variant<Pruned, "fast">;
   CHECK_THROWS_WITH(checkpoint_variant<OnlyNew>(old_fast), doctest::Contains("written by variant 'fast'"));
@@ -64,9 +64,9 @@ TEST_CASE("checkpoints: corrupt, truncated or mismatched files are refused with 
   // The architecture decides, not the name: a file of this model under another name loads, a model of
   // another architecture refuses it with both descriptions.
   CHECK_NOTHROW(b.deserialize(bytes, "x.ckpt"));
-  using Wider = EvNerf<field::FieldOf<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 32}, 4,
-                                      nn::MlpShape{.width = 16}>,
-                       render::Stratified<16>>;
+  using Wider = EvNerf<
+      field::FieldOf<nn::HashGrid<6, 2, 12, 4, 64>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 32}, 4, nn::MlpShape{.width = 16}>,
+      render::Stratified<16>>;
   static_assert(Wider::field_params != Tiny::field_params);
   Wider wider;
   CHECK_THROWS_WITH(wider.deserialize(bytes, "x.ckpt"),
@@ -105,8 +105,8 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   for (int s = 0; s < 2; ++s) a.train_step(f.td, 128, 3);
   const std::string good = a.serialize("tiny", f.run());
   const std::size_t n = a.params().size();
-  const std::size_t header = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) +
-                             (8 + Tiny::architecture().size());
+  const std::size_t header =
+      8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8 + 8 + 8 + 8 + 4 * 8 + (8 + Tiny::loss_description().size()) + (8 + Tiny::architecture().size());
   // Values as 4-byte floats: the parameters, Adam's m and v, then the average's count and decay, its values.
   auto with = [&](std::size_t at, float value) {
     std::string b = good.substr(0, good.size() - 8);
@@ -121,14 +121,16 @@ TEST_CASE("checkpoints: a NaN or infinite value (or a negative second moment) be
   }
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
   Tiny t;
-  CHECK_THROWS_WITH(t.deserialize(with(header + 4 * 5, nan), "x.ckpt"),
-                    doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: parameter 5 of " + std::to_string(n) + " is NaN").c_str()));
+  CHECK_THROWS_WITH(
+      t.deserialize(with(header + 4 * 5, nan), "x.ckpt"),
+      doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: parameter 5 of " + std::to_string(n) + " is NaN").c_str()));
   CHECK_THROWS_WITH(t.deserialize(with(header + 4 * (n + 2), -inf), "x.ckpt"),
                     doctest::Contains(("Adam's first moment of parameter 2 of " + std::to_string(n) + " is infinite").c_str()));
   CHECK_THROWS_WITH(t.deserialize(with(header + 4 * (2 * n + 7), -1.0f), "x.ckpt"),
                     doctest::Contains(("Adam's second moment of parameter 7 of " + std::to_string(n) + " is negative").c_str()));
-  CHECK_THROWS_WITH(t.deserialize(with(header + 12 * n + 16 + 4 * (n - 1), nan), "x.ckpt"),
-                    doctest::Contains(("the parameter average's value " + std::to_string(n - 1) + " of " + std::to_string(n) + " is NaN").c_str()));
+  CHECK_THROWS_WITH(
+      t.deserialize(with(header + 12 * n + 16 + 4 * (n - 1), nan), "x.ckpt"),
+      doctest::Contains(("the parameter average's value " + std::to_string(n - 1) + " of " + std::to_string(n) + " is NaN").c_str()));
   // The refused loads left the model as it was (a default model: no parameters).
   CHECK(t.params().size() == 0);
 }
@@ -233,7 +235,8 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     std::memcpy(other.data() + 8, &version, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(other), "x.ckpt"),
                       doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: format version " + std::to_string(version) +
-                                         "; this build reads version " + std::to_string(io::kCheckpointVersion) + " only").c_str()));
+                                         "; this build reads version " + std::to_string(io::kCheckpointVersion) + " only")
+                                            .c_str()));
   }
   // A nonsensical density length.
   const std::size_t at = 8 + 8 + (8 + 4) + 8 + 8 + 8 + 6 * 8;
@@ -245,8 +248,9 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   for (const double v : {-1.0, -std::numeric_limits<double>::min(), std::numeric_limits<double>::infinity()}) {
     bad = body;
     std::memcpy(bad.data() + at + 8, &v, 8);
-    CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
-                      doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: the background luminance is " + short_number(v)).c_str()));
+    CHECK_THROWS_WITH(
+        t.deserialize(with_sum(bad), "x.ckpt"),
+        doctest::Contains(("x.ckpt:0: corrupt or mismatched checkpoint: the background luminance is " + short_number(v)).c_str()));
   }
   // A backdrop flag other than 0 or 1.
   bad = body;
@@ -255,10 +259,8 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"), doctest::Contains("the backdrop's flag is 2"));
   // A refractory period's record that training never writes: a period beyond a second or not finite, a
   // moment not finite, a negative second moment, a learned flag other than 0 or 1.
-  for (const auto& [offset, v] : std::vector<std::pair<std::size_t, double>>{{24, 2.0},
-                                                                              {24, std::numeric_limits<double>::quiet_NaN()},
-                                                                              {32, std::numeric_limits<double>::infinity()},
-                                                                              {40, -1.0}}) {
+  for (const auto& [offset, v] : std::vector<std::pair<std::size_t, double>>{
+           {24, 2.0}, {24, std::numeric_limits<double>::quiet_NaN()}, {32, std::numeric_limits<double>::infinity()}, {40, -1.0}}) {
     bad = body;
     std::memcpy(bad.data() + at + offset, &v, 8);
     CHECK_THROWS_WITH(t.deserialize(with_sum(bad), "x.ckpt"),
@@ -270,9 +272,11 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   // A model trained with other bounds refuses the file, naming both losses.
   using TinyHalfSlack = EvNerf<TinyField, render::Stratified<16>, loss::JointThresholds, loss::DefaultNoise, loss::HalfSlackCounts>;
   TinyHalfSlack other;
-  CHECK_THROWS_WITH(other.deserialize(good, "m.ckpt"),
-                    doctest::Contains("m.ckpt:0: corrupt or mismatched checkpoint: trained with the loss 'bounds split 1, "
-                                      "thresholds joint, noise 50 per mille', this model's is 'bounds half-slack, thresholds joint, noise 50 per mille'"));
+  CHECK_THROWS_WITH(
+      other.deserialize(good, "m.ckpt"),
+      doctest::Contains(
+          "m.ckpt:0: corrupt or mismatched checkpoint: trained with the loss 'bounds split 1, "
+          "thresholds joint, noise 50 per mille', this model's is 'bounds half-slack, thresholds joint, noise 50 per mille'"));
   // The run's fields: offsets from the end of the body (8 boundaries' worth of f64 each, then its count, the camera).
   const std::size_t n_b = back.times.size();
   const std::size_t poses_at = body.size() - 64 * n_b, count_at = poses_at - 8, camera_at = count_at - 9 * 8, sensor_at = camera_at - 16,
@@ -283,7 +287,8 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     return with_sum(std::move(b));
   };
   const std::uint64_t no_shards = 0, many = std::uint64_t{1} << 40;
-  CHECK_THROWS_WITH(t.deserialize(patched(shards_at, &no_shards, 8), "x.ckpt"), doctest::Contains("shards per step (0) are not in 1..4096"));
+  CHECK_THROWS_WITH(t.deserialize(patched(shards_at, &no_shards, 8), "x.ckpt"),
+                    doctest::Contains("shards per step (0) are not in 1..4096"));
   const std::int64_t huge_width = 1 << 20;
   CHECK_THROWS_WITH(t.deserialize(patched(sensor_at, &huge_width, 8), "x.ckpt"), doctest::Contains("the run's sensor is 1048576 x"));
   const double nan = std::numeric_limits<double>::quiet_NaN(), negative = -1;
@@ -307,8 +312,10 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
   io::CheckpointRun fewer = run;
   fewer.times.pop_back();
   fewer.poses.pop_back();
-  CHECK_THROWS_WITH(t.deserialize(a.serialize("tiny", fewer), "x.ckpt"),
-                    doctest::Contains(("the run records " + std::to_string(n_b - 1) + " slice boundaries for " + std::to_string(n_b - 1) + " slices").c_str()));
+  CHECK_THROWS_WITH(
+      t.deserialize(a.serialize("tiny", fewer), "x.ckpt"),
+      doctest::Contains(
+          ("the run records " + std::to_string(n_b - 1) + " slice boundaries for " + std::to_string(n_b - 1) + " slices").c_str()));
   // The refused loads left the model as the good file made it.
   CHECK(t.params().values == a.params().values);
   // A file whose average does not match the model, or whose decay is out of range, is refused.

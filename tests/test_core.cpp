@@ -162,7 +162,8 @@ TEST_CASE("image-motion axis: along the translation, tangential under a roll, un
   CHECK(std::abs(a.dot(radial.normalized())) < 0.05);
   // An arc about a fixation point 1 m ahead: the point at 1 m stays put (no vote), nearer and farther ones
   // move in opposite senses along x; the axis is x either way.
-  const Pose l = Pose::look_at(Vec3(-0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0)), r = Pose::look_at(Vec3(0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0));
+  const Pose l = Pose::look_at(Vec3(-0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0)),
+             r = Pose::look_at(Vec3(0.1, 0, 0), Vec3(0, 0, 1), Vec3(0, -1, 0));
   a = image_motion_axis(cam, l, r, Vec3(0, 0, 1), 0.25, 4.0, 3);
   CHECK(std::abs(a.x()) == doctest::Approx(1.0).epsilon(1e-9));
   CHECK(std::abs(a.y()) < 1e-9);
@@ -200,8 +201,6 @@ TEST_CASE("COLMAP text model: world-to-camera converted to camera-to-world") {
   CHECK((images[0].c2w.t - C).norm() < 1e-9);
   CHECK_THROWS_WITH(io::parse_colmap_cameras("1 FISHEYE 10 10 1 2 3\n", "cameras.txt"),
                     doctest::Contains("cameras.txt:1: unsupported camera model 'FISHEYE'"));
-  CHECK_THROWS_WITH(io::parse_colmap_cameras("1 PINHOLE 10 10 1 2 3\n", "cameras.txt"),
-                    doctest::Contains("PINHOLE needs 4 parameters"));
-  CHECK_THROWS_WITH(io::parse_colmap_images("1 1 0 0 x 0 0 0 1 a.png\n", "images.txt"),
-                    doctest::Contains("images.txt:1:"));
+  CHECK_THROWS_WITH(io::parse_colmap_cameras("1 PINHOLE 10 10 1 2 3\n", "cameras.txt"), doctest::Contains("PINHOLE needs 4 parameters"));
+  CHECK_THROWS_WITH(io::parse_colmap_images("1 1 0 0 x 0 0 0 1 a.png\n", "images.txt"), doctest::Contains("images.txt:1:"));
 }

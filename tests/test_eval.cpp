@@ -158,7 +158,8 @@ TEST_CASE("alignment: the offset-only fit undoes a log offset per channel over t
   CHECK(std::string(eval::to_string(eval::Alignment::GlobalLogOffset)) == "global-log-offset");
 }
 
-TEST_CASE("flat frames: the log-affine and offset-only fits bring them to the views' mean log brightness per channel, below a true render") {
+TEST_CASE(
+    "flat frames: the log-affine and offset-only fits bring them to the views' mean log brightness per channel, below a true render") {
   std::vector<Image> gts;
   for (int f = 0; f < 3; ++f) {
     const Image g = det(24, 16, 0.1 + 0.2 * f, 0.5);
@@ -310,8 +311,8 @@ TEST_CASE("fine_error_by_depth: a pixel-scale error on the near pixels lands in 
   const auto h = eval::fine_error_by_depth({all_err}, {truth}, {holes}, 7.0);
   CHECK(h.pixel_share[0] + h.pixel_share[1] + h.pixel_share[2] == doctest::Approx(double(W - 2) / W));
   CHECK(eval::fine_error_by_depth({truth}, {truth}, {std::vector<float>(depth.size(), 9.0f)}, 7.0).edges.empty());
-  CHECK_THROWS_WITH_AS(eval::fine_error_by_depth({truth}, {truth}, {std::vector<float>(5, 1.0f)}, 7.0), doctest::Contains("5 values for 1536 pixels"),
-                       Error);
+  CHECK_THROWS_WITH_AS(eval::fine_error_by_depth({truth}, {truth}, {std::vector<float>(5, 1.0f)}, 7.0),
+                       doctest::Contains("5 values for 1536 pixels"), Error);
   CHECK_THROWS_AS(eval::fine_error_by_depth({truth}, {truth, truth}, d, 7.0), Error);
 }
 

@@ -191,9 +191,7 @@ TEST_CASE("hot pixels behind a colour mosaic: an object of one filter's colour i
   };
   for (int y = 8; y < 24; y += 2)
     for (int x = 8; x < 24; x += 2) fire(x, y, 100);
-  SUBCASE("the red sites share their count with the red sites two apart: none is suspected") {
-    CHECK(suspected_hot_pixels(ev).empty());
-  }
+  SUBCASE("the red sites share their count with the red sites two apart: none is suspected") { CHECK(suspected_hot_pixels(ev).empty()); }
   SUBCASE("the hot green site stands out against its neighbours and against the green sites two apart") {
     fire(13, 12, 300);
     const auto hot = suspected_hot_pixels(ev);

@@ -84,8 +84,8 @@ TEST_CASE("HDF5: the event_utils/HQF and DSEC layouts written by h5py read back 
     CHECK(r->events.x.back() == 24 % 8);
   }
   CHECK(io::read_hdf5_checked(fx / "dsec.h5", 0, 0, 5.00115, 5.00245).events.t == wd.events.t);
-  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 4.0, 5.00005).events.size() == 1);     // before the index: from event 0
-  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 5.00385, 9.0).events.size() == 1);     // after it: to the last event
+  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 4.0, 5.00005).events.size() == 1);  // before the index: from event 0
+  CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 5.00385, 9.0).events.size() == 1);  // after it: to the last event
   CHECK(io::read_hdf5(fx / "dsec.h5", 0, 0, 6.0, 7.0).events.empty());
   REQUIRE(hqf.frames.size() == 2);
   CHECK(hqf.frame_times == std::vector<double>{0.0, 0.002});
@@ -194,7 +194,8 @@ TEST_CASE("HDF5: bad files are refused with the file, the dataset and what is wr
     H5Tclose(padded);
     H5Fclose(f);
   }
-  CHECK_CONTAINS(err(dir / "padded.h5"), "dataset 'events/ys' has integers of 8 bits at bit 4 of 2-byte elements (whole-byte integers expected)");
+  CHECK_CONTAINS(err(dir / "padded.h5"),
+                 "dataset 'events/ys' has integers of 8 bits at bit 4 of 2-byte elements (whole-byte integers expected)");
   // Found by tests/fuzz (fuzz_hdf5): a sensor_resolution of 6.3e16 was cast to int (undefined behaviour).
   h5_events(dir / "res.h5", {1}, {1}, {0.1}, {1});
   {

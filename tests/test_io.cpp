@@ -40,9 +40,7 @@ TEST_CASE("events.txt: parses t x y p and maps polarity 1/0 to ±1") {
 }
 
 TEST_CASE("events.txt: every kind of bad input names the file, the line and what is wrong") {
-  auto err = [](const std::string& text) {
-    return error_of([&] { io::parse_events(text, "events.txt", 240, 180); });
-  };
+  auto err = [](const std::string& text) { return error_of([&] { io::parse_events(text, "events.txt", 240, 180); }); };
   CHECK_CONTAINS(err("0.1 1 2 1\n0.2 1 2\n"), "events.txt:2: line is truncated: field 'polarity' is missing");
   CHECK_CONTAINS(err("0.1 1 2 1\nabc 1 2 1\n"), "events.txt:2: field 't' is not a number: 'abc'");
   CHECK_CONTAINS(err("0.1 1.5 2 1\n"), "events.txt:1: field 'x' is not an integer");
@@ -130,8 +128,8 @@ TEST_CASE("events.txt: the threaded fast scanner equals the reference parser bit
 
 TEST_CASE("events.txt: numbers the scanner leaves to from_chars, and cut last lines, parse exactly as the reference does") {
   WarningCollector quiet;  // the cut lines warn
-  for (const char* text : {"1. 1 2 1\n", ".5 1 2 1\n", "12345678901234567890.5 1 2 1\n", "-0.5 1 2 1\n",
-                           "0.1234567890123456789 1 2 1\n", "5e-1 1 2 1\n", "0.5 1 2 1\r\n  \n", "0.5,1,2,1\n",
+  for (const char* text : {"1. 1 2 1\n", ".5 1 2 1\n", "12345678901234567890.5 1 2 1\n", "-0.5 1 2 1\n", "0.1234567890123456789 1 2 1\n",
+                           "5e-1 1 2 1\n", "0.5 1 2 1\r\n  \n", "0.5,1,2,1\n",
                            // a cut last line: dropped by both, after an event and after only a comment
                            "0.5 1 2 1\n0.6 1", "# t x y p\r\n0.0EEE 5 7 : value"}) {
     CAPTURE(text);
@@ -145,8 +143,7 @@ TEST_CASE("events.txt: numbers the scanner leaves to from_chars, and cut last li
         return std::string(e.what());
       }
     };
-    CHECK(outcome([](auto... a) { return io::parse_events(a...); }) ==
-          outcome([](auto... a) { return io::parse_events_reference(a...); }));
+    CHECK(outcome([](auto... a) { return io::parse_events(a...); }) == outcome([](auto... a) { return io::parse_events_reference(a...); }));
   }
 }
 
@@ -155,7 +152,8 @@ TEST_CASE("calib.txt, groundtruth.txt and images.txt: parsing and bad input") {
   CHECK(cam.fx() == doctest::Approx(335.4));
   CHECK(cam.distortion()[0] == doctest::Approx(-0.13));
   CHECK(io::parse_calib("200 200 120 90\n", "calib.txt", 240, 180).distorted() == false);
-  CHECK_CONTAINS(error_of([] { io::parse_calib("200 200 120 90 0.1\n", "calib.txt", 240, 180); }), "calib.txt:1: calibration needs 4, 8 or 9 numbers (fx fy cx cy [k1 k2 p1 p2 [k3]]), found 5");
+  CHECK_CONTAINS(error_of([] { io::parse_calib("200 200 120 90 0.1\n", "calib.txt", 240, 180); }),
+                 "calib.txt:1: calibration needs 4, 8 or 9 numbers (fx fy cx cy [k1 k2 p1 p2 [k3]]), found 5");
   CHECK_CONTAINS(error_of([] { io::parse_calib("", "calib.txt", 240, 180); }), "calibration file is empty");
   CHECK_CONTAINS(error_of([] { io::parse_calib("-1 200 120 90\n", "calib.txt", 240, 180); }), "focal lengths must be positive");
 
@@ -166,14 +164,16 @@ TEST_CASE("calib.txt, groundtruth.txt and images.txt: parsing and bad input") {
   // Found by tests/fuzz (fuzz_colmap): a zero quaternion in images.txt gave a NaN pose.
   CHECK_CONTAINS(error_of([] { io::parse_colmap_images("1 0 0 0 0 7 3.2 1 1 a.png\n\n", "images.txt"); }),
                  "images.txt:1: quaternion is far from unit length (norm 0)");
-  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 1\n0.1 1 2 3 0 0 0 1\n", "gt.txt"); }), "gt.txt:2: pose timestamps must increase strictly");
+  CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 1\n0.1 1 2 3 0 0 0 1\n", "gt.txt"); }),
+                 "gt.txt:2: pose timestamps must increase strictly");
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 3 0 0 0 0\n", "gt.txt"); }), "gt.txt:1: quaternion is far from unit length");
   CHECK_CONTAINS(error_of([] { io::parse_poses("0.1 1 2 nan 0 0 0 1\n", "gt.txt"); }), "'pz' is not finite");
 
   auto fr = io::parse_frames("0.0 images/a.png\n0.1 images/b c.png\n", "images.txt", "/data");
   REQUIRE(fr.size() == 2);
   CHECK(fr.paths[1] == fs::path("/data/images/b c.png"));
-  CHECK_CONTAINS(error_of([] { io::parse_frames("0.0\n", "images.txt", "/d"); }), "images.txt:1: line is truncated: field 'image path' is missing");
+  CHECK_CONTAINS(error_of([] { io::parse_frames("0.0\n", "images.txt", "/d"); }),
+                 "images.txt:1: line is truncated: field 'image path' is missing");
 }
 
 TEST_CASE("npy: round trip, atomic write, and corrupt files are reported") {
@@ -213,7 +213,8 @@ TEST_CASE("npy: round trip, atomic write, and corrupt files are reported") {
   // A shape whose product overflows is refused before allocating (the payload's size check would otherwise
   // compare against a wrapped product); so are 33 dimensions. In memory (parse_npy) as from a file.
   const std::string huge = npy(1, "'descr': '<f4', 'fortran_order': False, 'shape': (4294967296, 4294967296, 2), ", "");
-  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(huge, "g.npy"); }), "g.npy:0: cannot read .npy: shape '(4294967296, 4294967296, 2)' is too large");
+  CHECK_CONTAINS(error_of([&] { io::parse_npy<float>(huge, "g.npy"); }),
+                 "g.npy:0: cannot read .npy: shape '(4294967296, 4294967296, 2)' is too large");
   write(dir / "g.npy", huge);
   CHECK_CONTAINS(error_of([&] { io::load_npy<float>(dir / "g.npy"); }), "is too large to address");
   std::string dims = "(";
@@ -261,7 +262,7 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
     CAPTURE(f.name);
     CHECK(names.insert(f.name).second);
     CHECK(std::string(f.description).size() > 10);
-    CHECK((f.load != nullptr) == (f.detect != nullptr));           // a reader is found by its content
+    CHECK((f.load != nullptr) == (f.detect != nullptr));                 // a reader is found by its content
     CHECK((f.load != nullptr) == (std::string(f.unavailable).empty()));  // or the build says why not
   }
   CHECK(io::format_names().size() == names.size());
@@ -290,7 +291,8 @@ TEST_CASE("the format table: one name each, --format's list, every writer's outp
     ++written;
   }
   CHECK(written >= 1);
-  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }), "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
+  CHECK_CONTAINS(error_of([&] { io::detect_format(dir / "rec", "bag"); }),
+                 "unknown format 'bag' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
   // A format of the user's own (tests/parts.sh registers one end to end) must bring a new name, a detection
   // and a reader; a refused one leaves the table as it was.
   io::Format mine = io::formats()[3];
@@ -310,7 +312,8 @@ static io::Dataset many_events_folder(const fs::path& folder, int n) {
   fs::create_directories(folder);
   std::string text;
   for (int k = 0; k < n; ++k)
-    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) + (k % 3 ? " 1\n" : " 0\n");
+    text += std::to_string(0.1 + 1e-5 * k).substr(0, 9) + " " + std::to_string(k % 32) + " " + std::to_string(k % 24) +
+            (k % 3 ? " 1\n" : " 0\n");
   write(folder / "events.txt", text);
   write(folder / "calib.txt", "100 100 16 12\n");
   write(folder / "sensor.txt", "32 24\n");
@@ -435,7 +438,8 @@ TEST_CASE("a recording cut short (a camera that lost power) reads to its last wh
     CHECK(said.messages().empty());
     CHECK(io::parse_events("0.1 1 2 1\n0.2 1 2", "e.txt", 8, 8).size() == 1);
     REQUIRE(said.messages().size() == 1);
-    CHECK(said.messages()[0] == "e.txt:2: the file ends inside this line (a recording cut short); read to the line before, 7 bytes dropped");
+    CHECK(said.messages()[0] ==
+          "e.txt:2: the file ends inside this line (a recording cut short); read to the line before, 7 bytes dropped");
   }
   // A whole last line with a wrong value is an error, not a cut.
   CHECK_CONTAINS(error_of([] { io::parse_events("0.1 1 2 1\n0.2 1 2 7", "e.txt", 8, 8); }), "e.txt:2: unknown polarity code 7");
@@ -530,8 +534,9 @@ TEST_CASE("AEDAT4: a file of many packets reads the same on one or two threads, 
   CHECK(read(both, early).size() == std::size_t(70000));
   // The first event of packet 61 before the last of packet 60: named as its packet's event 0.
   const auto across = corrupt("across.aedat4", {{61 * 4096, us_of(61 * 4096 - 5)}}, -1);
-  CHECK_CONTAINS(error_of([&] { read(across); }), "(packet of stream 0): event 0: time runs backwards (" + std::to_string(us_of(61 * 4096 - 5)) +
-                                                    " µs after " + std::to_string(us_of(61 * 4096 - 1)) + " µs)");
+  CHECK_CONTAINS(error_of([&] { read(across); }), "(packet of stream 0): event 0: time runs backwards (" +
+                                                      std::to_string(us_of(61 * 4096 - 5)) + " µs after " +
+                                                      std::to_string(us_of(61 * 4096 - 1)) + " µs)");
   // Within a packet, after the batch's first.
   const auto within = corrupt("within.aedat4", {{40 * 4096 + 7, us_of(40 * 4096 + 5)}}, -1);
   CHECK_CONTAINS(error_of([&] { read(within); }), "event 7: time runs backwards");
@@ -645,7 +650,8 @@ TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read
   for (std::size_t k = 0; k < n * 6 / 10; ++k)
     if (words[k] >> 12 == 8) last_high = words[k];
   const std::vector<std::pair<fs::path, std::string>> bad = {
-      {bad_at("high_back.raw", n * 6 / 10, {static_cast<std::uint16_t>(0x8000 | ((last_high - 5) & 0xFFF))}), "EVT_TIME_HIGH runs backwards"},
+      {bad_at("high_back.raw", n * 6 / 10, {static_cast<std::uint16_t>(0x8000 | ((last_high - 5) & 0xFFF))}),
+       "EVT_TIME_HIGH runs backwards"},
       {bad_at("off_sensor.raw", n * 7 / 10, {0x2000 | 700}), "event at x 700"},
       {bad_at("time_back.raw", n * 8 / 10, {0x6000, 0x2000 | 1, 0x6FFF, 0x2000 | 2}), "time runs backwards"},
   };
@@ -765,8 +771,10 @@ TEST_CASE("PNG: write then read back, montage and depth colouring have the right
   std::string liar = good_png_for_lengths();
   const std::size_t idat_at = liar.find("IDAT") - 4;
   liar[idat_at] = 0x40;  // 0x40xxxxxx bytes
-  CHECK_CONTAINS(error_of([&] { io::decode_png(liar, "liar.png"); }), "liar.png:0: cannot decode image: truncated or corrupt PNG (a chunk of 10");
-  CHECK_CONTAINS(error_of([&] { io::decode_png(good_png_for_lengths().substr(0, 60), "cut.png"); }), "cut.png:0: cannot decode image: truncated or corrupt PNG");
+  CHECK_CONTAINS(error_of([&] { io::decode_png(liar, "liar.png"); }),
+                 "liar.png:0: cannot decode image: truncated or corrupt PNG (a chunk of 10");
+  CHECK_CONTAINS(error_of([&] { io::decode_png(good_png_for_lengths().substr(0, 60), "cut.png"); }),
+                 "cut.png:0: cannot decode image: truncated or corrupt PNG");
   // Found by tests/fuzz (fuzz_png): an empty IDAT chunk before the data made stb_image call memcpy with a null
   // destination (undefined behaviour; the fuzz build now tolerates only that, in stb's code). Such a file is
   // valid and decodes to the same pixels.
@@ -802,8 +810,10 @@ TEST_CASE("BMP textures: an uncompressed one decodes the right way up, a short o
     for (int x = 0; x < 3; ++x) CHECK(img.data[3 * (3 * y + x) + 1] == doctest::Approx((40 * x + 10 * y) / 255.0));
   CHECK_CONTAINS(error_of([] { io::decode_image(bmp_24(3, 2).substr(0, 60), "cut.bmp"); }),
                  "cut.bmp:0: cannot decode image: truncated BMP (6 bytes of pixel data for 3x2 pixels)");
-  CHECK_CONTAINS(error_of([] { io::decode_image(bmp_24(3, 2, 1), "rle.bmp"); }), "rle.bmp:0: cannot decode image: compressed BMP (compression 1");
-  CHECK_CONTAINS(error_of([] { io::decode_image("BM", "tiny.bmp"); }), "tiny.bmp:0: cannot decode image: a BMP header is at least 26 bytes");
+  CHECK_CONTAINS(error_of([] { io::decode_image(bmp_24(3, 2, 1), "rle.bmp"); }),
+                 "rle.bmp:0: cannot decode image: compressed BMP (compression 1");
+  CHECK_CONTAINS(error_of([] { io::decode_image("BM", "tiny.bmp"); }),
+                 "tiny.bmp:0: cannot decode image: a BMP header is at least 26 bytes");
   CHECK_CONTAINS(error_of([] { io::decode_image("GIF89a", "x.gif"); }), "x.gif:0: cannot decode image: not a PNG, JPEG, TGA or BMP file");
 }
 
@@ -973,7 +983,8 @@ TEST_CASE("the paper's colour geometry: site sensors, their cameras and events, 
       CHECK(p.at(g.events.x[i], g.events.y[i]) == 1);
     }
     // Red and blue have one site per block: Both changes nothing for them.
-    CHECK(io::channel_dataset(rec, p, 0, io::GreenSites::Both).camera.width() == geometry::site_camera(full, geometry::site_of(p, 0)).width());
+    CHECK(io::channel_dataset(rec, p, 0, io::GreenSites::Both).camera.width() ==
+          geometry::site_camera(full, geometry::site_of(p, 0)).width());
     CHECK(io::channel_dataset(rec, p, 0, io::GreenSites::Both).sites.empty());
   }
 }

@@ -100,7 +100,8 @@ TEST_CASE("io::load: a folder holding two layouts is refused unless --format nam
   CHECK(io::load(fx / "davis.bag", o).events.size() > 0);
 #endif
   o.format = "hdf";
-  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }), "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
+  CHECK_CONTAINS(error_of([&] { io::load(dir, o); }),
+                 "unknown format 'hdf' (known: ijrr, eventnerf, robust-e-nerf, evt2, evt3, dat, hdf5, rosbag, aedat4)");
   // A time window, for every reader: only the events inside it, and an error when none are.
   o.format = "eventnerf";
   o.t_begin = 0.00115;
@@ -150,7 +151,8 @@ TEST_CASE("EventNeRF layout and .npz: bad archives and folders are refused with 
   fs::remove(npz.parent_path() / "more.npz");
   write(dir / "s" / "train" / "pose" / "r_00003.txt", "1 0 0 0\n0 2 0 0\n0 0 1 0\n0 0 0 1\n");
   CHECK_CONTAINS(err(), "r_00003.txt:0: the upper-left 3x3 is not a rotation");
-  fs::copy_file(fx / "eventnerf" / "train" / "pose" / "r_00003.txt", dir / "s" / "train" / "pose" / "r_00003.txt", fs::copy_options::overwrite_existing);
+  fs::copy_file(fx / "eventnerf" / "train" / "pose" / "r_00003.txt", dir / "s" / "train" / "pose" / "r_00003.txt",
+                fs::copy_options::overwrite_existing);
   write(dir / "s" / "train" / "intrinsics" / "r_00002.txt", "21 0 3.5 0\n0 21 2.5 0\n0 0 1 0\n0 0 0 1\n");
   CHECK_CONTAINS(err(), "r_00002.txt:0: differs from r_00000.txt (one camera is read)");
   fs::remove(dir / "s" / "train" / "rgb" / "r_00004.png");
@@ -196,7 +198,10 @@ TEST_CASE("Robust e-NeRF layout: events, poses and calibration from its numpy ar
   CHECK(io::parse_npy_string(std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<U2', 'fortran_order': False, 'shape': (), }      \n", 64) +
                                  std::string("o\0\0\0k\0\0\0", 8),
                              "s") == "ok");
-  CHECK_CONTAINS(error_of([] { io::parse_npy_string(std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<f8', 'fortran_order': False, 'shape': (), }      \n", 64), "s"); }),
+  CHECK_CONTAINS(error_of([] {
+                   io::parse_npy_string(
+                       std::string("\x93NUMPY\x01\x00\x36\x00{'descr': '<f8', 'fortran_order': False, 'shape': (), }      \n", 64), "s");
+                 }),
                  "not a string ('<U') array");
   fs::remove_all(dir);
 }
@@ -247,16 +252,14 @@ TEST_CASE("Robust e-NeRF layout: times anywhere in int64 are refused or read exa
   const auto dir = temp_dir("ren_range");
   fs::copy(fx / "robust_e_nerf", dir / "s", fs::copy_options::recursive);
   auto events = [&](std::int64_t t0, std::int64_t t1) {
-    write(dir / "s" / "raw_events.npz",
-          npz_of({{"position", npy_of<std::uint16_t>("<u2", "(2, 2)", {1, 2, 3, 4})},
-                  {"timestamp", npy_of<std::int64_t>("<i8", "(2,)", {t0, t1})},
-                  {"polarity", npy_of<std::uint8_t>("|u1", "(2,)", {1, 0})}}));
+    write(dir / "s" / "raw_events.npz", npz_of({{"position", npy_of<std::uint16_t>("<u2", "(2, 2)", {1, 2, 3, 4})},
+                                                {"timestamp", npy_of<std::int64_t>("<i8", "(2,)", {t0, t1})},
+                                                {"polarity", npy_of<std::uint8_t>("|u1", "(2,)", {1, 0})}}));
   };
   auto poses = [&](std::int64_t a, std::int64_t b) {
-    write(dir / "s" / "camera_poses.npz",
-          npz_of({{"T_wc_position", npy_of<double>("<f8", "(2, 3)", {0, 0, 0, 0.1, 0, 0})},
-                  {"T_wc_orientation", npy_of<double>("<f8", "(2, 4)", {0, 0, 0, 1, 0, 0, 0, 1})},
-                  {"T_wc_timestamp", npy_of<std::int64_t>("<i8", "(2,)", {a, b})}}));
+    write(dir / "s" / "camera_poses.npz", npz_of({{"T_wc_position", npy_of<double>("<f8", "(2, 3)", {0, 0, 0, 0.1, 0, 0})},
+                                                  {"T_wc_orientation", npy_of<double>("<f8", "(2, 4)", {0, 0, 0, 1, 0, 0, 0, 1})},
+                                                  {"T_wc_timestamp", npy_of<std::int64_t>("<i8", "(2,)", {a, b})}}));
   };
   constexpr std::int64_t lo = std::numeric_limits<std::int64_t>::min(), hi = std::numeric_limits<std::int64_t>::max();
   // The helpers write what the reader reads: far from the ends of int64, exactly.
@@ -271,12 +274,14 @@ TEST_CASE("Robust e-NeRF layout: times anywhere in int64 are refused or read exa
   const std::int64_t first = -9'223'372'036'000'000'000;
   events(first, first + 1'000'000);
   poses(9'223'372'036'709'551'616, first + 2'000'000'000);
-  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "camera_poses.npz:0: pose 0: time 9223372036709551616 ns lies more than 104 days from the first event");
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }),
+                 "camera_poses.npz:0: pose 0: time 9223372036709551616 ns lies more than 104 days from the first event");
   // The same for an event, and for a first event whose whole second lies below int64's range.
   events(first, hi);
   CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "raw_events.npz:0: event 1: time 9223372036854775807 ns lies more than 104 days");
   events(lo, lo + 1'000'000);
-  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }), "raw_events.npz:0: event 0: time -9223372036854775808 ns has no whole second within int64's range");
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "s"); }),
+                 "raw_events.npz:0: event 0: time -9223372036854775808 ns has no whole second within int64's range");
   fs::remove_all(dir);
 }
 
@@ -285,10 +290,9 @@ TEST_CASE("EventNeRF and Robust e-NeRF folders: a sensor too large is refused be
   const auto dir = temp_dir("layout_size");
   // Robust e-NeRF: img_width and img_height of 65535 (each in range, together 4.3 G pixels).
   fs::copy(fx / "robust_e_nerf", dir / "r", fs::copy_options::recursive);
-  write(dir / "r" / "camera_calibration.npz",
-        npz_of({{"intrinsics", npy_of<double>("<f8", "(3, 3)", {20, 0, 3.5, 0, 21, 2.5, 0, 0, 1})},
-                {"img_height", npy_of<std::uint16_t>("<u2", "()", {65535})},
-                {"img_width", npy_of<std::uint16_t>("<u2", "()", {65535})}}));
+  write(dir / "r" / "camera_calibration.npz", npz_of({{"intrinsics", npy_of<double>("<f8", "(3, 3)", {20, 0, 3.5, 0, 21, 2.5, 0, 0, 1})},
+                                                      {"img_height", npy_of<std::uint16_t>("<u2", "()", {65535})},
+                                                      {"img_width", npy_of<std::uint16_t>("<u2", "()", {65535})}}));
   CHECK_CONTAINS(error_of([&] { io::load(dir / "r"); }),
                  "camera_calibration.npz (its img_width and img_height):0: sensor size 65535x65535 has more than 67108864 pixels");
   io::LoadOptions given;
@@ -301,6 +305,7 @@ TEST_CASE("EventNeRF and Robust e-NeRF folders: a sensor too large is refused be
   png += std::string("\0\0\x27\x10\0\0\x27\x10\x08\0\0\0\0", 13);
   png += std::string("\0\0\0\0", 4);  // the CRC, which the header read does not check
   write(dir / "e" / "train" / "rgb" / "r_00000.png", png);
-  CHECK_CONTAINS(error_of([&] { io::load(dir / "e"); }), "r_00000.png (the first frame, which gives the sensor size):0: sensor size 10000x10000");
+  CHECK_CONTAINS(error_of([&] { io::load(dir / "e"); }),
+                 "r_00000.png (the first frame, which gives the sensor size):0: sensor size 10000x10000");
   fs::remove_all(dir);
 }

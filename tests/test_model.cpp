@@ -31,16 +31,19 @@ using Window = loss::WindowInterval<4, loss::HalfSlackCounts>;
 template <int C>
 using StratifiedModel = EvNerf<HashTiny<C>, render::Stratified<8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
 template <int C>
-using HierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
+using HierarchicalModel =
+    EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, loss::SplitCounts<1>, double>;
 template <int C>
-using OccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+using OccupancyModel =
+    EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 // Samples spaced in log depth (render::LogDepth): uneven intervals between samples.
 template <int C>
-using LogOccupancyModel =
-    EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+using LogOccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<8, 8, 1, 0, 10, render::LogDepth>, loss::ProjectedThresholds,
+                                 loss::DefaultNoise, Window, double>;
 // 24 samples per ray (three chunks of the renderer's kEvalChunk): rays that stop early can skip some.
 template <int C>
-using LongOccupancyModel = EvNerf<HashTiny<C>, render::OccupancySkipping<24, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
+using LongOccupancyModel =
+    EvNerf<HashTiny<C>, render::OccupancySkipping<24, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 template <int C>
 using WindowHierarchicalModel = EvNerf<FreqTiny<C>, render::Hierarchical<8, 8>, loss::JointThresholds, loss::DefaultNoise, Window, double>;
 
@@ -52,10 +55,10 @@ using ExpRadianceModel =
            render::OccupancySkipping<8, 8, 1, 0>, loss::ProjectedThresholds, loss::DefaultNoise, Window, double>;
 
 // The examples' parts (examples/parts/) in one tiny model: a sampler, an encoding and a bound policy of a user's own.
-using CustomParts = EvNerf<field::FieldOf<mylab::TriangleWave<2>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 8}, 3,
-                                          nn::MlpShape{.width = 8}>,
-                           mylab::InverseDepth<8>, loss::ProjectedThresholds, loss::DefaultNoise,
-                           loss::WindowInterval<4, mylab::ShotNoiseCounts, events::EventPixels<100>>, double>;
+using CustomParts =
+    EvNerf<field::FieldOf<mylab::TriangleWave<2>, nn::SphericalHarmonics<2>, nn::MlpShape{.width = 8}, 3, nn::MlpShape{.width = 8}>,
+           mylab::InverseDepth<8>, loss::ProjectedThresholds, loss::DefaultNoise,
+           loss::WindowInterval<4, mylab::ShotNoiseCounts, events::EventPixels<100>>, double>;
 
 // Model M with the total-variation term added to its objective, off until a test gives it a weight.
 template <class M>
@@ -224,7 +227,7 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     if (!learn_background) CHECK(backdrop_grads == 0);
     else if (!terminate) CHECK(backdrop_grads > 0);
     CHECK(r.bad == 0);
-    CHECK(r.kinks * 50 <= r.checked);    // kinks are rare: the comparison covers almost every parameter
+    CHECK(r.kinks * 50 <= r.checked);   // kinks are rare: the comparison covers almost every parameter
     CHECK(r.nonzero * 3 >= r.checked);  // and most of them get a gradient at all
     // Only the window's thresholds can have a gradient.
     const std::size_t to = m.threshold_offset();
@@ -263,10 +266,9 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
 }
 }  // namespace
 
-TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model,
-                   StratifiedModel<1>, StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>,
-                   OccupancyModel<3>, LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>,
-                   CustomParts) {
+TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model, StratifiedModel<1>,
+                   StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>, OccupancyModel<3>,
+                   LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>, CustomParts) {
   check_model<Model>();
 }
 
@@ -283,7 +285,8 @@ TEST_CASE("samples spaced in log depth: a box with near <= 0 is refused when the
   REQUIRE(bx.near > 0);
   CHECK_NOTHROW(LogOccupancyModel<1>(f.td.slices.size(), bx, 5));
   bx.near = 0;
-  CHECK_THROWS_WITH_AS(LogOccupancyModel<1>(f.td.slices.size(), bx, 5), doctest::Contains("log depth need 0 < near < far, got near 0"), Error);
+  CHECK_THROWS_WITH_AS(LogOccupancyModel<1>(f.td.slices.size(), bx, 5), doctest::Contains("log depth need 0 < near < far, got near 0"),
+                       Error);
   CHECK_NOTHROW(OccupancyModel<1>(f.td.slices.size(), bx, 5));  // uniform spacing has no such need
 }
 
@@ -404,10 +407,10 @@ TEST_CASE("total-variation neighbours: any draws right or below, vertical and ho
   CHECK(std::string(loss::tv_neighbours_name(TvNeighbours::Vertical)) == "vertical");
   // Across: the pixel axis nearest the perpendicular of the motion axis, whichever its sign.
   for (double s : {1.0, -1.0}) {
-    CHECK(loss::tv_neighbour(3, 4, 10, 8, 1, TvNeighbours::Across, s, 0.0) == P{3, 5});            // along x: below
-    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, 0.0, s) == P{4, 4});            // along y: right
-    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, s) == P{2, 5});              // diagonal: below-left
-    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, -s) == P{4, 5});             // the other: below-right
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 1, TvNeighbours::Across, s, 0.0) == P{3, 5});              // along x: below
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, 0.0, s) == P{4, 4});              // along y: right
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, s) == P{2, 5});                // diagonal: below-left
+    CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s, -s) == P{4, 5});               // the other: below-right
     CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s * 0.95, s * 0.31) == P{3, 5});  // 18° from x: below
     CHECK(loss::tv_neighbour(3, 4, 10, 8, 0, TvNeighbours::Across, s * 0.9, s * 0.44) == P{2, 5});   // 26°: below-left
   }
@@ -488,7 +491,7 @@ TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical, 
   CHECK(b.params().grads != ga);
   const std::vector<double> gb = b.params().grads;
   b.gradients(f.td, 16, 3, 1);  // one pixel per tile
-  double worst = 0;  // summed in another order only
+  double worst = 0;             // summed in another order only
   for (std::size_t i = 0; i < gb.size(); ++i)
     worst = std::max(worst, std::abs(b.params().grads[i] - gb[i]) / std::max(1e-12, std::abs(gb[i])));
   CHECK(worst < 1e-9);

@@ -15,8 +15,8 @@
 using namespace evnerf;
 using namespace evnerf::nn;
 
-TEST_CASE_TEMPLATE("activations: derivative from the output equals the ad/ and finite-difference derivative", A, ReLU,
-                   Softplus, Sigmoid, TruncExp, Identity) {
+TEST_CASE_TEMPLATE("activations: derivative from the output equals the ad/ and finite-difference derivative", A, ReLU, Softplus, Sigmoid,
+                   TruncExp, Identity) {
   for (double x : {-2.3, -0.4, 0.35, 1.7, 4.0}) {
     CAPTURE(x);
     const double y = A::f(x);
@@ -46,8 +46,7 @@ void check_encoding_gradients(std::uint64_t seed, bool check_input) {
   };
   std::vector<double> dx(Enc::in_dims, 0.0), dp(Enc::n_params, 0.0);
   Enc::backward(params.data(), x.data(), w.data(), dp.data(), dx.data());
-  if (check_input)
-    CHECK(evtest::max_fd_error([&](const std::vector<double>& xx) { return loss(xx, params); }, x, dx) < 1e-6);
+  if (check_input) CHECK(evtest::max_fd_error([&](const std::vector<double>& xx) { return loss(xx, params); }, x, dx) < 1e-6);
   if (Enc::n_params > 0) {
     // Only the touched entries can be non-zero; check those and a sample of the rest.
     std::vector<std::size_t> idx;
@@ -150,8 +149,8 @@ using MlpSoftSkip = Mlp<5, 16, 4, 3, Softplus, Sigmoid, 1>;
 using MlpSkip0 = Mlp<4, 12, 3, 1, ReLU, Identity, 0>;
 using MlpLinear = Mlp<6, 4, 0, 2, ReLU, Identity>;
 using MlpSigmoidExp = Mlp<7, 24, 5, 4, Sigmoid, TruncExp, 2>;
-TEST_CASE_TEMPLATE("MLP: finite-difference gradient checks in double, with and without skips", M, MlpPlain,
-                   MlpSoftSkip, MlpSkip0, MlpLinear, MlpSigmoidExp) {
+TEST_CASE_TEMPLATE("MLP: finite-difference gradient checks in double, with and without skips", M, MlpPlain, MlpSoftSkip, MlpSkip0,
+                   MlpLinear, MlpSigmoidExp) {
   check_mlp_gradients<M>(11);
 }
 
@@ -210,9 +209,7 @@ void check_fused_against_reference(int n, double tol = 1e-4) {
 }
 
 TEST_CASE("fused MLP equals the plain layer-by-layer reference, forward and backward") {
-  SUBCASE("paper trunk shape (63 → 8×256, skip 4 → 257)") {
-    check_fused_against_reference<Mlp<63, 256, 8, 257, ReLU, Identity, 4>>(96);
-  }
+  SUBCASE("paper trunk shape (63 → 8×256, skip 4 → 257)") { check_fused_against_reference<Mlp<63, 256, 8, 257, ReLU, Identity, 4>>(96); }
   SUBCASE("small shape") { check_fused_against_reference<Mlp<16, 32, 2, 4, ReLU, Sigmoid>>(50); }
 }
 
@@ -257,9 +254,9 @@ TEST_CASE("Bf16 MLP: fused forward and backward equal the reference with the sam
 TEST_CASE("bf16: rounding, both packings and the product against their plain definitions") {
   // Round to nearest, ties to even, as the hardware conversion.
   CHECK(bf16::round(1.0f) == 0x3F80);
-  CHECK(bf16::round(1.0f + 0x1p-8f) == 0x3F80);              // tie → even (down)
-  CHECK(bf16::round(1.0f + 3 * 0x1p-8f) == 0x3F82);          // tie → even (up)
-  CHECK(bf16::round(1.0f + 0x1p-8f + 0x1p-20f) == 0x3F81);   // above the tie
+  CHECK(bf16::round(1.0f + 0x1p-8f) == 0x3F80);             // tie → even (down)
+  CHECK(bf16::round(1.0f + 3 * 0x1p-8f) == 0x3F82);         // tie → even (up)
+  CHECK(bf16::round(1.0f + 0x1p-8f + 0x1p-20f) == 0x3F81);  // above the tie
   CHECK(bf16::widen(bf16::round(-2.5f)) == -2.5f);
   CHECK(std::isnan(bf16::widen(bf16::round(std::numeric_limits<float>::quiet_NaN()))));
   CHECK(std::isinf(bf16::widen(bf16::round(std::numeric_limits<float>::infinity()))));
@@ -475,11 +472,11 @@ TEST_CASE("gemm: a Fast training step's product shapes are fused multiply-add ch
     int epi;  // 0 none, 1 bias + ReLU, 2 bias + identity, 3 ReLU's gradient
   };
   const Shape shapes[] = {
-      {64, 2048, 32, 64, false, false, 1},  {64, 2048, 64, 64, false, false, 1}, {64, 1187, 31, 64, false, false, 1},
-      {64, 702, 16, 64, false, false, 1},   {64, 777, 1, 64, false, false, 1},   {16, 2048, 64, 16, false, false, 1},
-      {1, 2048, 64, 1, false, false, 2},    {1, 1013, 64, 1, false, false, 1},   {64, 64, 2048, 64, true, true, 0},
-      {64, 31, 1234, 64, true, true, 0},    {16, 64, 2048, 16, true, true, 0},   {1, 64, 2048, 1, true, true, 0},
-      {1, 64, 423, 1, true, true, 0},       {15, 2048, 64, 31, false, true, 0},  {32, 1500, 64, 32, false, true, 0},
+      {64, 2048, 32, 64, false, false, 1}, {64, 2048, 64, 64, false, false, 1}, {64, 1187, 31, 64, false, false, 1},
+      {64, 702, 16, 64, false, false, 1},  {64, 777, 1, 64, false, false, 1},   {16, 2048, 64, 16, false, false, 1},
+      {1, 2048, 64, 1, false, false, 2},   {1, 1013, 64, 1, false, false, 1},   {64, 64, 2048, 64, true, true, 0},
+      {64, 31, 1234, 64, true, true, 0},   {16, 64, 2048, 16, true, true, 0},   {1, 64, 2048, 1, true, true, 0},
+      {1, 64, 423, 1, true, true, 0},      {15, 2048, 64, 31, false, true, 0},  {32, 1500, 64, 32, false, true, 0},
       {64, 2048, 64, 64, false, false, 3},
   };
   Rng rng(37);
@@ -493,11 +490,12 @@ TEST_CASE("gemm: a Fast training step's product shapes are fused multiply-add ch
       for (auto& e : v) e = static_cast<float>(rng.uniform(-1, 1));
       return v;
     };
-    const std::vector<float> a = draw(static_cast<std::size_t>(sh.ld) * std::max(sh.k, 1)), b = draw(static_cast<std::size_t>(sh.k) * sh.n + 1),
-                             bias = draw(static_cast<std::size_t>(sh.m)), y = draw(static_cast<std::size_t>(sh.ld) * sh.n);
+    const std::vector<float> a = draw(static_cast<std::size_t>(sh.ld) * std::max(sh.k, 1)),
+                             b = draw(static_cast<std::size_t>(sh.k) * sh.n + 1), bias = draw(static_cast<std::size_t>(sh.m)),
+                             y = draw(static_cast<std::size_t>(sh.ld) * sh.n);
     std::vector<float> c = draw(static_cast<std::size_t>(sh.ld) * sh.n);
     const std::vector<float> before = c;
-    const gemm::Operands<float> o{sh.m, sh.n, sh.k, a.data(), sh.ld, b.data(), sh.transposed_b ? sh.n : 1, sh.transposed_b ? 1 : sh.k,
+    const gemm::Operands<float> o{sh.m,     sh.n, sh.k, a.data(), sh.ld, b.data(), sh.transposed_b ? sh.n : 1, sh.transposed_b ? 1 : sh.k,
                                   c.data(), sh.ld};
     std::optional<gemm::ChainMismatch> bad;
     if (sh.accumulate) {
@@ -517,7 +515,8 @@ TEST_CASE("gemm: a Fast training step's product shapes are fused multiply-add ch
     CHECK_FALSE(bad);
     int touched = 0;  // rows past m (the wider buffer's) are never written
     for (int j = 0; j < sh.n; ++j)
-      for (int i = sh.m; i < sh.ld; ++i) touched += c[i + static_cast<std::size_t>(j) * sh.ld] != before[i + static_cast<std::size_t>(j) * sh.ld];
+      for (int i = sh.m; i < sh.ld; ++i)
+        touched += c[i + static_cast<std::size_t>(j) * sh.ld] != before[i + static_cast<std::size_t>(j) * sh.ld];
     CHECK(touched == 0);
   }
 }
@@ -551,7 +550,8 @@ double fit_image(int iters, double lr) {
   double mse = 0;
   for (int it = 0; it <= iters; ++it) {
     for (int k = 0; k < N; ++k)
-      Encoding::forward(pb.values.data(), &pts[static_cast<std::size_t>(k) * Encoding::in_dims], &enc[static_cast<std::size_t>(k) * Encoding::out_dims]);
+      Encoding::forward(pb.values.data(), &pts[static_cast<std::size_t>(k) * Encoding::in_dims],
+                        &enc[static_cast<std::size_t>(k) * Encoding::out_dims]);
     const float* y = Net::forward(pb.values.data() + Encoding::n_params, enc.data(), N, ws);
     mse = 0;
     for (int k = 0; k < N; ++k) {

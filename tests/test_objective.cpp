@@ -47,8 +47,8 @@ double window_value(const std::vector<double>& x, const std::vector<int>& np, co
 }
 /// The gradient for x, and dloss/dτ appended where `gtau` is given.
 template <class Bound>
-std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn, const Weighted& w = {},
-                                double* gtau = nullptr) {
+std::vector<double> window_grad(const std::vector<double>& x, const std::vector<int>& np, const std::vector<int>& nn,
+                                const Weighted& w = {}, double* gtau = nullptr) {
   const int L = static_cast<int>(np.size());
   std::vector<double> bp(L), bm(L), g1(L, 0.0), g2(L, 0.0);
   for (int k = 0; k < L; ++k) {
@@ -116,7 +116,9 @@ TEST_CASE_TEMPLATE("window objective under a refractory period: finite differenc
       nn[k] = static_cast<int>(rng.below(3));
       for (int e = 0; e < np[k] + nn[k]; ++e) {
         const double u = rng.uniform();
-        const double g = u < 0.15 ? std::numeric_limits<double>::infinity() : u < 0.3 ? tau0 * (0.5 + rng.uniform()) : tau0 * (1.7 + 8 * rng.uniform());
+        const double g = u < 0.15  ? std::numeric_limits<double>::infinity()
+                         : u < 0.3 ? tau0 * (0.5 + rng.uniform())
+                                   : tau0 * (1.7 + 8 * rng.uniform());
         gaps[k].push_back(e < np[k] ? g : -g);
       }
     }
@@ -209,9 +211,9 @@ TEST_CASE("window objective: a saturated count opens its end of the interval and
   };
   CHECK(cost(1.5, {}) == doctest::Approx(1.5 - 0.625));
   CHECK(cost(-0.5, {}) == doctest::Approx(0.375 + 0.5));
-  CHECK(cost(1.5, {0, 1}) == 0.0);  // ON limited in the window's second slice: no upper end
+  CHECK(cost(1.5, {0, 1}) == 0.0);                      // ON limited in the window's second slice: no upper end
   CHECK(cost(-0.5, {0, 1}) == doctest::Approx(0.875));  // the lower end stays
-  CHECK(cost(-0.5, {2, 0}) == 0.0);  // OFF limited: no lower end
+  CHECK(cost(-0.5, {2, 0}) == 0.0);                     // OFF limited: no lower end
   CHECK(cost(1.5, {2, 0}) == doctest::Approx(0.875));
   CHECK(cost(9.0, {3, 0}) == 0.0);
   CHECK(cost(0.5, {0, 0}) == 0.0);  // inside: nothing either way
@@ -328,9 +330,8 @@ TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel a
   events::draw_noise(4000, 0.05, 100, 3, b, plain);
   events::draw_noise(4000, 0.05, 100, 3, n, none, nullptr);
   REQUIRE(plain.size() == none.size());
-  CHECK(std::equal(plain.begin(), plain.end(), none.begin(), [](const auto& x, const auto& y) {
-    return x.pixel == y.pixel && x.slice == y.slice && x.positive == y.positive;
-  }));
+  CHECK(std::equal(plain.begin(), plain.end(), none.begin(),
+                   [](const auto& x, const auto& y) { return x.pixel == y.pixel && x.slice == y.slice && x.positive == y.positive; }));
   CHECK(std::any_of(plain.begin(), plain.end(), [&](const events::NoiseEvent& e) { return mask[e.pixel] == 0; }));
   // No sites in the window (null, or every pixel): the same draw as a window without the field.
   const events::PixelSites everywhere;
@@ -341,4 +342,3 @@ TEST_CASE("pixel policies and noise keep to a sensor's sites (a mosaic channel a
   events::EventPixels<100>::draw(w1, 40, r1, o1, taken);
   CHECK(o0 == o1);
 }
-

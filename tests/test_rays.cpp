@@ -25,8 +25,7 @@ using namespace evnerf;
 namespace fs = std::filesystem;
 using evtest::Fixture;
 
-TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluating the kept samples alone", F, TinyField,
-                   TinyBf16Field) {
+TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluating the kept samples alone", F, TinyField, TinyBf16Field) {
   Rng rng(11);
   std::vector<float> params(F::n_params);
   F::init(params.data(), rng);
@@ -66,7 +65,8 @@ TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluati
   std::vector<float> g_ref(F::n_params, 0.f);
   const float *sig = nullptr, *lum = nullptr;
   F::forward(params.data(), pk.data(), dk.data(), m, ref, &sig, &lum);
-  const std::vector<float> sig_ref(sig, sig + static_cast<std::size_t>(m) * so), lum_ref(lum, lum + static_cast<std::size_t>(m) * F::channels);
+  const std::vector<float> sig_ref(sig, sig + static_cast<std::size_t>(m) * so),
+      lum_ref(lum, lum + static_cast<std::size_t>(m) * F::channels);
   F::backward(params.data(), ref, dsig.data(), dlum.data(), g_ref.data());
   F::forward(params.data(), pb.data(), db.data(), nb, ref, &sig, &lum);
   F::backward(params.data(), ref, dsig.data(), dlum.data(), g_ref.data());
@@ -84,7 +84,7 @@ TEST_CASE_TEMPLATE("field: keep_only and deferred table gradients equal evaluati
   F::backward(params.data(), ws, dsig.data(), dlum.data(), g.data());
   const auto tables = static_cast<std::ptrdiff_t>(F::pos_encoding::n_params);
   CHECK(std::all_of(g.begin(), g.begin() + tables, [](float v) { return v == 0.f; }));  // not yet applied
-  CHECK(std::equal(g.begin() + tables, g.end(), g_ref.begin() + tables));              // the networks' are
+  CHECK(std::equal(g.begin() + tables, g.end(), g_ref.begin() + tables));               // the networks' are
   // The same deferred gradients applied in parts (a hash grid's levels), last part first: each part adds to
   // tables of its own, so the order of the parts does not matter and together they equal one flush.
   REQUIRE(F::encoding_grad_parts == F::pos_encoding::batch_parts);
@@ -256,12 +256,13 @@ TEST_CASE("training rays that stop early: the samples before each stop as withou
     // there and the backdrop).
     float behind = backdrop;
     for (int k = end; k < S; ++k) behind = std::max(behind, pf.comp[r].lum[k]);
-    CHECK(std::abs(ps.comp[r].color[0] - pf.comp[r].color[0]) <= R::kMinTransmittance * 1.01f * behind + 1e-6f * std::abs(pf.comp[r].color[0]));
+    CHECK(std::abs(ps.comp[r].color[0] - pf.comp[r].color[0]) <=
+          R::kMinTransmittance * 1.01f * behind + 1e-6f * std::abs(pf.comp[r].color[0]));
   }
   CHECK(wrong == 0);
   CAPTURE(stopped);
-  CHECK(stopped * 4 >= n_rays);   // many rays stopped
-  CHECK(stopped <= opaque);       // only those that the full pass makes opaque
+  CHECK(stopped * 4 >= n_rays);  // many rays stopped
+  CHECK(stopped <= opaque);      // only those that the full pass makes opaque
   CHECK(ps.active.size() < pf.active.size());
   // A training step: fewer samples forward, the same ones backward (those before the cut), a close loss
   // and close gradients.
@@ -340,8 +341,7 @@ TEST_CASE("training rays that stop early: the samples before each stop as withou
   CHECK(m.params().grads == ga);
 }
 
-TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the transmittance where rays stop", Model, Tiny,
-                   TinyWindow) {
+TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the transmittance where rays stop", Model, Tiny, TinyWindow) {
   Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   for (int s = 0; s < 80; ++s) m.train_step(f.td, 128, 3);
@@ -349,8 +349,10 @@ TEST_CASE_TEMPLATE("render: early termination changes a pixel by less than the t
   const auto a = m.render(f.td.camera, dirs, f.td.boundary_poses[1], true);
   const auto b = m.render(f.td.camera, dirs, f.td.boundary_poses[1], false);
   double worst = 0, worst_depth = 0;
-  for (std::size_t i = 0; i < a.luminance.data.size(); ++i) worst = std::max(worst, double(std::abs(a.luminance.data[i] - b.luminance.data[i])));
-  for (std::size_t i = 0; i < a.depth.data.size(); ++i) worst_depth = std::max(worst_depth, double(std::abs(a.depth.data[i] - b.depth.data[i])));
+  for (std::size_t i = 0; i < a.luminance.data.size(); ++i)
+    worst = std::max(worst, double(std::abs(a.luminance.data[i] - b.luminance.data[i])));
+  for (std::size_t i = 0; i < a.depth.data.size(); ++i)
+    worst_depth = std::max(worst_depth, double(std::abs(a.depth.data[i] - b.depth.data[i])));
   CAPTURE(worst);
   CAPTURE(worst_depth);
   CHECK(worst <= 1.5e-4);

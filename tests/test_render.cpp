@@ -55,8 +55,7 @@ struct RandomRay {
 };
 }  // namespace
 
-TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densities and raw luminance", Act, nn::ReLU,
-                   nn::TruncExp) {
+TEST_CASE_TEMPLATE("compositing: finite-difference check of colour w.r.t. densities and raw luminance", Act, nn::ReLU, nn::TruncExp) {
   const RandomRay q(9, 2, 3, 3.0);
   q.check_gradients<Act>(nullptr);
   const auto r = q.composite<Act>(nullptr);
@@ -133,7 +132,8 @@ TEST_CASE("distortion regulariser: equals the double sum, its weight gradient an
   // One weight alone: only its own interval's third is left; a point (the open interval) costs nothing.
   std::vector<double> one(S, 0.0), go(S);
   one[3] = 0.8;
-  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) == doctest::Approx(0.64 * (t[4] - t[3]) / (t[S - 1] - t[0]) / 3));
+  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) ==
+        doctest::Approx(0.64 * (t[4] - t[3]) / (t[S - 1] - t[0]) / 3));
   std::fill(one.begin(), one.end(), 0.0);
   one[S - 1] = 1;
   CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) == 0);
@@ -220,7 +220,8 @@ TEST_CASE_TEMPLATE("compositing: the shortcut for unevaluated samples writes the
     CHECK(plain.opacity > T(0));
     render::RayComposite<T> noisy, noisy_fast;
     render::composite_forward<T, Act, nn::TruncExp>(S, C, sigma.data(), 1, raw.data(), t.data(), T(1.3), noise_everywhere.data(), noisy);
-    render::composite_forward<T, Act, nn::TruncExp>(S, C, sigma.data(), 1, raw.data(), t.data(), T(1.3), noise.data(), noisy_fast, &skipped);
+    render::composite_forward<T, Act, nn::TruncExp>(S, C, sigma.data(), 1, raw.data(), t.data(), T(1.3), noise.data(), noisy_fast,
+                                                    &skipped);
     CHECK(same(noisy, noisy_fast));
     CHECK_FALSE(same(noisy, plain));  // the noise reaches the evaluated samples
   };
@@ -312,8 +313,8 @@ struct OpaqueColourNet {
   using output_activation = nn::Identity;
   static std::string name() { return "opaque"; }
 };
-using OpaqueField = field::Field<nn::HashGrid<4, 2, 10, 4, 32>, nn::SphericalHarmonics<2>, nn::Mlp<8, 8, 1, 4, nn::ReLU, nn::Identity>,
-                                 OpaqueColourNet>;
+using OpaqueField =
+    field::Field<nn::HashGrid<4, 2, 10, 4, 32>, nn::SphericalHarmonics<2>, nn::Mlp<8, 8, 1, 4, nn::ReLU, nn::Identity>, OpaqueColourNet>;
 static_assert(!OpaqueField::view_weights_known && OpaqueField::view_begin == OpaqueField::view_end,
               "a colour network without layer_out names no view weights");
 }  // namespace

@@ -117,14 +117,15 @@ TEST_CASE("ROS bag: topics by name when two could serve, colour and Bayer frames
   const auto m = io::frame_image(d.frames, 0);
   REQUIRE(m.channels == 3);
   auto raw = [](int x, int y) { return static_cast<float>((7 * (x + 8 * y)) % 256) / 255.f; };
-  CHECK(m.at(2, 2, 0) == doctest::Approx(raw(2, 2)));                                          // R site
+  CHECK(m.at(2, 2, 0) == doctest::Approx(raw(2, 2)));                                            // R site
   CHECK(m.at(2, 2, 1) == doctest::Approx((raw(1, 2) + raw(3, 2) + raw(2, 1) + raw(2, 3)) / 4));  // G: 4 neighbours
   CHECK(m.at(2, 2, 2) == doctest::Approx((raw(1, 1) + raw(3, 1) + raw(1, 3) + raw(3, 3)) / 4));  // B: 4 diagonals
 
   o.images_topic = "none";
   CHECK(io::load(fx / "colour.bag", o).frames.size() == 0);
   o.events_topic = "/vicon/odom";
-  CHECK_CONTAINS(error_of([&] { io::load(fx / "colour.bag", o); }), "topic /vicon/odom (nav_msgs/Odometry) cannot be the events: it has no field 'events'");
+  CHECK_CONTAINS(error_of([&] { io::load(fx / "colour.bag", o); }),
+                 "topic /vicon/odom (nav_msgs/Odometry) cannot be the events: it has no field 'events'");
   o.events_topic = "/dvs/nothing";
   CHECK_CONTAINS(error_of([&] { io::load(fx / "colour.bag", o); }),
                  "no topic '/dvs/nothing' (--events-topic); the bag's topics: /dvs/events (dvs_msgs/EventArray), /dvs/image_color");
@@ -176,7 +177,8 @@ TEST_CASE("ROS bag: a bag without its index (a recording that never closed) is s
     const auto c = io::load(dir / "badidx.bag");
     CHECK(c.events.t == a.events.t);
     REQUIRE(said.messages().size() == 1);
-    CHECK_CONTAINS(said.messages()[0], "badidx.bag: the bag header places its index at byte " + std::to_string(past) + ", past the end of the file");
+    CHECK_CONTAINS(said.messages()[0],
+                   "badidx.bag: the bag header places its index at byte " + std::to_string(past) + ", past the end of the file");
   }
   // One before the first record is refused: nothing cut short puts it there.
   const std::uint64_t before = 20;
@@ -195,33 +197,41 @@ TEST_CASE("ROS bag: damaged and strange bags are refused with the file and the r
   CHECK_CONTAINS(err("#ROSBAG V1.2\nxxxx"), "b.bag:0: ROS bag version '1.2' is not read (only 2.0");
   CHECK_CONTAINS(err("#ROSBAG V9999"), "b.bag:0: ROS bag version '9999' is not read");  // no newline (found by fuzz_rosbag)
   CHECK_CONTAINS(err("#ROSBAG V2.0\n"), "record header length at byte 13 runs past the end of the file");
-  const std::string header = bag_record({{"op", "\x03"}, {"index_pos", bytes_of<std::uint64_t>(0)}, {"conn_count", bytes_of<std::uint32_t>(0)},
+  const std::string header = bag_record({{"op", "\x03"},
+                                         {"index_pos", bytes_of<std::uint64_t>(0)},
+                                         {"conn_count", bytes_of<std::uint32_t>(0)},
                                          {"chunk_count", bytes_of<std::uint32_t>(0)}},
                                         std::string(100, ' '));
   CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header), "the bag has no connections");
-  CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + bag_record({{"op", "\x05"}, {"compression", "zstd"}, {"size", bytes_of<std::uint32_t>(3)}}, "abc")),
-                 "chunk at byte " + std::to_string(13 + header.size()) + ": unknown chunk compression 'zstd'");
-  CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + bag_record({{"op", "\x05"}, {"compression", "bz2"}, {"size", bytes_of<std::uint32_t>(1000)}}, "BZh9garbage")),
-                 "chunk at byte " + std::to_string(13 + header.size()) + ": corrupt bz2 chunk");
-  CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + bag_record({{"op", "\x05"}, {"compression", "none"}, {"size", bytes_of<std::uint32_t>(7)}}, "abc")),
-                 "uncompressed chunk holds 3 bytes, its header says 7");
-  // A header that claims 2 GB for a few compressed bytes allocates nothing for them.
+  CHECK_CONTAINS(
+      err("#ROSBAG V2.0\n" + header + bag_record({{"op", "\x05"}, {"compression", "zstd"}, {"size", bytes_of<std::uint32_t>(3)}}, "abc")),
+      "chunk at byte " + std::to_string(13 + header.size()) + ": unknown chunk compression 'zstd'");
   CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header +
-                     bag_record({{"op", "\x05"}, {"compression", "lz4"}, {"size", bytes_of<std::uint32_t>(0x7fffffff)}}, "\x04\x22\x4d\x18garbage")),
-                 "corrupt lz4 chunk");
+                     bag_record({{"op", "\x05"}, {"compression", "bz2"}, {"size", bytes_of<std::uint32_t>(1000)}}, "BZh9garbage")),
+                 "chunk at byte " + std::to_string(13 + header.size()) + ": corrupt bz2 chunk");
+  CHECK_CONTAINS(
+      err("#ROSBAG V2.0\n" + header + bag_record({{"op", "\x05"}, {"compression", "none"}, {"size", bytes_of<std::uint32_t>(7)}}, "abc")),
+      "uncompressed chunk holds 3 bytes, its header says 7");
+  // A header that claims 2 GB for a few compressed bytes allocates nothing for them.
+  CHECK_CONTAINS(
+      err("#ROSBAG V2.0\n" + header +
+          bag_record({{"op", "\x05"}, {"compression", "lz4"}, {"size", bytes_of<std::uint32_t>(0x7fffffff)}}, "\x04\x22\x4d\x18garbage")),
+      "corrupt lz4 chunk");
   // A connection whose definition lacks a type it uses; an event message that ends early.
-  const std::string conn_data = bag_record({{"topic", "/e"}, {"type", "my/Events"}, {"md5sum", "x"}, {"message_definition", "Ev[] events\n"}}, "");
-  const std::string conn = bag_record({{"op", "\x07"}, {"conn", bytes_of<std::uint32_t>(0)}, {"topic", "/e"}},
-                                      conn_data.substr(4, conn_data.size() - 8));
+  const std::string conn_data =
+      bag_record({{"topic", "/e"}, {"type", "my/Events"}, {"md5sum", "x"}, {"message_definition", "Ev[] events\n"}}, "");
+  const std::string conn =
+      bag_record({{"op", "\x07"}, {"conn", bytes_of<std::uint32_t>(0)}, {"topic", "/e"}}, conn_data.substr(4, conn_data.size() - 8));
   CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + conn), "no events topic");
   CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + conn), "field 'events' of my/Events has type 'Ev', whose definition is not included");
   const std::string def = "Ev[] events\n================\nMSG: my/Ev\nuint16 x\nuint16 y\ntime ts\nbool polarity\n";
   const std::string conn2_data = bag_record({{"topic", "/e"}, {"type", "my/Events"}, {"md5sum", "x"}, {"message_definition", def}}, "");
-  const std::string conn2 = bag_record({{"op", "\x07"}, {"conn", bytes_of<std::uint32_t>(0)}, {"topic", "/e"}},
-                                       conn2_data.substr(4, conn2_data.size() - 8));
+  const std::string conn2 =
+      bag_record({{"op", "\x07"}, {"conn", bytes_of<std::uint32_t>(0)}, {"topic", "/e"}}, conn2_data.substr(4, conn2_data.size() - 8));
   const std::string short_msg = bag_record({{"op", "\x02"}, {"conn", bytes_of<std::uint32_t>(0)}, {"time", bytes_of<std::uint64_t>(5)}},
                                            bytes_of<std::uint32_t>(3) + std::string(20, '\0'));
-  CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + conn2 + short_msg), "(topic /e, message 0): message ends early (needs 39 more bytes, has 20)");
+  CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + conn2 + short_msg),
+                 "(topic /e, message 0): message ends early (needs 39 more bytes, has 20)");
   // Events that go back in time inside one message; a message of a connection never defined.
   std::string two;
   two += bytes_of<std::uint16_t>(1) + bytes_of<std::uint16_t>(1) + bytes_of<std::uint32_t>(10) + bytes_of<std::uint32_t>(5) + '\1';
@@ -232,7 +242,8 @@ TEST_CASE("ROS bag: damaged and strange bags are refused with the file and the r
   const std::string orphan = bag_record({{"op", "\x02"}, {"conn", bytes_of<std::uint32_t>(9)}, {"time", bytes_of<std::uint64_t>(5)}}, "");
   CHECK_CONTAINS(err("#ROSBAG V2.0\n" + header + conn2 + orphan), "message of connection 9, which the bag never defines");
   // Pixels outside the sensor given; no calibration anywhere.
-  std::string one = bytes_of<std::uint16_t>(300) + bytes_of<std::uint16_t>(1) + bytes_of<std::uint32_t>(10) + bytes_of<std::uint32_t>(5) + '\1';
+  std::string one =
+      bytes_of<std::uint16_t>(300) + bytes_of<std::uint16_t>(1) + bytes_of<std::uint32_t>(10) + bytes_of<std::uint32_t>(5) + '\1';
   const std::string wide = bag_record({{"op", "\x02"}, {"conn", bytes_of<std::uint32_t>(0)}, {"time", bytes_of<std::uint64_t>(5)}},
                                       bytes_of<std::uint32_t>(1) + one);
   write(dir / "calib.txt", "10 10 4 3\n");
@@ -308,7 +319,8 @@ TEST_CASE("ROS bag: message definitions (constants, arrays, nested and implicit 
   const unsigned char m16[] = {0x12, 0x34, 0xff, 0xff};  // 2x1 mono16, big-endian
   im = bag_image(2, 1, "mono16", true, 4, m16, sizeof m16, where);
   CHECK(im.at(0, 0) == doctest::Approx(0x1234 / 65535.0));
-  CHECK_CONTAINS(error_of([&] { bag_image(2, 1, "rgb8", false, 5, rgb, sizeof rgb, where); }), "img: row step 5 is shorter than a row of rgb8 pixels");
+  CHECK_CONTAINS(error_of([&] { bag_image(2, 1, "rgb8", false, 5, rgb, sizeof rgb, where); }),
+                 "img: row step 5 is shorter than a row of rgb8 pixels");
   CHECK_CONTAINS(error_of([&] { bag_image(2, 2, "rgb8", false, 8, rgb, sizeof rgb, where); }), "image data holds 8 bytes");
   CHECK_CONTAINS(error_of([&] { bag_image(2, 1, "yuv422", false, 8, rgb, sizeof rgb, where); }), "unknown image encoding 'yuv422'");
 

@@ -77,10 +77,18 @@ class ThreadGroup final : public train::Group {
   ThreadGroup(Pair& p, int rank) : p_(p), rank_(rank) {}
   int rank() const override { return rank_; }
   int size() const override { return 2; }
-  void sum(float* x, std::size_t n) override { all(x, n, [](float a, float b) { return a + b; }); }
-  void sum(double* x, std::size_t n) override { all(x, n, [](double a, double b) { return a + b; }); }
-  void bit_or(std::uint64_t* x, std::size_t n) override { all(x, n, [](std::uint64_t a, std::uint64_t b) { return a | b; }); }
-  void broadcast(std::string& bytes) override { all(&bytes, 1, [](const std::string& a, const std::string&) { return a; }); }
+  void sum(float* x, std::size_t n) override {
+    all(x, n, [](float a, float b) { return a + b; });
+  }
+  void sum(double* x, std::size_t n) override {
+    all(x, n, [](double a, double b) { return a + b; });
+  }
+  void bit_or(std::uint64_t* x, std::size_t n) override {
+    all(x, n, [](std::uint64_t a, std::uint64_t b) { return a | b; });
+  }
+  void broadcast(std::string& bytes) override {
+    all(&bytes, 1, [](const std::string& a, const std::string&) { return a; });
+  }
   [[noreturn]] void abort(const std::string& m, int) override { throw std::runtime_error(m); }
 
  private:

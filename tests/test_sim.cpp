@@ -132,15 +132,18 @@ TEST_CASE("scene descriptions: errors name the file and line") {
   CHECK_CONTAINS(err("light 0 0 0 0.5 0.5\n"), "light direction must be a non-zero vector");
   CHECK_CONTAINS(err("box 0 0 2 1 1 1 noise 1 1000000 3\n"), "noise octaves must lie in 1 … 16");
   CHECK_CONTAINS(err("box 0 0 2 1 1 1 image /dev/zero 1\n"), "texture image '/dev/zero' is not a file");
-  CHECK_CONTAINS(err("box 0 0 2 1 1 1 checker 1\npath slider 0 0 0 1 0 0 0 0 1 1e9\n"), "s.txt:2: path duration must lie in (0, 3600] seconds");
+  CHECK_CONTAINS(err("box 0 0 2 1 1 1 checker 1\npath slider 0 0 0 1 0 0 0 0 1 1e9\n"),
+                 "s.txt:2: path duration must lie in (0, 3600] seconds");
   const std::string long_word = err(std::string(5000, 'q') + " 1 2 3\n");
   CHECK_CONTAINS(long_word, "unknown directive 'qqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqqq… (5000 characters)'");
   CHECK(long_word.size() < 300);
 }
 
 TEST_CASE("simulator: Bayer mode writes colour frames and events see one channel per pixel") {
-  auto spec = sim::parse_scene("plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3 colors 0.9 0.2 0.1 0.1 0.3 0.8\n"
-                               "path slider 0 0 0 0.1 0 0 0 0 1 0.2\n", "c.txt");
+  auto spec = sim::parse_scene(
+      "plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3 colors 0.9 0.2 0.1 0.1 0.3 0.8\n"
+      "path slider 0 0 0 0.1 0 0 0 0 1 0.2\n",
+      "c.txt");
   auto cfg = small_sensor();
   cfg.bayer = true;
   sim::Simulator s(spec, cfg);
@@ -229,10 +232,11 @@ TEST_CASE("random scenes: photos from --textures, a folder without PNGs is refus
 }
 
 TEST_CASE("simulator: the dark end is log(I + offset), not a clamp, HDR truth is written and read back") {
-  auto spec = sim::parse_scene("light 0 0 1 0.02 2.0\n"
-                               "plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3 colors 0.9 0.9 0.9 0.001 0.001 0.001\n"
-                               "path slider 0 0 0 0.1 0 0 0 0 1 0.3\n",
-                               "hdr.txt");
+  auto spec = sim::parse_scene(
+      "light 0 0 1 0.02 2.0\n"
+      "plane 0 0 2 0 0 -1 1 0 0 0 0 checker 3 colors 0.9 0.9 0.9 0.001 0.001 0.001\n"
+      "path slider 0 0 0 0.1 0 0 0 0 1 0.3\n",
+      "hdr.txt");
   auto cfg = small_sensor();
   cfg.log_offset = 1e-3;
   sim::Simulator s(spec, cfg);
@@ -335,8 +339,8 @@ TEST_CASE("sensor: a pixel is held in reset for its refractory period, so each e
   REQUIRE(moved > 50);
   CAPTURE(err_plain / moved);
   CAPTURE(err_weighted / moved);
-  CHECK(err_plain / moved > 0.3);                   // the period lost a good share of each edge's change
-  CHECK(err_weighted < 0.5 * err_plain);            // which the dead-time weights give back
+  CHECK(err_plain / moved > 0.3);         // the period lost a good share of each edge's change
+  CHECK(err_weighted < 0.5 * err_plain);  // which the dead-time weights give back
 }
 
 TEST_CASE("sensor: a hot pixel fires at its rate on a static scene, C+ and C- scale the ON and OFF counts") {
@@ -527,7 +531,9 @@ TEST_CASE("mesh: a box mesh renders the intensity and depth of the analytic box 
   Rng rng(5);
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x)
-      for (int k = 0; k < 3; ++k) tex.data[(y * 8 + x) * 3 + k] = (x == 7 || y == 7) ? tex.data[((y % 7) * 8 + x % 7) * 3 + k] : static_cast<float>(std::round(rng.uniform() * 255) / 255);
+      for (int k = 0; k < 3; ++k)
+        tex.data[(y * 8 + x) * 3 + k] =
+            (x == 7 || y == 7) ? tex.data[((y % 7) * 8 + x % 7) * 3 + k] : static_cast<float>(std::round(rng.uniform() * 255) / 255);
   io::write_png(s.dir / "tex.png", tex);
   write_text(s.dir / "box.mtl", "newmtl m\nKd 1 1 1\nmap_Kd tex.png\n");
   const Vec3 c(0.3, 0.2, 3.0);
@@ -610,7 +616,8 @@ TEST_CASE("scene: an environment picture is what the rays that hit nothing see, 
     for (int x = 0; x < 8; ++x)
       for (int k = 0; k < 3; ++k) env.data[(y * 8 + x) * 3 + k] = y == 0 ? 0.f : (x / 2 == 3 || x / 2 == k) ? 1.f : 0.f;
   io::write_png(s.dir / "env.png", env);
-  const auto spec = sim::parse_scene("background image env.png\nsphere 0 0 50 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir);
+  const auto spec =
+      sim::parse_scene("background image env.png\nsphere 0 0 50 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir);
   REQUIRE(spec.scene.environment);
   const auto& sc = spec.scene;
   auto near = [](const Vec3& a, const Vec3& b) { return (a - b).norm() < 1e-6; };
@@ -623,8 +630,9 @@ TEST_CASE("scene: an environment picture is what the rays that hit nothing see, 
   double t = 0;
   CHECK(near(sc.shade(Vec3::Zero(), Vec3(1, 0, -1), 0.01, &t), Vec3(1, 1, 1)));  // through shade, a miss
   CHECK(std::isinf(t));
-  CHECK_THROWS_WITH(sim::parse_scene("background image absent.png\nsphere 0 0 5 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir),
-                    doctest::Contains("e.txt:1: cannot load the environment 'absent.png'"));
+  CHECK_THROWS_WITH(
+      sim::parse_scene("background image absent.png\nsphere 0 0 5 1 checker 1\npath slider 0 0 0 0 0 0 0 0 1 0.5\n", "e.txt", s.dir),
+      doctest::Contains("e.txt:1: cannot load the environment 'absent.png'"));
 }
 
 TEST_CASE("mesh: the orbit looks at the centre at its radius and elevation, one revolution a second, and the spiral climbs") {
@@ -636,8 +644,8 @@ TEST_CASE("mesh: the orbit looks at the centre at its radius and elevation, one 
     CHECK((eye - c).norm() == doctest::Approx(3.0));
     CHECK((forward - (c - eye).normalized()).norm() < 1e-9);
     CHECK(-(eye - c).y() / 3.0 == doctest::Approx(0.5));  // sin 30°, above the centre (up is -y)
-    CHECK((orbit.pose(t + 1).t - eye).norm() < 1e-9);      // one revolution a second
-    CHECK((orbit.pose(t + 0.5).t - eye).norm() > 5.0);     // half a revolution: the far side
+    CHECK((orbit.pose(t + 1).t - eye).norm() < 1e-9);     // one revolution a second
+    CHECK((orbit.pose(t + 0.5).t - eye).norm() > 5.0);    // half a revolution: the far side
   }
   const auto spiral = sim::spiral_path(c, 2.0, 5 * std::numbers::pi / 180, 75 * std::numbers::pi / 180, 3, 3.0);
   double last = -1;
@@ -673,8 +681,8 @@ TEST_CASE("mesh: files that cannot be a scene's mesh are refused naming the file
   CHECK_CONTAINS(refused("badmap.obj"), "texture 'bad.png': cannot decode image");
   // A TGA (no signature: known by its name) whose header announces more pixels than the file holds.
   std::string tga(18, '\0');
-  tga[2] = 2;                    // uncompressed true colour
-  tga[12] = 64, tga[14] = 64;    // 64 x 64
+  tga[2] = 2;                  // uncompressed true colour
+  tga[12] = 64, tga[14] = 64;  // 64 x 64
   tga[16] = 24;
   write_text(s.dir / "short.tga", tga + std::string(100, '\x7f'));
   write_text(s.dir / "tga.mtl", "newmtl m\nKd 1 1 1\nmap_Kd short.tga\n");
@@ -713,9 +721,9 @@ TEST_CASE("mesh: texture names resolve as model viewers resolve them, one not fo
   };
   CHECK(found(model, "../Art/Wood/Oak.PNG") == "Art/Wood/Oak.PNG");
   CHECK(found(model, "..\\art\\wood\\oak.png") == "Art/Wood/Oak.PNG");  // separators and case
-  CHECK(found(model, "//../ART/wood/OAK.png") == "Art/Wood/Oak.PNG");       // Blender's "//"
+  CHECK(found(model, "//../ART/wood/OAK.png") == "Art/Wood/Oak.PNG");   // Blender's "//"
   CHECK(found(model, (s.dir / "Art/Wood/Oak.PNG").string()) == "Art/Wood/Oak.PNG");
-  CHECK(found(model, "C:\\Users\\me\\TOP.TGA") == "m/top.tga");      // the author's path, the file beside the model
+  CHECK(found(model, "C:\\Users\\me\\TOP.TGA") == "m/top.tga");  // the author's path, the file beside the model
   CHECK(found(model, "/nowhere/top.tga") == "m/top.tga");
   CHECK(found(s.dir / "m" / "knight.md2", "$texture_dummy.bmp") == "m/knight2.bmp");  // an MD2 model's skin
   write_text(s.dir / "m" / "Knight.bmp", "");
@@ -728,8 +736,9 @@ TEST_CASE("mesh: texture names resolve as model viewers resolve them, one not fo
   // A model whose two materials name a texture that is nowhere: it loads, warns once naming the texture, and
   // both materials keep their diffuse colour.
   write_text(s.dir / "m" / "nomap.mtl", "newmtl a\nKd 0.5 0.25 1\nmap_Kd missing.png\nnewmtl b\nKd 1 0 0\nmap_Kd missing.png\n");
-  write_text(s.dir / "m" / "nomap.obj", "mtllib nomap.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
-                                         "usemtl a\nf 1/1 2/2 3/3\nusemtl b\nf 1/1 2/2 4/3\n");
+  write_text(s.dir / "m" / "nomap.obj",
+             "mtllib nomap.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
+             "usemtl a\nf 1/1 2/2 3/3\nusemtl b\nf 1/1 2/2 4/3\n");
   sim::MeshPlacement where;
   where.file = s.dir / "m" / "nomap.obj";
   where.centre = Vec3(0, 0, 4);

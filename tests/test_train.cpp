@@ -27,8 +27,8 @@ using namespace evnerf;
 namespace fs = std::filesystem;
 using evtest::Fixture;
 
-TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned, TinyHalf,
-                   TinyBf16, TinyWindow) {
+TEST_CASE_TEMPLATE("training: a short run on a tiny simulated scene lowers the loss", Model, Tiny, TinySigned, TinyHalf, TinyBf16,
+                   TinyWindow) {
   Fixture f;
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
   double first = 0, last = 0;
@@ -65,8 +65,8 @@ TEST_CASE("training: fixed thresholds never move, noise-free and noisy variants 
   }
   CHECK(m.params().values != quiet.params().values);
 }
-TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count, resume equals uninterrupted, checkpoints round-trip",
-                   Model, Tiny, TinyBf16, TinyWindow) {
+TEST_CASE_TEMPLATE("training: deterministic for a seed and thread count, resume equals uninterrupted, checkpoints round-trip", Model, Tiny,
+                   TinyBf16, TinyWindow) {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
   Model a(f.td.slices.size(), box, 7), b(f.td.slices.size(), box, 7);
@@ -414,7 +414,8 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);
   train::Config bad = cfg;
   bad.threads = -1;
-  CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", f.run()), doctest::Contains("threads must be in [0, 4096], got -1"), Error);
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, bad, fs::path(), "tiny", f.run()), doctest::Contains("threads must be in [0, 4096], got -1"),
+                       Error);
   CHECK(m.step() == 0);
   // The total-variation weight: unset, the model keeps its own; set, the Config's replaces it; a variant
   // without the term refuses a weight (it would do nothing) but takes 0.
@@ -430,8 +431,8 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   CHECK(t.term<loss::TvTerm>()->weight == 0.0);
   two.tv = 0.25;
   const long at = m.step();
-  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", f.run()), doctest::Contains("weight of 0.25 for a variant without the term"),
-                       Error);
+  CHECK_THROWS_WITH_AS(train::run(m, f.td, two, fs::path(), "tiny", f.run()),
+                       doctest::Contains("weight of 0.25 for a variant without the term"), Error);
   CHECK(m.step() == at);
   two.tv = 0.0;
   CHECK_NOTHROW(train::run(m, f.td, two, fs::path(), "tiny", f.run()));
@@ -526,7 +527,11 @@ TEST_CASE("the settings table: every setting round-trips through settings.json a
     CAPTURE(s.name);
     CHECK(names.insert(s.name).second);  // one name per setting
     CHECK(std::string(s.help).size() > 10);
-    CHECK(s.flag() == "--" + [&] { std::string n = s.name; std::replace(n.begin(), n.end(), '_', '-'); return n; }());
+    CHECK(s.flag() == "--" + [&] {
+      std::string n = s.name;
+      std::replace(n.begin(), n.end(), '_', '-');
+      return n;
+    }());
     train::Config c;
     const auto j0 = train::settings_json(c);
     REQUIRE(j0.contains(s.name));
@@ -556,7 +561,8 @@ TEST_CASE("the settings table: every setting round-trips through settings.json a
       if (std::holds_alternative<std::uint64_t train::Config::*>(s.member) && v < 0) {
         nlohmann::json k = j0;
         k[s.name] = static_cast<long>(v);
-        CHECK_THROWS_WITH_AS(train::config_from_json(k, "test"), doctest::Contains((std::string(s.name) + " must be an integer").c_str()), Error);
+        CHECK_THROWS_WITH_AS(train::config_from_json(k, "test"), doctest::Contains((std::string(s.name) + " must be an integer").c_str()),
+                             Error);
         continue;
       }
       train::Config d;
@@ -567,7 +573,8 @@ TEST_CASE("the settings table: every setting round-trips through settings.json a
             else if constexpr (std::is_arithmetic_v<V> && !std::is_same_v<V, bool>) d.*m = static_cast<V>(v);
           },
           s.member);
-      CHECK_THROWS_WITH_AS(train::check(d), doctest::Contains(("train: " + std::string(s.name) + " must be " + s.range_text()).c_str()), Error);
+      CHECK_THROWS_WITH_AS(train::check(d), doctest::Contains(("train: " + std::string(s.name) + " must be " + s.range_text()).c_str()),
+                           Error);
     }
   }
   CHECK_THROWS_WITH_AS(train::setting("iters", "train"), doctest::Contains("unknown setting 'iters' (known: iterations, pixels"), Error);

@@ -34,7 +34,11 @@ inline bool header_columns(std::string_view line, std::array<int, 4>& col) {
     std::string_view name = line.substr(b, e - b);
     while (!name.empty() && name.front() == ' ') name.remove_prefix(1);
     while (!name.empty() && name.back() == ' ') name.remove_suffix(1);
-    const int which = name == "t" || name == "timestamp" ? 0 : name == "x" ? 1 : name == "y" ? 2 : name == "p" || name == "polarity" ? 3 : -1;
+    const int which = name == "t" || name == "timestamp"  ? 0
+                      : name == "x"                       ? 1
+                      : name == "y"                       ? 2
+                      : name == "p" || name == "polarity" ? 3
+                                                          : -1;
     if (which < 0 || col[static_cast<std::size_t>(which)] >= 0) return false;
     col[static_cast<std::size_t>(which)] = k;
     if (e == line.size()) break;
@@ -97,11 +101,14 @@ inline evnerf::io::Dataset load(const fs::path& p, const evnerf::io::LoadOptions
     }
     if (b <= line.size()) throw Error(file, line_no, "more than 4 values");
     const auto [t, x, y, pol] = v;
-    if (t < last) throw Error(file, line_no, "time " + evnerf::short_number(t) + " s goes back (previous " + evnerf::short_number(last) + " s)");
+    if (t < last)
+      throw Error(file, line_no, "time " + evnerf::short_number(t) + " s goes back (previous " + evnerf::short_number(last) + " s)");
     if (x != std::floor(x) || y != std::floor(y) || x < 0 || y < 0 || x >= w || y >= h)
-      throw Error(file, line_no, "pixel (" + evnerf::short_number(x) + ", " + evnerf::short_number(y) + ") is not one of the " + std::to_string(w) + "x" +
-                                     std::to_string(h) + " sensor's");
-    if (pol != 1 && pol != 0 && pol != -1) throw Error(file, line_no, "polarity " + evnerf::short_number(pol) + " (expected 1 and 0, or 1 and -1)");
+      throw Error(file, line_no,
+                  "pixel (" + evnerf::short_number(x) + ", " + evnerf::short_number(y) + ") is not one of the " + std::to_string(w) + "x" +
+                      std::to_string(h) + " sensor's");
+    if (pol != 1 && pol != 0 && pol != -1)
+      throw Error(file, line_no, "polarity " + evnerf::short_number(pol) + " (expected 1 and 0, or 1 and -1)");
     d.events.push_back(t, static_cast<int>(x), static_cast<int>(y), pol > 0 ? 1 : -1);
     last = t;
   }
@@ -115,7 +122,8 @@ inline void write(const fs::path& p, const evnerf::io::Dataset& d, const evnerf:
   std::string out = "t,x,y,p\n";
   char buf[96];
   for (std::size_t i = 0; i < d.events.size(); ++i) {
-    const int n = std::snprintf(buf, sizeof buf, "%.9f,%d,%d,%d\n", d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i] > 0 ? 1 : 0);
+    const int n =
+        std::snprintf(buf, sizeof buf, "%.9f,%d,%d,%d\n", d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i] > 0 ? 1 : 0);
     out.append(buf, static_cast<std::size_t>(n));
   }
   evnerf::write_file_atomic(p, out);
@@ -127,7 +135,8 @@ inline void write(const fs::path& p, const evnerf::io::Dataset& d, const evnerf:
 
 /// The format's entry in the table.
 inline evnerf::io::Format csv_format() {
-  return {"csv", false, "a CSV file of events (a header naming t, x, y, p; sensor.txt and calib.txt beside it)", &csv::detect, &csv::load, &csv::write,
+  return {"csv",        false,      "a CSV file of events (a header naming t, x, y, p; sensor.txt and calib.txt beside it)",
+          &csv::detect, &csv::load, &csv::write,
           {".csv"}};
 }
 

@@ -17,9 +17,7 @@
 
 namespace evfuzz {
 
-inline std::string_view text(const std::uint8_t* data, std::size_t size) {
-  return {reinterpret_cast<const char*>(data), size};
-}
+inline std::string_view text(const std::uint8_t* data, std::size_t size) { return {reinterpret_cast<const char*>(data), size}; }
 
 /// Writes the input to a file in /dev/shm named for the harness and this process, for readers that open
 /// paths (HDF5, bags, .npz); returns its path, or "" when it cannot be written.

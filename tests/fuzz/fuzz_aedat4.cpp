@@ -28,7 +28,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
       evfuzz::expect(frames.t.size() == frames.images.size(), "frame times and images differ in number");
       for (const auto& im : frames.images)
-        evfuzz::expect(im.width == ev.width && im.height == ev.height && im.data.size() == im.pixels() * im.channels, "a frame not of the sensor");
+        evfuzz::expect(im.width == ev.width && im.height == ev.height && im.data.size() == im.pixels() * im.channels,
+                       "a frame not of the sensor");
     });
   return 0;
 }

@@ -106,7 +106,8 @@ bool library_defect(const std::uint8_t* data, std::size_t size) {
     fs::create_directories(dir, ec);
     char name[32];
     std::snprintf(name, sizeof name, "%016zx", std::hash<std::string_view>{}(std::string_view(reinterpret_cast<const char*>(data), size)));
-    std::ofstream(fs::path(dir) / (std::string(name) + ".h5"), std::ios::binary).write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+    std::ofstream(fs::path(dir) / (std::string(name) + ".h5"), std::ios::binary)
+        .write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
     std::ofstream(fs::path(dir) / (std::string(name) + ".txt")) << all;
   }
   return true;

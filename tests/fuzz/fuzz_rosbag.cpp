@@ -15,13 +15,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string path = evfuzz::to_file(data, size, "recording.bag");
   if (path.empty()) return 0;
   evfuzz::run([&] {
-    for (const auto& t : evnerf::io::rosbag_topics(path)) evfuzz::expect(!t.topic.empty() && !t.type.empty(), "a topic without a name or type");
+    for (const auto& t : evnerf::io::rosbag_topics(path))
+      evfuzz::expect(!t.topic.empty() && !t.type.empty(), "a topic without a name or type");
   });
   evfuzz::run([&] {
     const auto rec = evnerf::io::read_rosbag(path);
     const auto& ev = rec.events;
     evfuzz::expect(ev.size() > 0, "a bag without events was accepted");
-    evfuzz::expect(ev.x.size() == ev.size() && ev.y.size() == ev.size() && ev.polarity.size() == ev.size(), "event columns differ in length");
+    evfuzz::expect(ev.x.size() == ev.size() && ev.y.size() == ev.size() && ev.polarity.size() == ev.size(),
+                   "event columns differ in length");
     for (std::size_t i = 0; i < ev.size(); ++i) {
       evfuzz::expect(std::isfinite(ev.t[i]) && (i == 0 || ev.t[i] >= ev.t[i - 1]), "event times not finite and sorted");
       evfuzz::expect(ev.x[i] <= rec.max_x && ev.y[i] <= rec.max_y, "an event beyond the recorded extent");
@@ -34,9 +36,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       evfuzz::expect(i == 0 || rec.frame_times[i] >= rec.frame_times[i - 1], "frames out of time order");
     }
     evfuzz::expect(rec.poses.size() == rec.pose_times.size(), "poses and times differ in number");
-    for (std::size_t i = 1; i < rec.pose_times.size(); ++i) evfuzz::expect(rec.pose_times[i] > rec.pose_times[i - 1], "pose times not increasing");
-    for (const auto& p : rec.poses) evfuzz::expect(std::abs(p.q.norm() - 1) < 1e-9 && p.t.allFinite(), "a pose not finite or not normalised");
-    if (rec.has_camera_info) evfuzz::expect(rec.fx > 0 && rec.fy > 0 && std::isfinite(rec.cx) && std::isfinite(rec.cy), "bad intrinsics accepted");
+    for (std::size_t i = 1; i < rec.pose_times.size(); ++i)
+      evfuzz::expect(rec.pose_times[i] > rec.pose_times[i - 1], "pose times not increasing");
+    for (const auto& p : rec.poses)
+      evfuzz::expect(std::abs(p.q.norm() - 1) < 1e-9 && p.t.allFinite(), "a pose not finite or not normalised");
+    if (rec.has_camera_info)
+      evfuzz::expect(rec.fx > 0 && rec.fy > 0 && std::isfinite(rec.cx) && std::isfinite(rec.cy), "bad intrinsics accepted");
   });
   return 0;
 }

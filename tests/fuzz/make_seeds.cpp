@@ -59,16 +59,19 @@ int main(int argc, char** argv) {
   put("images", "spaces", "# timestamp filename\n1468938.000000 images/frame 00.png\n1468938.05 images/f01.png  \n");
   const std::string poses = read_file(rec_dir / "groundtruth.txt");
   put("poses", "ijrr", head_lines(poses, 20));
-  put("poses", "tum", "# ground truth trajectory\n# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n"
-                      "1305031102.1858 1.3303 0.6256 1.6464 0.6579 0.6161 -0.2932 -0.3189\n");
-  put("colmap", "cameras", "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-                           "1 PINHOLE 240 180 199.1 198.6 132.2 110.7\n2 SIMPLE_PINHOLE 346 260 250 173 130\n"
-                           "3 SIMPLE_RADIAL 346 260 250 173 130 -0.1\n4 RADIAL 346 260 250 173 130 -0.1 0.01\n"
-                           "5 OPENCV 240 180 199.1 198.6 132.2 110.7 -0.36 0.15 -0.0003 -0.0008\n");
-  put("colmap", "images", "# Image list with two lines of data per image:\n"
-                          "1 0.851773 0.0165051 0.503764 -0.142941 -0.737434 1.02973 3.74354 1 frame_000.png\n"
-                          "2394.03 1000.29 -1 181.3 71.8 42\n"
-                          "2 0.9 0.1 0.3 -0.1 -0.7 1.0 3.7 1 frame_001.png\n\n");
+  put("poses", "tum",
+      "# ground truth trajectory\n# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n"
+      "1305031102.1858 1.3303 0.6256 1.6464 0.6579 0.6161 -0.2932 -0.3189\n");
+  put("colmap", "cameras",
+      "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+      "1 PINHOLE 240 180 199.1 198.6 132.2 110.7\n2 SIMPLE_PINHOLE 346 260 250 173 130\n"
+      "3 SIMPLE_RADIAL 346 260 250 173 130 -0.1\n4 RADIAL 346 260 250 173 130 -0.1 0.01\n"
+      "5 OPENCV 240 180 199.1 198.6 132.2 110.7 -0.36 0.15 -0.0003 -0.0008\n");
+  put("colmap", "images",
+      "# Image list with two lines of data per image:\n"
+      "1 0.851773 0.0165051 0.503764 -0.142941 -0.737434 1.02973 3.74354 1 frame_000.png\n"
+      "2394.03 1000.29 -1 181.3 71.8 42\n"
+      "2 0.9 0.1 0.3 -0.1 -0.7 1.0 3.7 1 frame_001.png\n\n");
   {
     const auto depth = read_file(rec_dir / "depth" / "frame_00000000.npy");
     put("npy", "depth_f4", depth);
@@ -97,7 +100,9 @@ int main(int argc, char** argv) {
     std::vector<unsigned char> px(5 * 3 * static_cast<std::size_t>(ch));
     for (std::size_t i = 0; i < px.size(); ++i) px[i] = static_cast<unsigned char>(i * 37);
     std::string png;
-    auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size)); };
+    auto sink = [](void* ctx, void* data, int size) {
+      static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
+    };
     stbi_write_png_to_func(sink, &png, 5, 3, ch, px.data(), 5 * ch);
     put("png", "channels" + std::to_string(ch), png);
   }

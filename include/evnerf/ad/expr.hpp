@@ -27,7 +27,9 @@ struct Arg : ExprTag {
   T v;
   constexpr T value() const { return v; }
   template <class G>
-  constexpr void backprop(T adj, G& g) const { g[I] += adj; }
+  constexpr void backprop(T adj, G& g) const {
+    g[I] += adj;
+  }
 };
 
 /// A constant: contributes a value, receives no gradient.
@@ -49,7 +51,9 @@ struct Unary : ExprTag {
   constexpr explicit Unary(const A& x) : a(x), v(Op::f(x.value())) {}
   constexpr value_type value() const { return v; }
   template <class G>
-  constexpr void backprop(value_type adj, G& g) const { a.backprop(adj * Op::d(a.value(), v), g); }
+  constexpr void backprop(value_type adj, G& g) const {
+    a.backprop(adj * Op::d(a.value(), v), g);
+  }
 };
 
 /// Binary node: Op::f(a, b) is the value, Op::da / Op::db the local partials.
@@ -71,98 +75,210 @@ struct Binary : ExprTag {
 // ---- the operations: value and local partials, written once -----------------------------------------
 namespace op {
 struct Add {
-  template <class T> static constexpr T f(T a, T b) { return a + b; }
-  template <class T> static constexpr T da(T, T, T) { return T(1); }
-  template <class T> static constexpr T db(T, T, T) { return T(1); }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a + b;
+  }
+  template <class T>
+  static constexpr T da(T, T, T) {
+    return T(1);
+  }
+  template <class T>
+  static constexpr T db(T, T, T) {
+    return T(1);
+  }
 };
 struct Sub {
-  template <class T> static constexpr T f(T a, T b) { return a - b; }
-  template <class T> static constexpr T da(T, T, T) { return T(1); }
-  template <class T> static constexpr T db(T, T, T) { return T(-1); }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a - b;
+  }
+  template <class T>
+  static constexpr T da(T, T, T) {
+    return T(1);
+  }
+  template <class T>
+  static constexpr T db(T, T, T) {
+    return T(-1);
+  }
 };
 struct Mul {
-  template <class T> static constexpr T f(T a, T b) { return a * b; }
-  template <class T> static constexpr T da(T, T b, T) { return b; }
-  template <class T> static constexpr T db(T a, T, T) { return a; }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a * b;
+  }
+  template <class T>
+  static constexpr T da(T, T b, T) {
+    return b;
+  }
+  template <class T>
+  static constexpr T db(T a, T, T) {
+    return a;
+  }
 };
 struct Div {
-  template <class T> static constexpr T f(T a, T b) { return a / b; }
-  template <class T> static constexpr T da(T, T b, T) { return T(1) / b; }
-  template <class T> static constexpr T db(T, T b, T v) { return -v / b; }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a / b;
+  }
+  template <class T>
+  static constexpr T da(T, T b, T) {
+    return T(1) / b;
+  }
+  template <class T>
+  static constexpr T db(T, T b, T v) {
+    return -v / b;
+  }
 };
 struct Max {
-  template <class T> static constexpr T f(T a, T b) { return a > b ? a : b; }
-  template <class T> static constexpr T da(T a, T b, T) { return a > b ? T(1) : T(0); }
-  template <class T> static constexpr T db(T a, T b, T) { return a > b ? T(0) : T(1); }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a > b ? a : b;
+  }
+  template <class T>
+  static constexpr T da(T a, T b, T) {
+    return a > b ? T(1) : T(0);
+  }
+  template <class T>
+  static constexpr T db(T a, T b, T) {
+    return a > b ? T(0) : T(1);
+  }
 };
 struct Min {
-  template <class T> static constexpr T f(T a, T b) { return a < b ? a : b; }
-  template <class T> static constexpr T da(T a, T b, T) { return a < b ? T(1) : T(0); }
-  template <class T> static constexpr T db(T a, T b, T) { return a < b ? T(0) : T(1); }
+  template <class T>
+  static constexpr T f(T a, T b) {
+    return a < b ? a : b;
+  }
+  template <class T>
+  static constexpr T da(T a, T b, T) {
+    return a < b ? T(1) : T(0);
+  }
+  template <class T>
+  static constexpr T db(T a, T b, T) {
+    return a < b ? T(0) : T(1);
+  }
 };
 struct Neg {
-  template <class T> static constexpr T f(T a) { return -a; }
-  template <class T> static constexpr T d(T, T) { return T(-1); }
+  template <class T>
+  static constexpr T f(T a) {
+    return -a;
+  }
+  template <class T>
+  static constexpr T d(T, T) {
+    return T(-1);
+  }
 };
 struct Exp {
-  template <class T> static T f(T a) { return std::exp(a); }
-  template <class T> static T d(T, T v) { return v; }
+  template <class T>
+  static T f(T a) {
+    return std::exp(a);
+  }
+  template <class T>
+  static T d(T, T v) {
+    return v;
+  }
 };
 struct Log {
-  template <class T> static T f(T a) { return std::log(a); }
-  template <class T> static T d(T a, T) { return T(1) / a; }
+  template <class T>
+  static T f(T a) {
+    return std::log(a);
+  }
+  template <class T>
+  static T d(T a, T) {
+    return T(1) / a;
+  }
 };
 struct Sqrt {
-  template <class T> static T f(T a) { return std::sqrt(a); }
-  template <class T> static T d(T, T v) { return T(0.5) / v; }
+  template <class T>
+  static T f(T a) {
+    return std::sqrt(a);
+  }
+  template <class T>
+  static T d(T, T v) {
+    return T(0.5) / v;
+  }
 };
 struct Square {
-  template <class T> static constexpr T f(T a) { return a * a; }
-  template <class T> static constexpr T d(T a, T) { return T(2) * a; }
+  template <class T>
+  static constexpr T f(T a) {
+    return a * a;
+  }
+  template <class T>
+  static constexpr T d(T a, T) {
+    return T(2) * a;
+  }
 };
 struct Relu {
-  template <class T> static constexpr T f(T a) { return a > T(0) ? a : T(0); }
-  template <class T> static constexpr T d(T a, T) { return a > T(0) ? T(1) : T(0); }
+  template <class T>
+  static constexpr T f(T a) {
+    return a > T(0) ? a : T(0);
+  }
+  template <class T>
+  static constexpr T d(T a, T) {
+    return a > T(0) ? T(1) : T(0);
+  }
 };
 struct Sigmoid {
-  template <class T> static T f(T a) { return T(1) / (T(1) + std::exp(-a)); }
-  template <class T> static T d(T, T v) { return v * (T(1) - v); }
+  template <class T>
+  static T f(T a) {
+    return T(1) / (T(1) + std::exp(-a));
+  }
+  template <class T>
+  static T d(T, T v) {
+    return v * (T(1) - v);
+  }
 };
 struct Softplus {  // log(1 + e^a), computed without overflow
-  template <class T> static T f(T a) { return a > T(0) ? a + std::log1p(std::exp(-a)) : std::log1p(std::exp(a)); }
-  template <class T> static T d(T a, T) { return T(1) / (T(1) + std::exp(-a)); }
+  template <class T>
+  static T f(T a) {
+    return a > T(0) ? a + std::log1p(std::exp(-a)) : std::log1p(std::exp(a));
+  }
+  template <class T>
+  static T d(T a, T) {
+    return T(1) / (T(1) + std::exp(-a));
+  }
 };
 struct Sin {
-  template <class T> static T f(T a) { return std::sin(a); }
-  template <class T> static T d(T a, T) { return std::cos(a); }
+  template <class T>
+  static T f(T a) {
+    return std::sin(a);
+  }
+  template <class T>
+  static T d(T a, T) {
+    return std::cos(a);
+  }
 };
 struct Cos {
-  template <class T> static T f(T a) { return std::cos(a); }
-  template <class T> static T d(T a, T) { return -std::sin(a); }
+  template <class T>
+  static T f(T a) {
+    return std::cos(a);
+  }
+  template <class T>
+  static T d(T a, T) {
+    return -std::sin(a);
+  }
 };
 }  // namespace op
 
 // ---- lifting scalars, operators and functions ---------------------------------------------------------
 template <class T, class S>
-  requires Scalar<S>
-constexpr Const<T> lift_as(S s) {
-  return Const<T>{{}, static_cast<T>(s)};
-}
+requires Scalar<S>
+constexpr Const<T> lift_as(S s) { return Const<T>{{}, static_cast<T>(s)}; }
 
-#define EVNERF_AD_BINARY(NAME, OP)                                                                              \
-  template <Expr A, Expr B>                                                                                    \
-  constexpr auto NAME(const A& a, const B& b) {                                                                \
-    return Binary<op::OP, A, B>(a, b);                                                                         \
-  }                                                                                                            \
-  template <Expr A, Scalar S>                                                                                  \
-  constexpr auto NAME(const A& a, S s) {                                                                       \
-    using T = typename A::value_type;                                                                          \
-    return Binary<op::OP, A, Const<T>>(a, lift_as<T>(s));                                                      \
-  }                                                                                                            \
-  template <Scalar S, Expr B>                                                                                  \
-  constexpr auto NAME(S s, const B& b) {                                                                       \
-    using T = typename B::value_type;                                                                          \
-    return Binary<op::OP, Const<T>, B>(lift_as<T>(s), b);                                                      \
+#define EVNERF_AD_BINARY(NAME, OP)                        \
+  template <Expr A, Expr B>                               \
+  constexpr auto NAME(const A& a, const B& b) {           \
+    return Binary<op::OP, A, B>(a, b);                    \
+  }                                                       \
+  template <Expr A, Scalar S>                             \
+  constexpr auto NAME(const A& a, S s) {                  \
+    using T = typename A::value_type;                     \
+    return Binary<op::OP, A, Const<T>>(a, lift_as<T>(s)); \
+  }                                                       \
+  template <Scalar S, Expr B>                             \
+  constexpr auto NAME(S s, const B& b) {                  \
+    using T = typename B::value_type;                     \
+    return Binary<op::OP, Const<T>, B>(lift_as<T>(s), b); \
   }
 EVNERF_AD_BINARY(operator+, Add)
 EVNERF_AD_BINARY(operator-, Sub)
@@ -178,14 +294,14 @@ constexpr auto operator-(const A& a) {
 }
 
 // Each function works on expressions (recording the operation) and on plain scalars (value only).
-#define EVNERF_AD_UNARY(NAME, OP)                                                                               \
-  template <Expr A>                                                                                            \
-  constexpr auto NAME(const A& a) {                                                                            \
-    return Unary<op::OP, A>(a);                                                                                \
-  }                                                                                                            \
-  template <Scalar S>                                                                                          \
-  constexpr S NAME(S s) {                                                                                      \
-    return op::OP::f(s);                                                                                       \
+#define EVNERF_AD_UNARY(NAME, OP)   \
+  template <Expr A>                 \
+  constexpr auto NAME(const A& a) { \
+    return Unary<op::OP, A>(a);     \
+  }                                 \
+  template <Scalar S>               \
+  constexpr S NAME(S s) {           \
+    return op::OP::f(s);            \
   }
 EVNERF_AD_UNARY(exp, Exp)
 EVNERF_AD_UNARY(log, Log)
@@ -210,10 +326,8 @@ constexpr S min(S a, S b) {
 /// Value of an expression or a plain scalar.
 template <class E>
 constexpr auto value_of(const E& e) {
-  if constexpr (Expr<E>)
-    return e.value();
-  else
-    return e;
+  if constexpr (Expr<E>) return e.value();
+  else return e;
 }
 
 // ---- entry points -------------------------------------------------------------------------------------
@@ -237,14 +351,12 @@ constexpr ValueGrad<T, N> value_and_grad(F&& f, const std::array<T, N>& x) {
       r.value = static_cast<T>(e);  // f did not depend on its arguments
     }
     return r;
-  }(std::make_index_sequence<N>{});
+  }
+  (std::make_index_sequence<N>{});
 }
 
 /// The same function evaluated on plain scalars: values only, no gradient storage at all.
 template <class F, class... S>
-  requires(Scalar<S> && ...)
-constexpr auto value(F&& f, S... x) {
-  return f(x...);
-}
+requires(Scalar<S>&&...) constexpr auto value(F&& f, S... x) { return f(x...); }
 
 }  // namespace evnerf::ad

@@ -28,10 +28,10 @@ namespace evnerf::cli {
 
 namespace fs = std::filesystem;
 
+using evnerf::checkpoint_variant;
 using evnerf::Name;
 using evnerf::Variant;
 using evnerf::with_variant;
-using evnerf::checkpoint_variant;
 
 namespace detail {
 
@@ -90,11 +90,12 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
   if (lead)
     fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,
                cfg.threads > 0 ? cfg.threads : thread_count(),
-               group ? fmt::format(" in each of {} processes, {} shards per step", group->size(), cfg.shard_count())
+               group                   ? fmt::format(" in each of {} processes, {} shards per step", group->size(), cfg.shard_count())
                : cfg.shard_count() > 1 ? fmt::format(", {} shards per step", cfg.shard_count())
                                        : std::string());
   if (lead && !td.masked.empty())
-    fmt::print(stderr, "left out {} suspected hot pixel{} (busiest at x {}, y {}: {} events against {} next to it; --keep-hot-pixels keeps them)\n",
+    fmt::print(stderr,
+               "left out {} suspected hot pixel{} (busiest at x {}, y {}: {} events against {} next to it; --keep-hot-pixels keeps them)\n",
                td.masked.size(), td.masked.size() == 1 ? "" : "s", td.masked[0].x, td.masked[0].y, td.masked[0].events,
                td.masked[0].neighbours);
   // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
@@ -103,8 +104,8 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
   const auto r = trainer.run([&](const train::StepReport&) { return !stop_request.requested(); });
   // Every process returns the same code; rank 0 alone says why.
   if (lead)
-    fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds,
-               r.rays_per_second, r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
+    fmt::print("trained {}: {} steps in {:.1f} s ({:.0f} rays/s), final loss {:.5f}{} → {}\n", name, r.steps, r.seconds, r.rays_per_second,
+               r.final_loss, r.diverged ? " (DIVERGED)" : "", (dir / "model.ckpt").string());
   if (const auto& rp = trainer.model().refractory(); lead && rp.active())
     fmt::print("refractory period {:.1f} us ({})\n", rp.seconds * 1e6, rp.learned ? "learned" : "given");
   if (const auto& m = trainer.model(); lead && m.renderer().learns_backdrop()) {

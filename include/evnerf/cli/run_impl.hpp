@@ -50,14 +50,16 @@ using namespace evaluation;
 /// oracle, the other alignments and, in colour, the grey scores.
 inline void print_scores(const Scored& s, const Truth& truth, bool verbose) {
   if (truth.hdr)
-    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n", short_number(truth.hdr->offset));
+    fmt::print("scored against the linear (HDR) truth in log(x + {}), its range over the sequence on [0, 1]\n",
+               short_number(truth.hdr->offset));
   print_table(s.primary);
   if (!verbose) return;
   if (s.json.contains("error_scales")) {
     const auto& es = s.json.at("error_scales");
-    fmt::print("error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
-               "each row's, column's mean error):\n",
-               short_number(es.at("sigma_px").get<double>()));
+    fmt::print(
+        "error by scale (primary alignment; coarse = the error blurred by a {} px Gaussian, fine = the rest; row, column = "
+        "each row's, column's mean error):\n",
+        short_number(es.at("sigma_px").get<double>()));
     // A method's figure in dB ("inf" for no error, "-" where an older file lacks it).
     auto db = [&es](const std::string& name, const char* key) {
       const auto& v = es.at("methods").at(name);
@@ -66,13 +68,14 @@ inline void print_scores(const Scored& s, const Truth& truth, bool verbose) {
       return x.is_number() ? fmt::format("{:.3f}", x.get<double>()) : std::string("inf");
     };
     for (const auto& name : s.primary.names)
-      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name,
-                 db(name, "coarse_psnr"), db(name, "fine_psnr"), db(name, "row_psnr"), db(name, "column_psnr"));
-    fmt::print("PSNR with log offsets per image row, per column and both fitted to the truth over the sequence (what a "
-               "straight motion never shows the events; a diagnosis, never a score):\n");
+      fmt::print("{:<22} coarse PSNR {:>8}   fine PSNR {:>8}   row PSNR {:>8}   column PSNR {:>8}\n", name, db(name, "coarse_psnr"),
+                 db(name, "fine_psnr"), db(name, "row_psnr"), db(name, "column_psnr"));
+    fmt::print(
+        "PSNR with log offsets per image row, per column and both fitted to the truth over the sequence (what a "
+        "straight motion never shows the events; a diagnosis, never a score):\n");
     for (const auto& name : s.primary.names)
-      fmt::print("{:<22} rows {:>8}   columns {:>8}   both {:>8}\n", name, db(name, "oracle_rows_psnr"),
-                 db(name, "oracle_columns_psnr"), db(name, "oracle_both_psnr"));
+      fmt::print("{:<22} rows {:>8}   columns {:>8}   both {:>8}\n", name, db(name, "oracle_rows_psnr"), db(name, "oracle_columns_psnr"),
+                 db(name, "oracle_both_psnr"));
   }
   for (const auto& o : s.others) print_table(o);
   if (s.grey) {
@@ -92,8 +95,7 @@ inline void write_rendering(const fs::path& out, const std::string& stem, const 
   io::save_npy(out / (stem + ".npy"), l.data.data(), shape);
   if (!l.data.empty() && *std::max_element(l.data.begin(), l.data.end()) > 1.0f)
     io::write_png(out / (stem + ".png"), eval::HdrTone{eval::kLogEps}.log_min_max(l));
-  else
-    io::write_png(out / (stem + ".png"), l);
+  else io::write_png(out / (stem + ".png"), l);
   io::write_png(out / (stem + "_depth.png"), io::colorize(r.depth, dlo, dhi));
   io::save_npy(out / (stem + "_depth.npy"), r.depth.data.data(),
                {static_cast<std::size_t>(r.depth.height), static_cast<std::size_t>(r.depth.width)});
@@ -141,10 +143,10 @@ inline void add_settings(CLI::App* sub, train::Config& cfg) {
   }
 }
 
-const char* const kAlignHelp = "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
-                               "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
-                               "global-log-offset (E-3DGS's: one log offset per channel over the sequence, gain 1), min-max, none";
-
+const char* const kAlignHelp =
+    "alignment of the primary scores: global-log-affine (one log-affine map per channel over the "
+    "sequence), log-affine (per image), eventnerf (EventNeRF's: per channel over the sequence in log(x^2.2 + 0.1)), "
+    "global-log-offset (E-3DGS's: one log offset per channel over the sequence, gain 1), min-max, none";
 
 /// The recording a verb reads and how to read it (any format io::load reads): its flags, and the options
 /// they fill.
@@ -155,11 +157,13 @@ struct RecordingArgs {
 
   void add(CLI::App* sub, const std::string& help) {
     sub->add_option("recording", folder, help)->required();
-    sub->add_option("--calib", load.calib,
-                    "calibration instead of the recording's own: a calib.txt file (fx fy cx cy [k1 k2 p1 p2 [k3]]) or COLMAP's cameras.txt");
-    sub->add_option("--poses", load.poses,
-                    "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
-                    "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
+    sub->add_option(
+        "--calib", load.calib,
+        "calibration instead of the recording's own: a calib.txt file (fx fy cx cy [k1 k2 p1 p2 [k3]]) or COLMAP's cameras.txt");
+    sub->add_option(
+        "--poses", load.poses,
+        "poses instead of the recording's own: a pose file (t px py pz qx qy qz qw, camera to world; for a bag in its clock), or a "
+        "COLMAP text model (folder or images.txt), each image at the time of the recording's frame of its file name");
     sub->add_option("--time-window", time_window,
                     "only the events from T0 to T1 (seconds on the recording's clock as inspect shows it; DSEC HDF5 files are read "
                     "through ms_to_idx, only the window)")
@@ -179,8 +183,10 @@ struct RecordingArgs {
                     "the reader, where the content does not decide it (a folder holding two layouts): " + io::format_list())
         ->check(CLI::IsMember(io::format_names()));
     sub->add_option("--events-topic", load.events_topic, "ROS bag: the event topic (default: the one topic of event arrays)");
-    sub->add_option("--images-topic", load.images_topic, "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
-    sub->add_option("--camera-info-topic", load.camera_info_topic, "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
+    sub->add_option("--images-topic", load.images_topic,
+                    "ROS bag: the frames' topic, or 'none' (default: the one sensor_msgs/Image topic)");
+    sub->add_option("--camera-info-topic", load.camera_info_topic,
+                    "ROS bag: the sensor_msgs/CameraInfo topic, or 'none' (default: the one such topic)");
     sub->add_option("--poses-topic", load.poses_topic,
                     "ROS bag: the pose topic (PoseStamped, Odometry, TransformStamped), or 'none' (default: the one such topic)");
   }
@@ -227,7 +233,6 @@ struct InspectVerb {
   }
 };
 
-
 /// `convert`: a recording written in another format, chosen by the output's name.
 struct ConvertVerb {
   RecordingArgs rec;
@@ -248,9 +253,11 @@ struct ConvertVerb {
     }());
     rec.add(sub, "recording to read (any format evnerf reads)");
     sub->add_option("output", output,
-                    "output: a folder (IJRR layout) or a file whose extension names its format (calib.txt and groundtruth.txt are written beside a file that has no place for them)")
+                    "output: a folder (IJRR layout) or a file whose extension names its format (calib.txt and groundtruth.txt are written "
+                    "beside a file that has no place for them)")
         ->required();
-    sub->add_option("--compression", compression, "ROS bag output: chunk compression (none, bz2, lz4); AEDAT4 output: packet compression (none, lz4, zstd)")
+    sub->add_option("--compression", compression,
+                    "ROS bag output: chunk compression (none, bz2, lz4); AEDAT4 output: packet compression (none, lz4, zstd)")
         ->check(CLI::IsMember({"none", "bz2", "lz4", "zstd"}))
         ->capture_default_str();
     return sub;
@@ -275,7 +282,8 @@ struct SimulateVerb {
   CLI::App* add(CLI::App& app) {
     sub = app.add_subcommand("simulate", "simulate events, 24 Hz frames, depth, poses and calibration (IJRR layout)");
     sub->add_option("scene", scene_args,
-                    "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a procedural scene from --seed, saved as <out>/scene.txt), "
+                    "built-in scene (planes, object, room; blocks, the colour scene, always through an RGGB mosaic), 'random' (a "
+                    "procedural scene from --seed, saved as <out>/scene.txt), "
                     "'mesh FILE' (any 3-D file assimp reads, seen along an orbit; saved as <out>/scene.txt) or a scene description file")
         ->required()
         ->expected(1, 2);
@@ -303,22 +311,31 @@ struct SimulateVerb {
     sub->add_option("--height", so.height, "sensor height (pixels; 180, or 260 for a mesh)")->check(CLI::Range(8, 8192));
     sub->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
     const std::string mesh_group = "Mesh capture (simulate mesh FILE)";
-    sub->add_option("--up", so.mesh.up, "the mesh file's up axis")->check(CLI::IsMember({"+y", "+z", "-y"}))->capture_default_str()->group(mesh_group);
-    sub->add_option("--path", so.mesh.path, "orbit (one revolution a second at --elevation) or spiral (5 to 75 degrees, one revolution a second)")
+    sub->add_option("--up", so.mesh.up, "the mesh file's up axis")
+        ->check(CLI::IsMember({"+y", "+z", "-y"}))
+        ->capture_default_str()
+        ->group(mesh_group);
+    sub->add_option("--path", so.mesh.path,
+                    "orbit (one revolution a second at --elevation) or spiral (5 to 75 degrees, one revolution a second)")
         ->check(CLI::IsMember({"orbit", "spiral"}))
         ->capture_default_str()
         ->group(mesh_group);
     sub->add_option("--orbit-radius", so.mesh.radius, "camera distance from the object's centre (the object fills the unit sphere)")
         ->capture_default_str()
         ->group(mesh_group);
-    sub->add_option("--elevation", so.mesh.elevation, "orbit elevation above the horizon, degrees")->capture_default_str()->group(mesh_group);
-    sub->add_option("--wobble", so.mesh.wobble, "degrees the orbit's elevation swings, once over the path")->capture_default_str()->group(mesh_group);
+    sub->add_option("--elevation", so.mesh.elevation, "orbit elevation above the horizon, degrees")
+        ->capture_default_str()
+        ->group(mesh_group);
+    sub->add_option("--wobble", so.mesh.wobble, "degrees the orbit's elevation swings, once over the path")
+        ->capture_default_str()
+        ->group(mesh_group);
     sub->add_option("--duration", so.mesh.duration, "seconds of capture")->capture_default_str()->group(mesh_group);
     sub->add_option("--novel-elevation", so.mesh.novel_elevation,
                     "elevation of the held-out orbit whose views (novel/: frames and depth, never trained on) eval scores apart")
         ->capture_default_str()
         ->group(mesh_group);
-    sub->add_option("--background", so.mesh.background, "behind the object: black, white, grey or an equirectangular environment (.png, taken as linear)")
+    sub->add_option("--background", so.mesh.background,
+                    "behind the object: black, white, grey or an equirectangular environment (.png, taken as linear)")
         ->capture_default_str()
         ->group(mesh_group);
     return sub;
@@ -372,7 +389,7 @@ struct BaselinesVerb {
     const auto b = run_baselines(d, alignments_from(align), contrast);
     print_scores(b.scored, b.truth, true);
     const fs::path rec_path(rec.folder);  // a folder gets baselines/ inside, a file <name>_baselines/ beside it
-    const fs::path bo = !out.empty()                  ? out
+    const fs::path bo = !out.empty()                 ? out
                         : fs::is_directory(rec_path) ? rec_path / "baselines"
                                                      : rec_path.parent_path() / (rec_path.stem().string() + "_baselines");
     write_file_atomic(bo / "baselines.json", b.scored.json.dump(2) + "\n");
@@ -409,7 +426,8 @@ struct TrainVerb {
                     "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
         ->check(CLI::IsMember({"first", "both"}))
         ->capture_default_str();
-    sub->add_flag("--resume", resume, "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
+    sub->add_flag("--resume", resume,
+                  "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
     sub->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
     return sub;
   }
@@ -441,7 +459,8 @@ struct TrainVerb {
     job.group = group;
     if (!per_channel) return entry->train(job, entry->name, train::prepare(d, cfg), out, d.events.size());
     if (entry->channels != 1)
-      throw Error("train --per-channel: the variant '" + entry->name + "' renders colour; name a grey one (each channel gets a grey model)");
+      throw Error("train --per-channel: the variant '" + entry->name +
+                  "' renders colour; name a grey one (each channel gets a grey model)");
     const auto pattern = io::bayer_of(d);
     for (int c = 0; c < 3; ++c) {
       const auto channel = io::channel_dataset(d, pattern, c, io::parse_green_sites(green_sites));
@@ -484,9 +503,10 @@ struct RenderVerb {
     for (std::size_t i = 0; i < desc.poses.size(); ++i)
       write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
     for (int k = 0; k < novel; ++k)
-      write_rendering(out, fmt::format("novel_{:04d}", k), model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)),
-                      dlo, dhi);
-    fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel, out.string());
+      write_rendering(out, fmt::format("novel_{:04d}", k),
+                      model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)), dlo, dhi);
+    fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
+               out.string());
     return 0;
   }
 };
@@ -499,7 +519,8 @@ inline void print_fine_by_depth(const nlohmann::json& fd) {
   std::string bands;
   for (std::size_t b = 0; b + 1 < z.size() && b < p.size(); ++b) {
     const std::string lo = fmt::format("{:.2f}", z[b]), hi = fmt::format("{:.2f}", z[b + 1]);
-    bands += fmt::format("{}{} ({:.0f} %{})", b ? ", " : "", lo == hi ? "at " + lo + " m" : lo + "-" + hi + " m", 100 * p[b], b ? "" : " of pixels");
+    bands += fmt::format("{}{} ({:.0f} %{})", b ? ", " : "", lo == hi ? "at " + lo + " m" : lo + "-" + hi + " m", 100 * p[b],
+                         b ? "" : " of pixels");
   }
   fmt::print("fine error (MSE x 1e3) by true depth, cut at its thirds: {}\n", bands);
   for (const auto& [name, v] : fd.at("methods").items()) {
@@ -542,7 +563,8 @@ struct EvalVerb {
     if (verbose && e.json.contains("error_scales") && e.json.at("error_scales").contains("fine_by_depth"))
       print_fine_by_depth(e.json.at("error_scales").at("fine_by_depth"));
     const float dlo = float(model.near), dhi = float(model.far * 0.6);
-    for (std::size_t q = 0; q < e.ids.size(); ++q) write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], dlo, dhi);
+    for (std::size_t q = 0; q < e.ids.size(); ++q)
+      write_rendering(out / "renders", fmt::format("frame_{:08d}", e.ids[q]), e.renders[q], dlo, dhi);
     write_file_atomic(out / "metrics.json", e.json.dump(2) + "\n");
     const std::size_t mid = e.ids.size() / 2;
     const auto& al = e.scored.primary.aligned;
@@ -552,22 +574,25 @@ struct EvalVerb {
       print_table(e.scored.primary, e.heldout);
     }
     if (e.novel) {
-      fmt::print("views off the training path ({}, the recording's novel/; ours beside a flat frame, each alignment fitted over "
-                 "these views):\n",
-                 e.novel_renders.size());
+      fmt::print(
+          "views off the training path ({}, the recording's novel/; ours beside a flat frame, each alignment fitted over "
+          "these views):\n",
+          e.novel_renders.size());
       print_table(e.novel->primary);
       if (verbose)
         for (const auto& o : e.novel->others) print_table(o);
       if (verbose && e.json.at("novel_views").contains("depth_absrel_median_scaled"))
-        fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n", e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
+        fmt::print("depth AbsRel (median-scaled) on them: {:.4f}\n",
+                   e.json.at("novel_views").at("depth_absrel_median_scaled").template get<double>());
       for (std::size_t k = 0; k < e.novel_renders.size(); ++k)
         write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], dlo, dhi);
       const std::size_t m = e.novel_renders.size() / 2;
       io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
     }
-    fmt::print("{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "
-               "prints them), montage.png (ground truth | ours | direct integration | high-pass filter), renders/\n",
-               e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
+    fmt::print(
+        "{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "
+        "prints them), montage.png (ground truth | ours | direct integration | high-pass filter), renders/\n",
+        e.seconds_per_render, d.camera.width(), d.camera.height(), out.string());
     return 0;
   }
 };

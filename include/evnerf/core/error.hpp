@@ -14,8 +14,7 @@ class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& message) : std::runtime_error(message), message_(message) {}
   Error(const std::string& file, std::size_t line, const std::string& message)
-      : std::runtime_error(file + ":" + std::to_string(line) + ": " + message),
-        file_(file), line_(line), message_(message) {}
+      : std::runtime_error(file + ":" + std::to_string(line) + ": " + message), file_(file), line_(line), message_(message) {}
 
   const std::string& file() const noexcept { return file_; }
   std::size_t line() const noexcept { return line_; }  ///< 1-based; 0 when not tied to a line

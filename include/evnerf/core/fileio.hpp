@@ -40,7 +40,6 @@ void huge_pages(std::vector<T>& v) {
 #endif
 }
 
-
 /// A long read's progress: `done` bytes of the file's `total` read so far. The readers of whole recordings
 /// call it after each block they read (64 KiB to a few MiB; an AEDAT4 packet, a bag's chunk), from the
 /// reading thread; it may throw to abandon the read. An empty function is never called.

@@ -35,8 +35,7 @@ class ScopedThreadCount {
 template <class Fn>
 void parallel_blocks(std::size_t n, std::size_t min_per_thread, Fn&& fn) {
   const int max_t = thread_count();
-  const int t = static_cast<int>(std::clamp<std::size_t>(n / std::max<std::size_t>(1, min_per_thread), 1,
-                                                          static_cast<std::size_t>(max_t)));
+  const int t = static_cast<int>(std::clamp<std::size_t>(n / std::max<std::size_t>(1, min_per_thread), 1, static_cast<std::size_t>(max_t)));
   if (t <= 1) {
     fn(std::size_t{0}, n, 0);
     return;

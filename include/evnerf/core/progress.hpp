@@ -13,8 +13,7 @@ namespace evnerf {
 class Progress {
  public:
   Progress(long total, std::string label, bool enabled = true)
-      : total_(total), label_(std::move(label)), enabled_(enabled),
-        tty_(::isatty(::fileno(stderr))), start_(clock::now()) {}
+      : total_(total), label_(std::move(label)), enabled_(enabled), tty_(::isatty(::fileno(stderr))), start_(clock::now()) {}
 
   /// Shows step `done` of total with extra text (e.g. "loss 0.12  rays/s 5e4"). Redraws at most 5×/s
   /// on a terminal, every 10 % otherwise.
@@ -36,8 +35,8 @@ class Progress {
     const int w = 24, filled = static_cast<int>(frac * w);
     std::string bar(filled, '#');
     bar.resize(w, '.');
-    std::fprintf(stderr, "%s%s [%s] %ld/%ld %5.1fs eta %5.1fs %s%s", tty_ ? "\r" : "", label_.c_str(), bar.c_str(),
-                 done, total_, el, eta, extra.c_str(), tty_ ? "\033[K" : "\n");
+    std::fprintf(stderr, "%s%s [%s] %ld/%ld %5.1fs eta %5.1fs %s%s", tty_ ? "\r" : "", label_.c_str(), bar.c_str(), done, total_, el, eta,
+                 extra.c_str(), tty_ ? "\033[K" : "\n");
     if (tty_ && last) std::fputc('\n', stderr);
     std::fflush(stderr);
   }
@@ -74,7 +73,10 @@ class ReadProgressLine {
     char eta[32] = "";
     if (!last && frac > 0) std::snprintf(eta, sizeof eta, ", eta %.1f s", el * (1 - frac) / frac);
     std::fprintf(out_, "%sreading %s: %.0f %% (%.2f of %.2f GB) %.1f s%s%s", tty_ ? "\r" : "", file_.c_str(), 100 * frac,
-                 static_cast<double>(done) * gb, static_cast<double>(total) * gb, el, eta, !tty_ ? "\n" : last ? "\033[K\n" : "\033[K");
+                 static_cast<double>(done) * gb, static_cast<double>(total) * gb, el, eta,
+                 !tty_  ? "\n"
+                 : last ? "\033[K\n"
+                        : "\033[K");
     std::fflush(out_);
   }
 

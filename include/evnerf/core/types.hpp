@@ -21,12 +21,9 @@ struct Image {
   int width = 0, height = 0, channels = 1;
   std::vector<float> data;
   Image() = default;
-  Image(int w, int h, int c = 1, float fill = 0.f)
-      : width(w), height(h), channels(c), data(static_cast<std::size_t>(w) * h * c, fill) {}
+  Image(int w, int h, int c = 1, float fill = 0.f) : width(w), height(h), channels(c), data(static_cast<std::size_t>(w) * h * c, fill) {}
   float& at(int x, int y, int c = 0) { return data[(static_cast<std::size_t>(y) * width + x) * channels + c]; }
-  float at(int x, int y, int c = 0) const {
-    return data[(static_cast<std::size_t>(y) * width + x) * channels + c];
-  }
+  float at(int x, int y, int c = 0) const { return data[(static_cast<std::size_t>(y) * width + x) * channels + c]; }
   std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
 };
 

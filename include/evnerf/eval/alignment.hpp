@@ -28,12 +28,18 @@ namespace evnerf::eval {
 enum class Alignment { GlobalLogAffine, LogAffine, MinMax, None, EventNerf, GlobalLogOffset };
 inline const char* to_string(Alignment a) {
   switch (a) {
-    case Alignment::GlobalLogAffine: return "global-log-affine";
-    case Alignment::LogAffine: return "log-affine";
-    case Alignment::MinMax: return "min-max";
-    case Alignment::EventNerf: return "eventnerf";
-    case Alignment::GlobalLogOffset: return "global-log-offset";
-    default: return "none";
+    case Alignment::GlobalLogAffine:
+      return "global-log-affine";
+    case Alignment::LogAffine:
+      return "log-affine";
+    case Alignment::MinMax:
+      return "min-max";
+    case Alignment::EventNerf:
+      return "eventnerf";
+    case Alignment::GlobalLogOffset:
+      return "global-log-offset";
+    default:
+      return "none";
   }
 }
 inline Alignment parse_alignment(const std::string& s) {
@@ -75,8 +81,8 @@ struct LogAffine {
 /// Least-squares log-affine maps, one per channel, over every pixel of every (prediction, ground truth)
 /// pair, in `space`. A prediction with no variance in a channel gets a = 0 (its best constant). With
 /// `offset_only`, a = 1 and b is the mean difference.
-inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts,
-                                             LogTransform space = {}, bool offset_only = false) {
+inline std::vector<LogAffine> fit_log_affine(const std::vector<Image>& preds, const std::vector<Image>& gts, LogTransform space = {},
+                                             bool offset_only = false) {
   require(!preds.empty() && preds.size() == gts.size(), "fit_log_affine: need as many predictions as ground-truth images");
   const int C = preds.front().channels;
   std::vector<double> n(C, 0), sx(C, 0), sy(C, 0), sxx(C, 0), sxy(C, 0);
@@ -142,8 +148,7 @@ inline std::pair<Image, Image> align(const Image& pred, const Image& gt, Alignme
   const double var = sxx - sx * sx / n;
   const double a = var > 1e-12 ? (sxy - sx * sy / n) / var : 0.0, b = (sy - a * sx) / n;
   Image o = pred;
-  for (auto& v : o.data)
-    v = static_cast<float>(std::clamp(std::exp(a * std::log(std::max(0.0, double(v)) + eps) + b) - eps, 0.0, 1.0));
+  for (auto& v : o.data) v = static_cast<float>(std::clamp(std::exp(a * std::log(std::max(0.0, double(v)) + eps) + b) - eps, 0.0, 1.0));
   return {o, gt};
 }
 

@@ -212,9 +212,9 @@ inline FineByDepth fine_error_by_depth(const std::vector<Image>& aligned, const 
       const float z = depth[f][p];
       if (usable(z)) {
         // band b holds edges[b] <= z < edges[b + 1] (the last band includes its top edge)
-        const auto b = std::min<std::size_t>(static_cast<std::size_t>(bands) - 1,
-                                             static_cast<std::size_t>(std::upper_bound(r.edges.begin() + 1, r.edges.end() - 1, z) -
-                                                                      (r.edges.begin() + 1)));
+        const auto b = std::min<std::size_t>(
+            static_cast<std::size_t>(bands) - 1,
+            static_cast<std::size_t>(std::upper_bound(r.edges.begin() + 1, r.edges.end() - 1, z) - (r.edges.begin() + 1)));
         r.pixel_share[b] += 1;
         for (int c = 0; c < C; ++c) {
           const double v = double(e.data[p * C + c]) - lo.data[p * C + c];

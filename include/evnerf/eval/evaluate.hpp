@@ -56,7 +56,8 @@ inline bool colour_frames(const io::Dataset& d, const std::vector<std::size_t>& 
 
 /// The baselines' reconstructions at the given frames. In colour, each pixel integrates its own events
 /// (its channel of the mosaic), and the mosaic is then demosaiced.
-inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast, bool colour = false) {
+inline std::vector<eval::Method> baseline_methods(const io::Dataset& d, const std::vector<std::size_t>& ids, double contrast,
+                                                  bool colour = false) {
   std::vector<double> times;
   for (auto i : ids) times.push_back(d.frames.t[i]);
   std::vector<eval::Method> m{{"direct_integration", eval::direct_integration(d.events, times, contrast)},
@@ -105,7 +106,7 @@ struct Scored {
   eval::AlignedScores primary;
   std::vector<eval::AlignedScores> others;
   std::optional<eval::AlignedScores> grey;  ///< colour truth only: every method and the truth in luminance
-  std::vector<Image> scored_truth;           ///< the truth as the primary alignment compared it
+  std::vector<Image> scored_truth;          ///< the truth as the primary alignment compared it
   nlohmann::json json;
 };
 inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& truth, const std::vector<eval::Alignment>& als,
@@ -120,8 +121,7 @@ inline Scored score_all(const std::vector<eval::Method>& methods, const Truth& t
   j["truth"] = hdr ? nlohmann::json{{"kind", "linear-hdr"}, {"log_offset", hdr->offset}, {"log_range", {hdr->lo, hdr->hi}}}
                    : nlohmann::json{{"kind", "frames"}};
   auto& scored_truth = s.scored_truth;
-  for (const auto& g : truth.images)
-    scored_truth.push_back(eval::scored_truth(g, als.front(), hdr));
+  for (const auto& g : truth.images) scored_truth.push_back(eval::scored_truth(g, als.front(), hdr));
   j["error_scales"] = eval::error_scales_json(s.primary, scored_truth);
   const int channels = truth.images.empty() ? 1 : truth.images.front().channels;
   j["channels"] = channels;
@@ -169,8 +169,14 @@ inline nlohmann::json per_channel_manifest(const geometry::Camera& c, const geom
   nlohmann::json j = {{"kind", "evnerf per-channel colour"},
                       {"pattern", p.name()},
                       {"green_sites", io::green_sites_name(green)},
-                      {"camera", {{"width", c.width()}, {"height", c.height()}, {"fx", c.fx()}, {"fy", c.fy()}, {"cx", c.cx()},
-                                  {"cy", c.cy()}, {"distortion", c.distortion()}}},
+                      {"camera",
+                       {{"width", c.width()},
+                        {"height", c.height()},
+                        {"fx", c.fx()},
+                        {"fy", c.fy()},
+                        {"cx", c.cx()},
+                        {"cy", c.cy()},
+                        {"distortion", c.distortion()}}},
                       {"channels", nlohmann::json::array()}};
   for (int k = 0; k < 3; ++k) j["channels"].push_back(std::string(kChannelDirs[k]) + "/model.ckpt");
   return j;
@@ -241,8 +247,9 @@ inline Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up, Mo
     const bool full = k == 1 && green == io::GreenSites::Both;  // green trained at the full sensor
     const auto expect = full ? cam : geometry::site_camera(cam, sites[k]);
     if (ch[k].desc.camera.width() != expect.width() || ch[k].desc.camera.height() != expect.height())
-      throw Error(files[k].string(), 0, "its camera is not " + std::string(full ? "the full sensor" : "the " + std::string(1, "RGB"[k]) + " sites") +
-                                            " of the sensor in " + ckpt.string() + " (green_sites: " + io::green_sites_name(green) + ")");
+      throw Error(files[k].string(), 0,
+                  "its camera is not " + std::string(full ? "the full sensor" : "the " + std::string(1, "RGB"[k]) + " sites") +
+                      " of the sensor in " + ckpt.string() + " (green_sites: " + io::green_sites_name(green) + ")");
     if (ch[k].desc.times.empty()) throw Error(files[k].string(), 0, "no slice boundaries");
     lo = std::max(lo, ch[k].desc.times.front());
     hi = std::min(hi, ch[k].desc.times.back());
@@ -268,8 +275,8 @@ inline Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up, Mo
     for (int k = 0; k < 3; ++k) {
       // Sites: each volume seen at its channel's (first) sites; green trained on both sites is seen there too.
       Rendering rk = up == ChannelUpsampling::Volume ? ch[k].render_with(cam, pose)
-                     : k == 1 && green_full ? ch[k].render_with(geometry::site_camera(cam, sites[k]), pose)
-                                            : ch[k].render(pose);
+                     : k == 1 && green_full          ? ch[k].render_with(geometry::site_camera(cam, sites[k]), pose)
+                                                     : ch[k].render(pose);
       if (up == ChannelUpsampling::Sites) {
         rk.luminance = geometry::upsample_sites(rk.luminance, sites[k], W, H);
         rk.depth = geometry::upsample_sites(rk.depth, sites[k], W, H);
@@ -289,8 +296,8 @@ inline Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up, Mo
 /// A model rendered at a recording's frames inside its trained time and scored with both baselines (what
 /// `evnerf eval` does, without writing anything).
 struct Evaluation {
-  std::vector<std::size_t> ids;     ///< the frames scored
-  std::vector<Rendering> renders;   ///< the model's, one per frame in `ids`
+  std::vector<std::size_t> ids;    ///< the frames scored
+  std::vector<Rendering> renders;  ///< the model's, one per frame in `ids`
   Truth truth;
   std::vector<eval::Method> methods;  ///< the model first (grey unless scored in colour), then the baselines
   Scored scored;

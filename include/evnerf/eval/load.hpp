@@ -23,8 +23,9 @@ Renderable load_model(const fs::path& ckpt) {
     auto model = std::make_shared<Model>();
     r.desc = train::load_checkpoint(ckpt, *model);
     if (r.desc.times.empty())
-      throw Error(ckpt.string(), 0, "the checkpoint records no training run (no camera, no slice boundaries): render and eval need one "
-                                    "that train wrote");
+      throw Error(ckpt.string(), 0,
+                  "the checkpoint records no training run (no camera, no slice boundaries): render and eval need one "
+                  "that train wrote");
     r.name = name;
     r.near = model->box().near;
     r.far = model->box().far;

@@ -13,8 +13,7 @@
 namespace evnerf::eval {
 
 inline void require_same_shape(const Image& a, const Image& b) {
-  require(a.width == b.width && a.height == b.height && a.channels == b.channels,
-          "metrics: images differ in size or channels");
+  require(a.width == b.width && a.height == b.height && a.channels == b.channels, "metrics: images differ in size or channels");
 }
 
 inline double mse(const Image& a, const Image& b) {
@@ -32,7 +31,8 @@ inline double psnr(const Image& a, const Image& b) {
 /// normalised over its taps, separably (rows, then columns), with 'reflect' borders (…2 1 0 | 0 1 2…, as
 /// scikit-image's SSIM and scipy's gaussian_filter use).
 inline std::vector<double> gaussian_filter(const std::vector<double>& in, int W, int H, double sigma, int radius) {
-  require(sigma > 0 && std::isfinite(sigma) && radius >= 0 && in.size() == static_cast<std::size_t>(W) * H, "gaussian_filter: bad arguments");
+  require(sigma > 0 && std::isfinite(sigma) && radius >= 0 && in.size() == static_cast<std::size_t>(W) * H,
+          "gaussian_filter: bad arguments");
   const int R = radius;
   std::vector<double> k(static_cast<std::size_t>(2 * R + 1));
   double ks = 0;

@@ -44,8 +44,8 @@ inline AlignedScores score_methods(const std::vector<Method>& methods, const std
   AlignedScores r;
   r.alignment = how;
   for (const auto& m : methods) {
-    require(m.images.size() == gts.size(), "score_methods: '" + m.name + "' has " + std::to_string(m.images.size()) +
-                                               " images for " + std::to_string(gts.size()) + " frames");
+    require(m.images.size() == gts.size(), "score_methods: '" + m.name + "' has " + std::to_string(m.images.size()) + " images for " +
+                                               std::to_string(gts.size()) + " frames");
     r.names.push_back(m.name);
     std::vector<Image> al;
     r.per_frame.push_back(score_sequence(m.images, gts, how, keep_aligned ? &al : nullptr, hdr));
@@ -89,10 +89,8 @@ inline nlohmann::json metrics_json(const AlignedScores& primary, const std::vect
   j["methods"] = methods_json(primary, true);
   for (std::size_t k = 0; k < others.size(); ++k) {
     nlohmann::json o = {{"alignment", to_string(others[k].alignment)}, {"methods", methods_json(others[k], false)}};
-    if (k == 0)
-      j["secondary"] = std::move(o);
-    else
-      j["other_alignments"].push_back(std::move(o));
+    if (k == 0) j["secondary"] = std::move(o);
+    else j["other_alignments"].push_back(std::move(o));
   }
   return j;
 }
@@ -120,10 +118,16 @@ inline nlohmann::json error_scales_json(const AlignedScores& a, const std::vecto
       kp += e.column_psnr() / n;
     }
     const auto o = offset_oracle(a.aligned[m], truths);
-    j["methods"][a.names[m]] = {{"coarse_mse", json_number(cm)}, {"coarse_psnr", json_number(cp)}, {"fine_mse", json_number(fm)},
-                                {"fine_psnr", json_number(fp)},   {"row_mse", json_number(rm)},    {"row_psnr", json_number(rp)},
-                                {"column_mse", json_number(km)},  {"column_psnr", json_number(kp)},
-                                {"oracle_rows_psnr", json_number(o.rows_psnr)}, {"oracle_columns_psnr", json_number(o.columns_psnr)},
+    j["methods"][a.names[m]] = {{"coarse_mse", json_number(cm)},
+                                {"coarse_psnr", json_number(cp)},
+                                {"fine_mse", json_number(fm)},
+                                {"fine_psnr", json_number(fp)},
+                                {"row_mse", json_number(rm)},
+                                {"row_psnr", json_number(rp)},
+                                {"column_mse", json_number(km)},
+                                {"column_psnr", json_number(kp)},
+                                {"oracle_rows_psnr", json_number(o.rows_psnr)},
+                                {"oracle_columns_psnr", json_number(o.columns_psnr)},
                                 {"oracle_both_psnr", json_number(o.both_psnr)}};
   }
   return j;

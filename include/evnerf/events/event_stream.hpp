@@ -55,22 +55,20 @@ struct EventStream {
   }
   /// The errors validate() throws, for readers that check before converting (the Python module's arrays).
   static Error outside_sensor(const std::string& source, std::size_t i, int width, int height) {
-    return Error(source + ": event " + std::to_string(i) + " lies outside the " + std::to_string(width) + "x" +
-                 std::to_string(height) + " sensor");
+    return Error(source + ": event " + std::to_string(i) + " lies outside the " + std::to_string(width) + "x" + std::to_string(height) +
+                 " sensor");
   }
   static Error bad_polarity(const std::string& source, std::size_t i, long long p) {
     return Error(source + ": event " + std::to_string(i) + " has polarity " + std::to_string(p));
   }
   /// Checks the invariants every consumer relies on; throws naming the first offending event.
   void validate(const std::string& source = "events") const {
-    require(x.size() == t.size() && y.size() == t.size() && polarity.size() == t.size(),
-            source + ": arrays differ in length");
+    require(x.size() == t.size() && y.size() == t.size() && polarity.size() == t.size(), source + ": arrays differ in length");
     require(width > 0 && height > 0, source + ": sensor size not set");
     for (std::size_t i = 0; i < t.size(); ++i) {
       if (x[i] >= width || y[i] >= height) throw outside_sensor(source, i, width, height);
       if (polarity[i] != 1 && polarity[i] != -1) throw bad_polarity(source, i, polarity[i]);
-      if (i > 0 && t[i] < t[i - 1])
-        throw Error(source + ": event " + std::to_string(i) + " goes back in time");
+      if (i > 0 && t[i] < t[i - 1]) throw Error(source + ": event " + std::to_string(i) + " goes back in time");
     }
   }
 };

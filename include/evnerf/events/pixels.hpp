@@ -99,7 +99,8 @@ struct EventPixels {
     }
     out.reserve(static_cast<std::size_t>(P));
     // Pixels with events.
-    take(want_event, active.size(), [&](std::size_t i) { return active[i]; }, rng, out, taken);
+    take(
+        want_event, active.size(), [&](std::size_t i) { return active[i]; }, rng, out, taken);
     // Pixels without events: rejection over the sensor (its sites), then a scan.
     std::size_t got = 0;
     for (std::size_t tries = 0; got < want_empty && tries < 64 * want_empty + 64; ++tries) {

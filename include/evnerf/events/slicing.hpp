@@ -17,9 +17,9 @@ namespace evnerf::events {
 /// Per-pixel positive and negative counts of one slice (row-major H×W), plus the pixels with events.
 struct SliceCounts {
   int width = 0, height = 0;
-  std::vector<std::int16_t> pos, neg;   ///< n⁺ and n⁻ (both non-negative)
-  std::vector<std::uint32_t> active;    ///< pixel indices with at least one event, increasing
-  std::size_t total = 0;                ///< events counted (Σ n⁺ + n⁻)
+  std::vector<std::int16_t> pos, neg;  ///< n⁺ and n⁻ (both non-negative)
+  std::vector<std::uint32_t> active;   ///< pixel indices with at least one event, increasing
+  std::size_t total = 0;               ///< events counted (Σ n⁺ + n⁻)
   /// The intervals behind the counts (slice_events with `intervals`; empty otherwise): the events of active
   /// pixel a (active[a]) are gap[gap_start[a] .. gap_start[a + 1]), in time order, each the seconds since the
   /// pixel's previous event of either polarity (infinity for its first), negative for an OFF event. A
@@ -80,8 +80,7 @@ inline void record_intervals(const EventStream& ev, SliceSet& set) {
   std::vector<std::uint32_t> slot(hw, 0);
   const auto& b = set.boundaries;
   std::size_t k = static_cast<std::size_t>(std::lower_bound(ev.t.begin(), ev.t.end(), b.front()) - ev.t.begin());
-  for (std::size_t i = 0; i < ev.size() && ev.t[i] < b.front(); ++i)
-    last[static_cast<std::size_t>(ev.y[i]) * ev.width + ev.x[i]] = ev.t[i];
+  for (std::size_t i = 0; i < ev.size() && ev.t[i] < b.front(); ++i) last[static_cast<std::size_t>(ev.y[i]) * ev.width + ev.x[i]] = ev.t[i];
   for (std::size_t i = 0; i < set.size(); ++i) {
     SliceCounts& s = set.slices[i];
     s.gap_start.assign(s.active.size() + 1, 0);

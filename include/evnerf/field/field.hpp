@@ -17,10 +17,8 @@ namespace evnerf::field {
 /// feeds them (p + 1) / 2, the others the normalised box's [−1, 1]³.
 template <class Enc>
 constexpr bool wants_unit_cube() {
-  if constexpr (requires { Enc::unit_cube_input; })
-    return Enc::unit_cube_input;
-  else
-    return false;
+  if constexpr (requires { Enc::unit_cube_input; }) return Enc::unit_cube_input;
+  else return false;
 }
 
 /// Encodes n points: the encoding's level-major batch path when it has one (hash grids), else point by
@@ -50,10 +48,8 @@ void encode_backward_batch(const T* params, const T* pts, int n, const T* dy, T*
 /// grid's levels; 1 for any other encoding).
 template <class Enc>
 constexpr int encode_backward_parts() {
-  if constexpr (requires { Enc::batch_parts; })
-    return Enc::batch_parts;
-  else
-    return 1;
+  if constexpr (requires { Enc::batch_parts; }) return Enc::batch_parts;
+  else return 1;
 }
 /// Part `part` of encode_backward_batch: the parts together add exactly what it adds, and different parts
 /// write to different tables, so threads may apply different parts at once.
@@ -61,8 +57,7 @@ template <class Enc, class T>
 void encode_backward_batch_part(const T* params, const T* pts, int n, const T* dy, T* dparams, int part) {
   if constexpr (requires { Enc::template backward_batch_levels<T>(pts, n, dy, dparams, 0, 1); })
     Enc::backward_batch_levels(pts, n, dy, dparams, part, part + 1);
-  else
-    encode_backward_batch<Enc>(params, pts, n, dy, dparams);
+  else encode_backward_batch<Enc>(params, pts, n, dy, dparams);
 }
 
 /// What the colour network's raw output means: the activation the compositor applies per sample, and the ε
@@ -117,8 +112,7 @@ struct Field {
   static constexpr int channels = ColorNet::out_dims;
   static constexpr int features = DensityNet::out_dims - 1;
   static constexpr int pos_in = PosEnc::out_dims, col_in = ColorNet::in_dims;
-  static constexpr std::size_t pos_offset = 0, density_offset = PosEnc::n_params,
-                               color_offset = PosEnc::n_params + DensityNet::n_params;
+  static constexpr std::size_t pos_offset = 0, density_offset = PosEnc::n_params, color_offset = PosEnc::n_params + DensityNet::n_params;
   static constexpr std::size_t n_params = color_offset + ColorNet::n_params;
   /// The weights through which the radiance depends on the view direction: the colour network's first-layer
   /// columns that take the direction encoding's outputs, less those that are constant (DirEnc's
@@ -178,8 +172,7 @@ struct Field {
   /// Evaluates n samples. `pts` are 3×n points in the normalised scene box [−1, 1]³, `dirs` 3×n unit
   /// directions. Returns pointers to raw density (stride DensityNet::out_dims) and raw luminance (C×n).
   template <class T>
-  static void forward(const T* params, const T* pts, const T* dirs, int n, Workspace<T>& ws, const T** sigma,
-                      const T** lum) {
+  static void forward(const T* params, const T* pts, const T* dirs, int n, Workspace<T>& ws, const T** sigma, const T** lum) {
     ws.n = 0;
     ws.dens.n = ws.col.n = 0;
     forward_at(params, pts, dirs, 0, n, ws, sigma, lum);
@@ -190,8 +183,7 @@ struct Field {
   /// termination). `pts` and `dirs` are the new samples' (3×n each). Afterwards the workspace holds at + n
   /// samples, as one forward() of all of them leaves it, bit for bit, and the returned pointers cover all.
   template <class T>
-  static void forward_at(const T* params, const T* pts, const T* dirs, int at, int n, Workspace<T>& ws, const T** sigma,
-                         const T** lum) {
+  static void forward_at(const T* params, const T* pts, const T* dirs, int at, int n, Workspace<T>& ws, const T** sigma, const T** lum) {
     require(at >= 0 && n >= 0 && ws.n >= at, "Field::forward_at: the workspace holds fewer than `at` samples");
     const int total = at + n;
     ws.n = total;
@@ -202,7 +194,9 @@ struct Field {
       T* q = &ws.points[3 * static_cast<std::size_t>(at + j)];
       for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
     }
-    if (n > 0) encode_batch<PosEnc>(params + pos_offset, ws.points.data() + 3 * static_cast<std::size_t>(at), n, ws.enc.data() + static_cast<std::size_t>(pos_in) * at);
+    if (n > 0)
+      encode_batch<PosEnc>(params + pos_offset, ws.points.data() + 3 * static_cast<std::size_t>(at), n,
+                           ws.enc.data() + static_cast<std::size_t>(pos_in) * at);
     const T* h = DensityNet::forward_at(params + density_offset, ws.enc.data(), at, n, ws.dens);
     for (int j = 0; j < n; ++j) {
       T* c = &ws.col_in[static_cast<std::size_t>(at + j) * col_in];
@@ -326,9 +320,8 @@ struct Field {
 /// direction encoding's features and gives `Channels` raw luminances. Both end in nn::Identity (the density
 /// activation is `DensityAct`, the compositor applies `Radiance`'s), their hidden layers use `Act`, and
 /// `Prec` is their product precision.
-template <nn::Encoding PosEnc, nn::Encoding DirEnc, nn::MlpShape DensityShape, int Features, nn::MlpShape ColourShape,
-          int Channels = 1, class Act = nn::ReLU, class Prec = nn::Fp32, class DensityAct = nn::ReLU,
-          class Radiance = SigmoidRadiance>
+template <nn::Encoding PosEnc, nn::Encoding DirEnc, nn::MlpShape DensityShape, int Features, nn::MlpShape ColourShape, int Channels = 1,
+          class Act = nn::ReLU, class Prec = nn::Fp32, class DensityAct = nn::ReLU, class Radiance = SigmoidRadiance>
 using FieldOf = Field<PosEnc, DirEnc, nn::MlpOf<PosEnc::out_dims, DensityShape, 1 + Features, Act, nn::Identity, Prec>,
                       nn::MlpOf<Features + DirEnc::out_dims, ColourShape, Channels, Act, nn::Identity, Prec>, DensityAct, Radiance>;
 

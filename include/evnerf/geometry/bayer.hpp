@@ -90,8 +90,7 @@ inline Camera site_camera(const Camera& full, Site s) {
   const int w = (full.width() - s.ox + 1) / 2, h = (full.height() - s.oy + 1) / 2;
   require(w > 0 && h > 0, "site_camera: the sensor is too small for a 2x2 mosaic");
   // full-resolution u = fx·n + cx, site coordinate u' = (u − ox + 0.5) / 2
-  return Camera(w, h, full.fx() / 2, full.fy() / 2, (full.cx() - s.ox + 0.5) / 2, (full.cy() - s.oy + 0.5) / 2,
-                full.distortion());
+  return Camera(w, h, full.fx() / 2, full.fy() / 2, (full.cx() - s.ox + 0.5) / 2, (full.cy() - s.oy + 0.5) / 2, full.distortion());
 }
 
 /// A site sensor's image brought back to the full resolution: full pixel (x, y) takes the bilinear

@@ -19,8 +19,7 @@ class Camera {
  public:
   Camera() = default;
   /// k = {k1, k2, p1, p2, k3} as in IJRR's calib.txt.
-  Camera(int width, int height, double fx, double fy, double cx, double cy,
-         std::array<double, 5> k = {0, 0, 0, 0, 0})
+  Camera(int width, int height, double fx, double fy, double cx, double cy, std::array<double, 5> k = {0, 0, 0, 0, 0})
       : width_(width), height_(height), fx_(fx), fy_(fy), cx_(cx), cy_(cy), k_(k) {
     require(width > 0 && height > 0, "camera: sensor size must be positive");
     require(fx > 0 && fy > 0 && std::isfinite(cx) && std::isfinite(cy), "camera: bad intrinsics");
@@ -96,8 +95,8 @@ class Camera {
 /// point before the fixation distance and one behind it move in opposite senses along the same line), so
 /// the unit vector's sign carries no meaning. Displacements under `min_px` pixels, and points behind or in
 /// the plane of the second camera, do not vote; zero when none does (no motion).
-inline Vec2 image_motion_axis(const Camera& cam, const Pose& from, const Pose& to, const Vec3& dir, double near, double far,
-                              int depths = 4, double min_px = 1e-2) {
+inline Vec2 image_motion_axis(const Camera& cam, const Pose& from, const Pose& to, const Vec3& dir, double near, double far, int depths = 4,
+                              double min_px = 1e-2) {
   near = std::max(near, 1e-6);
   far = std::max(far, near);
   const Pose rel = to.inverse() * from;  // camera `from` → camera `to`

@@ -50,7 +50,7 @@ struct Pose {
     Vec3 z = (target - eye).normalized();
     Vec3 x = z.cross(up).normalized();  // OpenCV: x right
     if (!x.allFinite() || x.norm() < 1e-9) x = z.unitOrthogonal();
-    Vec3 y = z.cross(x);                // y down
+    Vec3 y = z.cross(x);  // y down
     Mat3 r;
     r << x, y, z;
     Pose p;

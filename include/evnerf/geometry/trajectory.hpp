@@ -21,8 +21,7 @@ class Trajectory {
       : t_(std::move(t)), poses_(std::move(poses)), source_(std::move(source)) {
     require(t_.size() == poses_.size(), source_ + ": times and poses differ in count");
     for (std::size_t i = 1; i < t_.size(); ++i)
-      if (!(t_[i] > t_[i - 1]))
-        throw Error(source_ + ": pose times must increase strictly (pose " + std::to_string(i) + ")");
+      if (!(t_[i] > t_[i - 1])) throw Error(source_ + ": pose times must increase strictly (pose " + std::to_string(i) + ")");
   }
   std::size_t size() const { return t_.size(); }
   bool empty() const { return t_.empty(); }
@@ -37,8 +36,8 @@ class Trajectory {
     if (empty()) throw Error(source_ + ": no poses");
     if (!covers(t)) {
       if (policy == OutOfRange::Error)
-        throw Error(source_ + ": time " + short_number(t) + " s is outside the poses' range [" + short_number(t_.front()) +
-                    ", " + short_number(t_.back()) + "] s");
+        throw Error(source_ + ": time " + short_number(t) + " s is outside the poses' range [" + short_number(t_.front()) + ", " +
+                    short_number(t_.back()) + "] s");
       return t < t_.front() ? poses_.front() : poses_.back();
     }
     auto it = std::upper_bound(t_.begin(), t_.end(), t);

@@ -54,8 +54,8 @@ struct Aedat4Stream {
 struct Aedat4Info {
   int compression = 0;  ///< 0 none, 1 LZ4, 2 LZ4 high, 3 Zstd, 4 Zstd high
   std::int64_t table_position = -1;
-  bool table_used = false;   ///< the data table was read and agreed with the packets it names
-  std::string table_note;    ///< why it was not used, where there is one
+  bool table_used = false;  ///< the data table was read and agreed with the packets it names
+  std::string table_note;   ///< why it was not used, where there is one
   std::vector<Aedat4Stream> streams;
   std::size_t packets = 0, packets_skipped = 0;  ///< packets read; packets of other streams or outside the window
   std::size_t events = 0, frames = 0, frames_skipped = 0;
@@ -299,7 +299,9 @@ inline std::vector<Aedat4Stream> aedat4_streams(std::string_view xml, const std:
       auto number = [&]() {
         char* e = nullptr;
         const long v = std::strtol(value.c_str(), &e, 10);
-        if (e == value.c_str() || v < 0 || v > 65535) throw Error(where + ": stream " + std::to_string(id) + "'s " + key + " is '" + (value.size() > 40 ? value.substr(0, 40) + "…" : value) + "' (a size of 0 to 65535 expected)");
+        if (e == value.c_str() || v < 0 || v > 65535)
+          throw Error(where + ": stream " + std::to_string(id) + "'s " + key + " is '" +
+                      (value.size() > 40 ? value.substr(0, 40) + "…" : value) + "' (a size of 0 to 65535 expected)");
         return static_cast<int>(v);
       };
       if (!info && key == "typeIdentifier") it->type = value;
@@ -329,12 +331,12 @@ struct Aedat4Slot {
   Aedat4Inflater body;
   const unsigned char* events = nullptr;  ///< the first 16-byte Event in `body`
   std::uint64_t n = 0;
-  std::exception_ptr error;                  ///< decompressing or parsing failed
-  bool oversized = false;                    ///< larger than a batch allows: decompressed again alone
-  std::exception_ptr bad_event;              ///< an event out of order or off the sensor (before `examined`)
+  std::exception_ptr error;                    ///< decompressing or parsing failed
+  bool oversized = false;                      ///< larger than a batch allows: decompressed again alone
+  std::exception_ptr bad_event;                ///< an event out of order or off the sensor (before `examined`)
   std::uint64_t examined = 0, lo = 0, hi = 0;  ///< events looked at; those of the window [lo, hi)
-  bool done = false;                         ///< an event at or after the window's end
-  std::size_t out = 0;                       ///< where its window's events go in the stream
+  bool done = false;                           ///< an event at or after the window's end
+  std::size_t out = 0;                         ///< where its window's events go in the stream
   std::string where(const std::string& file) const {
     return file + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(stream) + ")";
   }
@@ -356,8 +358,9 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   if (ec) throw Error(file, 0, "cannot read its size");
   auto read_at = [&](std::uint64_t pos, std::size_t n, std::vector<unsigned char>& buf, const char* what) {
     if (pos > file_size || n > file_size - pos)
-      throw Error(file, 0, "byte " + std::to_string(pos) + ": " + what + " of " + std::to_string(n) + " bytes runs past the end of the file (" +
-                               std::to_string(file_size) + " bytes)");
+      throw Error(file, 0,
+                  "byte " + std::to_string(pos) + ": " + what + " of " + std::to_string(n) + " bytes runs past the end of the file (" +
+                      std::to_string(file_size) + " bytes)");
     buf.resize(n);
     if (std::fseek(f.get(), static_cast<long>(pos), SEEK_SET) != 0 || std::fread(buf.data(), 1, n, f.get()) != n)
       throw Error(file, 0, "byte " + std::to_string(pos) + ": read error");
@@ -377,7 +380,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     info.compression = h.scalar<std::int32_t>(0, 0);
     info.table_position = h.scalar<std::int64_t>(1, -1);
     if (info.compression < 0 || info.compression > 4)
-      throw Error(file, 0, "byte 18 (the IOHeader): unknown compression " + std::to_string(info.compression) + " (known: 0 none … 4 Zstd high)");
+      throw Error(file, 0,
+                  "byte 18 (the IOHeader): unknown compression " + std::to_string(info.compression) + " (known: 0 none … 4 Zstd high)");
     info.streams = detail::aedat4_streams(h.string(2), file + ": the IOHeader's description");
   }
   const Aedat4Stream* evs = nullptr;
@@ -386,7 +390,9 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     if (s.type == "EVTS" && !evs) evs = &s;
     if (s.type == "FRME" && !frs) frs = &s;
   }
-  if (!evs) throw Error(file, 0, "its description names no event stream (typeIdentifier EVTS): " + std::to_string(info.streams.size()) + " streams");
+  if (!evs)
+    throw Error(file, 0,
+                "its description names no event stream (typeIdentifier EVTS): " + std::to_string(info.streams.size()) + " streams");
   int w = opt.width, h = opt.height;
   if (w <= 0 || h <= 0) w = evs->width, h = evs->height;
   if (w <= 0 || h <= 0)
@@ -403,7 +409,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
     try {
       if (static_cast<std::uint64_t>(info.table_position) < data_start || static_cast<std::uint64_t>(info.table_position) >= file_size)
         throw Error("its position " + std::to_string(info.table_position) + " lies outside the file");
-      if (file_size - info.table_position > detail::kAedat4MaxPacket) throw Error("larger than " + std::to_string(detail::kAedat4MaxPacket >> 20) + " MiB");
+      if (file_size - info.table_position > detail::kAedat4MaxPacket)
+        throw Error("larger than " + std::to_string(detail::kAedat4MaxPacket >> 20) + " MiB");
       read_at(static_cast<std::uint64_t>(info.table_position), file_size - info.table_position, buf, "the data table");
       const std::string where = "byte " + std::to_string(info.table_position) + " (the data table)";
       detail::Aedat4Inflater body;
@@ -416,12 +423,14 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
         const auto ent = detail::FlatTable(fb, at + 4 * k + fb.get<std::uint32_t>(at + 4 * k, "an entry offset"), "an entry");
         detail::Aedat4Entry e;
         e.offset = ent.scalar<std::int64_t>(0, 0);
-        if (const auto ph = ent.field(1, 8)) e.stream = fb.get<std::int32_t>(ph, "a packet header"), e.size = fb.get<std::int32_t>(ph + 4, "a packet header");
+        if (const auto ph = ent.field(1, 8))
+          e.stream = fb.get<std::int32_t>(ph, "a packet header"), e.size = fb.get<std::int32_t>(ph + 4, "a packet header");
         e.elements = ent.scalar<std::int64_t>(2, 0);
         e.t_begin = ent.scalar<std::int64_t>(3, 0);
         e.t_end = ent.scalar<std::int64_t>(4, 0);
         if (e.offset < static_cast<std::int64_t>(prev_end) || e.size < 0 || static_cast<std::uint64_t>(e.offset) + 8 + e.size > data_end)
-          throw Error("entry " + std::to_string(k) + " names a packet at byte " + std::to_string(e.offset) + " that is not in the data section");
+          throw Error("entry " + std::to_string(k) + " names a packet at byte " + std::to_string(e.offset) +
+                      " that is not in the data section");
         prev_end = static_cast<std::uint64_t>(e.offset) + 8 + e.size;
         entries.push_back(e);
       }
@@ -456,9 +465,13 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
       detail::Aedat4Entry e;
       e.offset = static_cast<std::int64_t>(pos);
       std::memcpy(&e.stream, buf.data(), 4), std::memcpy(&e.size, buf.data() + 4, 4);
-      if (e.size <= 0) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
+      if (e.size <= 0)
+        throw Error(
+            file, 0,
+            "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
       if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size)) {
-        if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
+        if (!to_end)
+          throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
         cut_short(pos, "packet of " + std::to_string(e.size) + " bytes runs past the end of the file");
         break;
       }
@@ -547,8 +560,9 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
         }
         std::int64_t rel;
         if (__builtin_sub_overflow(us, origin_us, &rel)) [[unlikely]] {
-          s.bad_event = std::make_exception_ptr(Error(s.where(file) + ": event " + std::to_string(i) + ": time " + std::to_string(us) +
-                                                      " µs is out of range from the first event's second (" + std::to_string(origin_us) + " µs)"));
+          s.bad_event =
+              std::make_exception_ptr(Error(s.where(file) + ": event " + std::to_string(i) + ": time " + std::to_string(us) +
+                                            " µs is out of range from the first event's second (" + std::to_string(origin_us) + " µs)"));
           break;
         }
         prev = us;
@@ -572,7 +586,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
         std::int64_t first;
         std::memcpy(&first, s.events, 8);
         if (first < last_us)
-          throw Error(s.where(file) + ": event 0: time runs backwards (" + std::to_string(first) + " µs after " + std::to_string(last_us) + " µs)");
+          throw Error(s.where(file) + ": event 0: time runs backwards (" + std::to_string(first) + " µs after " + std::to_string(last_us) +
+                      " µs)");
       }
       if (s.bad_event) std::rethrow_exception(s.bad_event);
       if (s.examined) std::memcpy(&last_us, s.events + 16 * (s.examined - 1), 8);
@@ -609,7 +624,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   if (info.table_used && !std::isfinite(t0) && !std::isfinite(t1)) {
     std::uint64_t count = 0;
     for (const auto& e : entries)
-      if (e.stream == evs->id) count += std::min<std::uint64_t>(static_cast<std::uint64_t>(std::max<std::int64_t>(e.elements, 0)), std::uint64_t(e.size));
+      if (e.stream == evs->id)
+        count += std::min<std::uint64_t>(static_cast<std::uint64_t>(std::max<std::int64_t>(e.elements, 0)), std::uint64_t(e.size));
     ev.reserve(static_cast<std::size_t>(count));
     huge_pages(ev.t), huge_pages(ev.x), huge_pages(ev.y), huge_pages(ev.polarity);
   }
@@ -658,8 +674,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
       if (!ch) throw Error(where + ": frame format " + std::to_string(format) + " (known: 0 grey, 16 BGR, 24 BGRA)");
       const auto [at, n] = t.vector(10, 1);
       if (fw <= 0 || fh <= 0 || n != static_cast<std::uint64_t>(fw) * fh * ch)
-        throw Error(where + ": a " + std::to_string(fw) + "x" + std::to_string(fh) + " frame of " + std::to_string(ch) + " channels holds " +
-                    std::to_string(n) + " bytes");
+        throw Error(where + ": a " + std::to_string(fw) + "x" + std::to_string(fh) + " frame of " + std::to_string(ch) +
+                    " channels holds " + std::to_string(n) + " bytes");
       if (fw != w || fh != h || px || py) {  // a region of interest, not the sensor: no evaluation frame
         ++info.frames_skipped;
         continue;
@@ -675,7 +691,8 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   }
   flush();
   if (!have_origin) throw Error(file, 0, "no events in its event stream " + std::to_string(evs->id));
-  if (ev.t.capacity() > 2 * ev.t.size() + 4096) ev.t.shrink_to_fit(), ev.x.shrink_to_fit(), ev.y.shrink_to_fit(), ev.polarity.shrink_to_fit();
+  if (ev.t.capacity() > 2 * ev.t.size() + 4096)
+    ev.t.shrink_to_fit(), ev.x.shrink_to_fit(), ev.y.shrink_to_fit(), ev.polarity.shrink_to_fit();
   // Frame times in seconds from the origin, in time order.
   for (double& t : frames.t) t = (t - static_cast<double>(origin_us)) / 1e6;
   for (std::size_t k = 1; k < frames.t.size(); ++k)
@@ -699,14 +716,17 @@ inline Dataset load_aedat4(const std::filesystem::path& path, const LoadOptions&
   attach_calibration_and_poses(path, opt, d, d.events.width, d.events.height, "an AEDAT4 recording", static_cast<double>(d.time_origin));
   std::string streams;
   for (const auto& s : info.streams)
-    streams += (streams.empty() ? "" : ", ") + std::to_string(s.id) + " " + (s.type.empty() ? "?" : s.type) + (s.name.empty() ? "" : " (" + s.name + ")");
+    streams += (streams.empty() ? "" : ", ") + std::to_string(s.id) + " " + (s.type.empty() ? "?" : s.type) +
+               (s.name.empty() ? "" : " (" + s.name + ")");
   char buf[768];
-  std::snprintf(buf, sizeof buf, "aedat4        %s compression, streams: %s; %zu packets read, %zu skipped; %zu events, %zu frames (%zu not of the whole sensor)",
-                aedat4_compression_name(info.compression), streams.c_str(), info.packets, info.packets_skipped, info.events, info.frames,
-                info.frames_skipped);
+  std::snprintf(
+      buf, sizeof buf,
+      "aedat4        %s compression, streams: %s; %zu packets read, %zu skipped; %zu events, %zu frames (%zu not of the whole sensor)",
+      aedat4_compression_name(info.compression), streams.c_str(), info.packets, info.packets_skipped, info.events, info.frames,
+      info.frames_skipped);
   d.notes.push_back(buf);
-  d.notes.push_back(info.table_used ? "aedat4        data table read: the time window seeks through it" : "aedat4        " +
-                                                                                                          (info.table_note.empty() ? std::string("no data table") : info.table_note));
+  d.notes.push_back(info.table_used ? "aedat4        data table read: the time window seeks through it"
+                                    : "aedat4        " + (info.table_note.empty() ? std::string("no data table") : info.table_note));
   return d;
 }
 
@@ -842,7 +862,8 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
   const int c = compression == "none" ? 0 : compression == "lz4" ? 1 : compression == "zstd" ? 3 : -1;
   if (c < 0) throw Error(path.string(), 0, "AEDAT4 compression '" + compression + "' (known: none, lz4, zstd)");
   const int w = d.camera.width(), h = d.camera.height();
-  if (w > 32767 || h > 32767) throw Error(path.string(), 0, "AEDAT4 coordinates are 16-bit; the sensor is " + std::to_string(w) + "x" + std::to_string(h));
+  if (w > 32767 || h > 32767)
+    throw Error(path.string(), 0, "AEDAT4 coordinates are 16-bit; the sensor is " + std::to_string(w) + "x" + std::to_string(h));
   const std::int64_t origin_us = d.time_origin * 1000000;
   auto us_of = [&](double t, const std::string& what) {
     const double v = std::nearbyint(t * 1e6);
@@ -854,13 +875,18 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
   auto stream_xml = [&](int id, const char* type, const char* name) {
     const std::string p = "/mainloop/Recorder/outInfo/" + std::to_string(id) + "/";
     return "  <node name=\"" + std::to_string(id) + "\" path=\"" + p + "\">\n   <attr key=\"compression\" type=\"string\">" +
-           std::string(c == 0 ? "NONE" : c == 1 ? "LZ4" : "ZSTD") + "</attr>\n   <attr key=\"originalModuleName\" type=\"string\">evnerf</attr>\n" +
-           "   <attr key=\"originalOutputName\" type=\"string\">" + name + "</attr>\n   <attr key=\"typeIdentifier\" type=\"string\">" + type +
-           "</attr>\n   <node name=\"info\" path=\"" + p + "info/\">\n    <attr key=\"sizeX\" type=\"int\">" + sx +
-           "</attr>\n    <attr key=\"sizeY\" type=\"int\">" + sy + "</attr>\n    <attr key=\"source\" type=\"string\">evnerf</attr>\n   </node>\n  </node>\n";
+           std::string(c == 0   ? "NONE"
+                       : c == 1 ? "LZ4"
+                                : "ZSTD") +
+           "</attr>\n   <attr key=\"originalModuleName\" type=\"string\">evnerf</attr>\n" +
+           "   <attr key=\"originalOutputName\" type=\"string\">" + name + "</attr>\n   <attr key=\"typeIdentifier\" type=\"string\">" +
+           type + "</attr>\n   <node name=\"info\" path=\"" + p + "info/\">\n    <attr key=\"sizeX\" type=\"int\">" + sx +
+           "</attr>\n    <attr key=\"sizeY\" type=\"int\">" + sy +
+           "</attr>\n    <attr key=\"source\" type=\"string\">evnerf</attr>\n   </node>\n  </node>\n";
   };
-  const std::string xml = "<dv version=\"2.0\">\n <node name=\"outInfo\" path=\"/mainloop/Recorder/outInfo/\">\n" + stream_xml(0, "EVTS", "events") +
-                          (has_frames ? stream_xml(1, "FRME", "frames") : std::string()) + " </node>\n</dv>\n";
+  const std::string xml = "<dv version=\"2.0\">\n <node name=\"outInfo\" path=\"/mainloop/Recorder/outInfo/\">\n" +
+                          stream_xml(0, "EVTS", "events") + (has_frames ? stream_xml(1, "FRME", "frames") : std::string()) +
+                          " </node>\n</dv>\n";
   // Packets, each with its data-table entry.
   std::vector<unsigned char> data;
   std::vector<detail::Aedat4Entry> entries;
@@ -881,13 +907,15 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
       std::vector<unsigned char> px(im.pixels() * ch);
       for (std::size_t q = 0; q < im.pixels(); ++q)
         for (int k = 0; k < ch; ++k)
-          px[q * ch + k] = static_cast<unsigned char>(std::lround(std::clamp(im.data[q * im.channels + (ch == 1 ? 0 : 2 - k)], 0.f, 1.f) * 255.f));
+          px[q * ch + k] =
+              static_cast<unsigned char>(std::lround(std::clamp(im.data[q * im.channels + (ch == 1 ? 0 : 2 - k)], 0.f, 1.f) * 255.f));
       W fw;
       fw.start();
       const std::int64_t ts = us_of(d.frames.t[f], "frame " + std::to_string(f));
-      const auto t = fw.table({W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar<std::int8_t>(ch == 1 ? 0 : 16),
-                               W::scalar(static_cast<std::int16_t>(im.width)), W::scalar(static_cast<std::int16_t>(im.height)),
-                               W::scalar<std::int16_t>(0), W::scalar<std::int16_t>(0), W::offset()});
+      const auto t =
+          fw.table({W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar(ts), W::scalar<std::int8_t>(ch == 1 ? 0 : 16),
+                    W::scalar(static_cast<std::int16_t>(im.width)), W::scalar(static_cast<std::int16_t>(im.height)),
+                    W::scalar<std::int16_t>(0), W::scalar<std::int16_t>(0), W::offset()});
       fw.patch(t.at[10], fw.vector(px.data(), px.size(), 1, 1));
       add_packet(1, fw.finish(t.pos, "FRME"), ts, ts, 1);
     }
@@ -934,8 +962,8 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
   for (std::size_t k = 0; k < entries.size(); ++k) {
     const auto& e = entries[k];
     const std::int32_t ph[2] = {e.stream, e.size};
-    const auto t = tw.table({W::scalar<std::int64_t>(static_cast<std::int64_t>(head + e.offset)), W::raw(ph, 8), W::scalar<std::int64_t>(e.elements),
-                             W::scalar<std::int64_t>(e.t_begin), W::scalar<std::int64_t>(e.t_end)});
+    const auto t = tw.table({W::scalar<std::int64_t>(static_cast<std::int64_t>(head + e.offset)), W::raw(ph, 8),
+                             W::scalar<std::int64_t>(e.elements), W::scalar<std::int64_t>(e.t_begin), W::scalar<std::int64_t>(e.t_end)});
     tw.patch(vec + 4 + 4 * k, t.pos);
   }
   const auto table_fb = tw.finish(root.pos, "FTAB");
@@ -950,8 +978,12 @@ inline void write_aedat4(const std::filesystem::path& path, const Dataset& d, co
 }
 
 inline Format aedat4_format() {
-  return {"aedat4", false, kAedat4Description, &is_aedat4,
-          &load_aedat4, [](const std::filesystem::path& p, const Dataset& d, const WriteOptions& o) { write_aedat4(p, d, o.compression); },
+  return {"aedat4",
+          false,
+          kAedat4Description,
+          &is_aedat4,
+          &load_aedat4,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions& o) { write_aedat4(p, d, o.compression); },
           {".aedat4"}};
 }
 

@@ -92,8 +92,8 @@ struct CheckpointHeader {
   double box[6] = {0, 0, 0, 1, 0, 1};  ///< centre x y z, scale, near, far
   double density_length = 1.0;
   double background = std::numeric_limits<double>::quiet_NaN();  ///< the box's background luminance, NaN for none
-  bool background_learned = false;                                ///< the box's backdrop is learned (its values are parameters)
-  double refractory = -1, refractory_m = 0, refractory_v = 0;     ///< the period (negative: none) and its Adam moments
+  bool background_learned = false;                               ///< the box's backdrop is learned (its values are parameters)
+  double refractory = -1, refractory_m = 0, refractory_v = 0;    ///< the period (negative: none) and its Adam moments
   bool refractory_learned = false;
   std::string loss;
   std::string architecture;

@@ -114,8 +114,7 @@ inline ColmapModel read_colmap_text(const std::filesystem::path& folder) {
   m.images = parse_colmap_images(read_file(folder / "images.txt"), (folder / "images.txt").string());
   for (auto& im : m.images)
     if (!m.cameras.count(im.camera_id))
-      throw Error((folder / "images.txt").string(), 0,
-                  "image '" + im.name + "' refers to unknown camera " + std::to_string(im.camera_id));
+      throw Error((folder / "images.txt").string(), 0, "image '" + im.name + "' refers to unknown camera " + std::to_string(im.camera_id));
   return m;
 }
 

@@ -33,11 +33,12 @@ namespace detail {
 /// The table io::formats() shows: evnerf's formats, then those registered (register_format).
 inline std::vector<Format>& format_table() {
   static std::vector<Format> table = {
-      ijrr_format(), eventnerf_format(), robust_e_nerf_format(), evt2_format(), evt3_format(), dat_format(),
+      ijrr_format(),   eventnerf_format(), robust_e_nerf_format(), evt2_format(), evt3_format(), dat_format(),
 #ifdef EVNERF_HAVE_HDF5
       hdf5_format(),
 #else
-      unavailable_format("hdf5", kHdf5Description, {".h5", ".hdf5"}, "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)"),
+      unavailable_format("hdf5", kHdf5Description, {".h5", ".hdf5"},
+                         "this build of evnerf has no HDF5 support (install libhdf5-dev and rebuild)"),
 #endif
 #ifdef EVNERF_HAVE_ROSBAG
       rosbag_format(),
@@ -102,8 +103,9 @@ inline const Format& detect_format(const std::filesystem::path& path, const std:
   if (!format.empty()) {
     const Format& f = format_named(format, path);
     if (f.folder != fs::is_directory(path))
-      throw Error(path.string(), 0, "format '" + format + "' is " + (f.folder ? "a folder" : "a file") + ", and this is " +
-                                        (fs::exists(path) ? (f.folder ? "a file" : "a folder") : "missing"));
+      throw Error(path.string(), 0,
+                  "format '" + format + "' is " + (f.folder ? "a folder" : "a file") + ", and this is " +
+                      (fs::exists(path) ? (f.folder ? "a file" : "a folder") : "missing"));
     if (!f.load) throw Error(path.string(), 0, std::string("format '") + f.name + "': " + f.unavailable);
     return f;
   }
@@ -131,7 +133,9 @@ inline const Format& detect_format(const std::filesystem::path& path, const std:
 
 /// Loads a recording whatever its format (all its events; io::load applies LoadOptions' time window): the
 /// reader is picked from the content, not the name (detect_format).
-inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) { return detect_format(path, opt.format).load(path, opt); }
+inline Dataset load_whole(const std::filesystem::path& path, const LoadOptions& opt = {}) {
+  return detect_format(path, opt.format).load(path, opt);
+}
 
 /// Writes a recording in the format `out`'s name chooses: the file format with the longest extension its
 /// name ends in (`.evt2.raw` before `.raw`), else (a folder) the IJRR layout. Returns the format's name.

@@ -79,7 +79,8 @@ inline std::map<std::string, std::string> read_npz(const std::filesystem::path& 
     if (i == lo) break;
   }
   if (eocd == std::string::npos) fail("not a zip archive (no end of central directory)");
-  std::uint64_t entries = detail::zip_le(b, eocd + 10, 2), cd_size = detail::zip_le(b, eocd + 12, 4), cd_off = detail::zip_le(b, eocd + 16, 4);
+  std::uint64_t entries = detail::zip_le(b, eocd + 10, 2), cd_size = detail::zip_le(b, eocd + 12, 4),
+                cd_off = detail::zip_le(b, eocd + 16, 4);
   if (entries == 0xFFFF || cd_size == 0xFFFFFFFF || cd_off == 0xFFFFFFFF) {  // zip64: the locator just before
     if (eocd < 20 || b.compare(eocd - 20, 4, "PK\x06\x07") != 0) fail("zip64 archive without its locator");
     const std::uint64_t z = detail::zip_le(b, eocd - 20 + 8, 8);
@@ -136,7 +137,8 @@ inline std::map<std::string, std::string> read_npz(const std::filesystem::path& 
     } else {
       fail(member + " uses compression method " + std::to_string(method) + " (read: stored, deflate)");
     }
-    if (detail::zip_crc32(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size()) != crc) fail(member + ": CRC-32 mismatch (corrupt)");
+    if (detail::zip_crc32(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size()) != crc)
+      fail(member + ": CRC-32 mismatch (corrupt)");
     std::string key = name;
     if (key.size() > 4 && key.compare(key.size() - 4, 4, ".npy") == 0) key.resize(key.size() - 4);
     out[key] = std::move(bytes);
@@ -216,10 +218,12 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
     throw Error((split / "events").string(), 0, "expected one .npz archive of events, found " + std::to_string(npz.size()));
   const auto poses = detail::sorted_files(split / "pose", ".txt");
   const auto intr = detail::sorted_files(split / "intrinsics", ".txt");
-  if (poses.size() < 2) throw Error((split / "pose").string(), 0, "expected a 4x4 pose file per view, found " + std::to_string(poses.size()));
+  if (poses.size() < 2)
+    throw Error((split / "pose").string(), 0, "expected a 4x4 pose file per view, found " + std::to_string(poses.size()));
   if (intr.empty()) throw Error((split / "intrinsics").string(), 0, "no intrinsics files (a 4x4 or 5x4 matrix per view)");
   if (intr.size() != 1 && intr.size() != poses.size())
-    throw Error((split / "intrinsics").string(), 0, std::to_string(intr.size()) + " intrinsics files for " + std::to_string(poses.size()) + " poses");
+    throw Error((split / "intrinsics").string(), 0,
+                std::to_string(intr.size()) + " intrinsics files for " + std::to_string(poses.size()) + " poses");
   EventNerfScene s;
   s.frames = detail::sorted_files(split / "rgb", ".png");
   if (!s.frames.empty() && s.frames.size() != poses.size())
@@ -235,9 +239,11 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
 
   // Intrinsics: the first view's (EventNeRF's views share one camera); the others must agree.
   const auto K = detail::numbers_of(intr[0], 20);
-  if (K.size() != 16 && K.size() != 20) throw Error(intr[0].string(), 0, "expected a 4x4 or 5x4 matrix, found " + std::to_string(K.size()) + " numbers");
+  if (K.size() != 16 && K.size() != 20)
+    throw Error(intr[0].string(), 0, "expected a 4x4 or 5x4 matrix, found " + std::to_string(K.size()) + " numbers");
   for (std::size_t i = 1; i < intr.size(); ++i)
-    if (detail::numbers_of(intr[i], 20) != K) throw Error(intr[i].string(), 0, "differs from " + intr[0].filename().string() + " (one camera is read)");
+    if (detail::numbers_of(intr[i], 20) != K)
+      throw Error(intr[i].string(), 0, "differs from " + intr[0].filename().string() + " (one camera is read)");
   const double fx = K[0], fy = K[5], cx = K[2], cy = K[6];
   if (!(fx > 0) || !(fy > 0) || !std::isfinite(cx) || !std::isfinite(cy))
     throw Error(intr[0].string(), 0, "focal lengths must be positive and the centre finite");
@@ -247,8 +253,9 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
     double err = 0;
     dist = radial_from_division(K[16], K[17], r_max, std::max(fx, fy), err);
     if (err > 0.05)
-      throw Error(intr[0].string(), 0, "its division-model distortion (k1 " + short_number(K[16]) + ", k2 " + short_number(K[17]) +
-                                            ") has no radial equivalent within 0.05 px (" + short_number(err, 3) + " px); give --calib");
+      throw Error(intr[0].string(), 0,
+                  "its division-model distortion (k1 " + short_number(K[16]) + ", k2 " + short_number(K[17]) +
+                      ") has no radial equivalent within 0.05 px (" + short_number(err, 3) + " px); give --calib");
   }
   s.camera = geometry::Camera(w, h, fx, fy, cx, cy, dist);
 
@@ -264,8 +271,9 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
   const auto x = array("x"), y = array("y"), t = array("t"), p = array("p");
   const std::size_t n = x.data.size();
   if (y.data.size() != n || t.data.size() != n || p.data.size() != n)
-    throw Error(npz[0].string(), 0, "arrays x, y, t, p differ in length (" + std::to_string(n) + ", " + std::to_string(y.data.size()) + ", " +
-                                        std::to_string(t.data.size()) + ", " + std::to_string(p.data.size()) + ")");
+    throw Error(npz[0].string(), 0,
+                "arrays x, y, t, p differ in length (" + std::to_string(n) + ", " + std::to_string(y.data.size()) + ", " +
+                    std::to_string(t.data.size()) + ", " + std::to_string(p.data.size()) + ")");
   if (n == 0) throw Error(npz[0].string(), 0, "no events");
   s.events.width = w;
   s.events.height = h;
@@ -274,8 +282,9 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
     const double xi = x.data[i], yi = y.data[i], ti = t.data[i], pi = p.data[i];
     const std::string ev = "event " + std::to_string(i);
     if (!(xi >= 0 && yi >= 0 && xi < w && yi < h) || xi != std::floor(xi) || yi != std::floor(yi))
-      throw Error(npz[0].string(), 0, ev + ": pixel (" + short_number(xi) + ", " + short_number(yi) + ") is not a pixel of the " +
-                                          std::to_string(w) + "x" + std::to_string(h) + " sensor");
+      throw Error(npz[0].string(), 0,
+                  ev + ": pixel (" + short_number(xi) + ", " + short_number(yi) + ") is not a pixel of the " + std::to_string(w) + "x" +
+                      std::to_string(h) + " sensor");
     if (!std::isfinite(ti)) throw Error(npz[0].string(), 0, ev + ": time is not finite");
     if (i > 0 && ti < s.events.t.back())
       throw Error(npz[0].string(), 0, ev + ": time " + short_number(ti) + " goes back (previous " + short_number(s.events.t.back()) + ")");
@@ -290,7 +299,8 @@ inline EventNerfScene read_eventnerf(const std::filesystem::path& folder, int wi
   std::vector<geometry::Pose> ps;
   for (std::size_t i = 0; i < poses.size(); ++i) {
     const auto m = detail::numbers_of(poses[i], 16);
-    if (m.size() != 16) throw Error(poses[i].string(), 0, "expected a 4x4 camera-to-world matrix, found " + std::to_string(m.size()) + " numbers");
+    if (m.size() != 16)
+      throw Error(poses[i].string(), 0, "expected a 4x4 camera-to-world matrix, found " + std::to_string(m.size()) + " numbers");
     Eigen::Matrix4d M;
     for (int r = 0; r < 4; ++r)
       for (int c = 0; c < 4; ++c) M(r, c) = m[static_cast<std::size_t>(4 * r + c)];
@@ -325,7 +335,8 @@ inline Dataset load_eventnerf(const std::filesystem::path& folder, const LoadOpt
 
 /// The format's line in io::formats().
 inline Format eventnerf_format() {
-  return {"eventnerf", true, "an EventNeRF scene folder (train/events/*.npz, train/pose, train/intrinsics)", &is_eventnerf, &load_eventnerf};
+  return {"eventnerf", true, "an EventNeRF scene folder (train/events/*.npz, train/pose, train/intrinsics)", &is_eventnerf,
+          &load_eventnerf};
 }
 
 }  // namespace evnerf::io

@@ -44,13 +44,13 @@ inline constexpr std::size_t kHdf5Block = std::size_t{1} << 20;
 
 /// What an event HDF5 file holds.
 struct Hdf5Recording {
-  std::string layout;                ///< "event_utils" or "dsec"
+  std::string layout;  ///< "event_utils" or "dsec"
   events::EventStream events;
-  int width = 0, height = 0;         ///< from `sensor_resolution` or the frames; 0 when the file does not say
-  std::vector<double> frame_times;   ///< seconds
-  std::vector<Image> frames;         ///< float in [0, 1]
-  std::size_t events_read = 0;       ///< events read from the file (fewer than it holds when a time window
-                                     ///< and DSEC's ms_to_idx let the reader skip the rest)
+  int width = 0, height = 0;        ///< from `sensor_resolution` or the frames; 0 when the file does not say
+  std::vector<double> frame_times;  ///< seconds
+  std::vector<Image> frames;        ///< float in [0, 1]
+  std::size_t events_read = 0;      ///< events read from the file (fewer than it holds when a time window
+                                    ///< and DSEC's ms_to_idx let the reader skip the rest)
 };
 
 namespace detail {
@@ -75,7 +75,10 @@ class H5Id {
 /// HDF5's own error printing off for a scope (our errors say what went wrong), restored after.
 class H5Quiet {
  public:
-  H5Quiet() { H5Eget_auto2(H5E_DEFAULT, &fn_, &data_); H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+  H5Quiet() {
+    H5Eget_auto2(H5E_DEFAULT, &fn_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
   ~H5Quiet() { H5Eset_auto2(H5E_DEFAULT, fn_, data_); }
   H5Quiet(const H5Quiet&) = delete;
   H5Quiet& operator=(const H5Quiet&) = delete;
@@ -120,10 +123,16 @@ inline void use_debian_plugins() {
 /// The Debian package that provides the HDF5 filter `id`, as advice for an Error.
 inline std::string filter_package(H5Z_filter_t id) {
   switch (id) {
-    case 32001: return "install Debian's hdf5-filter-plugin-blosc-serial";
-    case 307: case 32004: case 32008: return "install Debian's hdf5-filter-plugin";
-    case 32013: return "install Debian's hdf5-filter-plugin-zfp-serial";
-    default: return "put its plugin in a folder that HDF5_PLUGIN_PATH names";
+    case 32001:
+      return "install Debian's hdf5-filter-plugin-blosc-serial";
+    case 307:
+    case 32004:
+    case 32008:
+      return "install Debian's hdf5-filter-plugin";
+    case 32013:
+      return "install Debian's hdf5-filter-plugin-zfp-serial";
+    default:
+      return "put its plugin in a folder that HDF5_PLUGIN_PATH names";
   }
 }
 
@@ -142,11 +151,13 @@ class H5Vector {
       unsigned flags = 0, config = 0;
       std::size_t values = 0;
       char name[80] = {0};
-      const H5Z_filter_t id = H5Pget_filter2(dcpl.get(), static_cast<unsigned>(i), &flags, &values, nullptr, sizeof name - 1, name, &config);
+      const H5Z_filter_t id =
+          H5Pget_filter2(dcpl.get(), static_cast<unsigned>(i), &flags, &values, nullptr, sizeof name - 1, name, &config);
       if (id < 0) throw Error(where_ + " has an unreadable filter pipeline");
       if (H5Zfilter_avail(id) <= 0)
-        throw Error(where_ + " is compressed with HDF5 filter " + std::to_string(id) + (name[0] ? std::string(" ('") + name + "')" : std::string()) +
-                    ", which this HDF5 library cannot load (searched " + kDebianHdf5Plugins + " and HDF5_PLUGIN_PATH): " + filter_package(id));
+        throw Error(where_ + " is compressed with HDF5 filter " + std::to_string(id) +
+                    (name[0] ? std::string(" ('") + name + "')" : std::string()) + ", which this HDF5 library cannot load (searched " +
+                    kDebianHdf5Plugins + " and HDF5_PLUGIN_PATH): " + filter_package(id));
       if (id == 32001) blosc_ = i;
       else if (id != H5Z_FILTER_SHUFFLE) size_changing_ = true;
     }
@@ -161,7 +172,8 @@ class H5Vector {
       throw Error(where_ + " does not hold numbers");
     floating_ = cls == H5T_FLOAT;
     const std::size_t element = H5Tget_size(type.get());  // a corrupt type can claim gigabytes per element
-    if (element == 0 || element > 8) throw Error(where_ + " has elements of " + std::to_string(element) + " bytes (numbers of 1 to 8 expected)");
+    if (element == 0 || element > 8)
+      throw Error(where_ + " has elements of " + std::to_string(element) + " bytes (numbers of 1 to 8 expected)");
     if (cls == H5T_INTEGER) {
       // Padding bits (fewer significant bits than the element holds, or an offset) are legal HDF5 that no event
       // file uses; on a corrupt type (16 bits at bit 246 of a 2-byte element) libhdf5 1.10 converts the same
@@ -241,7 +253,8 @@ class H5Vector {
         throw Error(at + " says it decompresses to " + std::to_string(nbytes) + " bytes, not the chunk's " + std::to_string(chunk_bytes_) +
                     " (corrupt file?)");
       if (cbytes > bytes)
-        throw Error(at + " says it holds " + std::to_string(cbytes) + " compressed bytes, " + std::to_string(bytes) + " are stored (corrupt file?)");
+        throw Error(at + " says it holds " + std::to_string(cbytes) + " compressed bytes, " + std::to_string(bytes) +
+                    " are stored (corrupt file?)");
     }
   }
   template <class T>
@@ -257,8 +270,8 @@ class H5Vector {
   H5Id set_, space_;
   hsize_t size_ = 0;
   bool floating_ = false, byte_enum_ = false;
-  int blosc_ = -1;               // the Blosc filter's place in the pipeline
-  bool size_changing_ = false;   // another filter that changes the size
+  int blosc_ = -1;                       // the Blosc filter's place in the pipeline
+  bool size_changing_ = false;           // another filter that changes the size
   hsize_t chunk_ = 0, chunk_bytes_ = 0;  // elements and bytes a chunk holds; 0: no Blosc check
   std::string path_;
 };
@@ -304,8 +317,9 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   Hdf5Recording rec;
   const bool eu = detail::h5_exists(f, "events/xs"), dsec = detail::h5_exists(f, "events/x");
   if (!eu && !dsec)
-    throw Error(file, 0, "no events: expected datasets events/xs, events/ys, events/ts, events/ps (event_utils, HQF) or "
-                         "events/x, events/y, events/t, events/p (DSEC)");
+    throw Error(file, 0,
+                "no events: expected datasets events/xs, events/ys, events/ts, events/ps (event_utils, HQF) or "
+                "events/x, events/y, events/t, events/p (DSEC)");
   rec.layout = eu ? "event_utils" : "dsec";
   const std::string px = eu ? "events/xs" : "events/x", py = eu ? "events/ys" : "events/y", pt = eu ? "events/ts" : "events/t",
                     pp = eu ? "events/ps" : "events/p";
@@ -342,8 +356,9 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
         throw Error(file, 0, "dataset '" + full + "' is not an 8-bit image");
       if (dims[0] == 0 || dims[1] == 0 || dims[0] > 65535 || dims[1] > 65535 || dims[0] * dims[1] > std::uint64_t{1} << 26 ||
           (dims[2] != 1 && dims[2] != 3))
-        throw Error(file, 0, "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" +
-                                 std::to_string(dims[1]) + "x" + std::to_string(dims[2]) + ")");
+        throw Error(file, 0,
+                    "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                        std::to_string(dims[2]) + ")");
       if (!rec.frame_times.empty() && t < rec.frame_times.back())
         throw Error(file, 0, "dataset '" + full + "': frame timestamps go back in time");
       std::vector<unsigned char> px8(dims[0] * dims[1] * dims[2]);
@@ -358,8 +373,9 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   if (const auto res = detail::h5_attribute(f, "sensor_resolution", 2); res.size() == 2) {
     for (double v : res)
       if (!(v >= 1 && v <= 65535) || v != std::floor(v))
-        throw Error(file, 0, "attribute 'sensor_resolution' (" + short_number(res[0]) + ", " + short_number(res[1]) +
-                                 ") is not a height and width of 1 to 65535 pixels");
+        throw Error(file, 0,
+                    "attribute 'sensor_resolution' (" + short_number(res[0]) + ", " + short_number(res[1]) +
+                        ") is not a height and width of 1 to 65535 pixels");
     rec.height = static_cast<int>(res[0]);
     rec.width = static_cast<int>(res[1]);
   } else if (!rec.frames.empty()) {
@@ -373,9 +389,9 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
     if (v->floating()) throw Error(v->where() + " holds floating-point values (pixel coordinates and polarities are integers)");
   const std::size_t n = xs.size();
   if (ys.size() != n || ts.size() != n || ps.size() != n)
-    throw Error(file, 0, "the event datasets differ in length (" + px + " " + std::to_string(n) + ", " + py + " " +
-                             std::to_string(ys.size()) + ", " + pt + " " + std::to_string(ts.size()) + ", " + pp + " " +
-                             std::to_string(ps.size()) + ")");
+    throw Error(file, 0,
+                "the event datasets differ in length (" + px + " " + std::to_string(n) + ", " + py + " " + std::to_string(ys.size()) +
+                    ", " + pt + " " + std::to_string(ts.size()) + ", " + pp + " " + std::to_string(ps.size()) + ")");
   if (n == 0) throw Error(file, 0, "no events (the event datasets are empty)");
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(path, ec);
@@ -388,8 +404,7 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
     const detail::H5Id space(set.ok() ? H5Dget_space(set.get()) : -1, H5Sclose);
     std::int64_t v = 0;
     if (!set.ok() || !type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) > 8 || !space.ok() ||
-        H5Sget_simple_extent_npoints(space.get()) != 1 ||
-        H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
+        H5Sget_simple_extent_npoints(space.get()) != 1 || H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
       throw Error(file, 0, "dataset 't_offset' cannot be read as an integer (microseconds)");
     t_offset = static_cast<double>(v);
   }
@@ -402,7 +417,8 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   if (dsec && detail::h5_exists(f, "ms_to_idx")) {
     const detail::H5Vector idx(f, "ms_to_idx", file);
     if (idx.size() > 16 * static_cast<std::size_t>(bytes))
-      throw Error(file, 0, "dataset 'ms_to_idx' claims " + std::to_string(idx.size()) + " entries in a file of " + std::to_string(bytes) + " bytes");
+      throw Error(file, 0,
+                  "dataset 'ms_to_idx' claims " + std::to_string(idx.size()) + " entries in a file of " + std::to_string(bytes) + " bytes");
     ms_index.resize(idx.size());
     idx.read(0, ms_index.size(), ms_index.data());
     for (std::size_t k = 0; k < ms_index.size(); ++k)
@@ -458,14 +474,17 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
       const double t = (bt[i] + t_offset) * t_scale;
       if (!std::isfinite(t)) throw Error(file, 0, "dataset '" + pt + "', event " + std::to_string(k) + ": time is not finite");
       if (t < last)
-        throw Error(file, 0, "dataset '" + pt + "', event " + std::to_string(k) + ": time " + short_number(t) +
-                                 " s goes back (previous " + short_number(last) + " s)");
+        throw Error(file, 0,
+                    "dataset '" + pt + "', event " + std::to_string(k) + ": time " + short_number(t) + " s goes back (previous " +
+                        short_number(last) + " s)");
       if (bx[i] < 0 || by[i] < 0 || bx[i] >= lim_x || by[i] >= lim_y)
-        throw Error(file, 0, "event " + std::to_string(k) + ": pixel (" + std::to_string(bx[i]) + ", " + std::to_string(by[i]) +
-                                 ") lies outside the " + std::to_string(lim_x) + "x" + std::to_string(lim_y) + " sensor");
+        throw Error(file, 0,
+                    "event " + std::to_string(k) + ": pixel (" + std::to_string(bx[i]) + ", " + std::to_string(by[i]) +
+                        ") lies outside the " + std::to_string(lim_x) + "x" + std::to_string(lim_y) + " sensor");
       if (bp[i] != 0 && bp[i] != 1 && bp[i] != -1)
-        throw Error(file, 0, "dataset '" + pp + "', event " + std::to_string(k) + ": unknown polarity " + std::to_string(bp[i]) +
-                                 " (expected 0/1 or -1/1)");
+        throw Error(
+            file, 0,
+            "dataset '" + pp + "', event " + std::to_string(k) + ": unknown polarity " + std::to_string(bp[i]) + " (expected 0/1 or -1/1)");
       last = t;
       max_x = std::max(max_x, bx[i]);
       max_y = std::max(max_y, by[i]);
@@ -485,8 +504,7 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
   // A file whose ms_to_idx disagrees with the events read is refused (entries pointing at events this read
   // skipped are checked only for order).
   if (!ms_index.empty()) {
-    if (i0 == 0 && i1 == n &&
-        ms_index.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
+    if (i0 == 0 && i1 == n && ms_index.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
       throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(ms_index.size()) + " entries, more than the events' milliseconds");
     auto raw_ms = [&](std::size_t j) { return (ev.t[j - i0] - t_offset * 1e-6) * 1e3; };
     for (std::size_t k = 0; k < ms_index.size(); ++k) {
@@ -589,23 +607,23 @@ inline Hdf5Recording read_hdf5_checked(const std::filesystem::path& path, int wi
   } catch (...) {  // the caller's progress function abandons the read
     ::kill(pid, SIGKILL);
     ::close(fds[0]);
-    while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
-    }
+    while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {}
     throw;
   }
   ::close(fds[0]);
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
   if (WIFSIGNALED(status))
-    throw Error(file, 0, "the HDF5 library crashed (signal " + std::to_string(WTERMSIG(status)) + ", " + strsignal(WTERMSIG(status)) +
-                             ") reading this file in a child process: the file is corrupt in a way the library does not check; "
-                             "nothing was loaded");
+    throw Error(file, 0,
+                "the HDF5 library crashed (signal " + std::to_string(WTERMSIG(status)) + ", " + strsignal(WTERMSIG(status)) +
+                    ") reading this file in a child process: the file is corrupt in a way the library does not check; "
+                    "nothing was loaded");
   if (WIFEXITED(status) && WEXITSTATUS(status) == 3) throw Error(message);
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    throw Error(file, 0, "reading this HDF5 file in a child process ended with exit status " +
-                             std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
-                             " (a crash a sanitizer reported, or out of memory); nothing was loaded");
+    throw Error(file, 0,
+                "reading this HDF5 file in a child process ended with exit status " +
+                    std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) +
+                    " (a crash a sanitizer reported, or out of memory); nothing was loaded");
   ReadProgress second;
   // The child's read filled [0, total / 2]; this one fills the rest, ending at total.
   if (progress) second = [&](std::uint64_t done, std::uint64_t) { progress(total - (total - std::min(done, total)) / 2, total); };
@@ -704,8 +722,10 @@ inline void write_hdf5_recording(const std::filesystem::path& path, const Datase
 
 /// The format's line in io::formats(): written for an output ending in .h5 or .hdf5.
 inline Format hdf5_format() {
-  return {"hdf5", false, kHdf5Description, &is_hdf5, &load_hdf5,
-          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); }, {".h5", ".hdf5"}};
+  return {"hdf5",           false,
+          kHdf5Description, &is_hdf5,
+          &load_hdf5,       [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_hdf5_recording(p, d); },
+          {".h5", ".hdf5"}};
 }
 
 }  // namespace evnerf::io

@@ -52,8 +52,7 @@ inline std::string_view drop_cut_last_line(std::string_view text, const std::str
 /// The plain reference parser for `t x y p` lines: one LineScanner field at a time. It defines what is
 /// accepted and every error message; the fast path below must agree with it bit for bit. A cut last line
 /// is dropped first (detail::drop_cut_last_line).
-inline events::EventStream parse_events_reference(std::string_view text, const std::string& file, int width,
-                                                  int height) {
+inline events::EventStream parse_events_reference(std::string_view text, const std::string& file, int width, int height) {
   text = detail::drop_cut_last_line(text, file);
   events::EventStream ev;
   ev.width = width;
@@ -67,8 +66,8 @@ inline events::EventStream parse_events_reference(std::string_view text, const s
     s.expect_end();
     if (t < last_t) s.fail("timestamp " + short_number(t) + " goes back in time (previous " + short_number(last_t) + ")");
     if (x < 0 || x >= width || y < 0 || y >= height)
-      s.fail("pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " + std::to_string(width) +
-             "x" + std::to_string(height) + " sensor");
+      s.fail("pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " + std::to_string(width) + "x" +
+             std::to_string(height) + " sensor");
     if (p != 0 && p != 1 && p != -1) s.fail("unknown polarity code " + std::to_string(p) + " (expected 1 or 0)");
     last_t = t;
     ev.push_back(t, static_cast<int>(x), static_cast<int>(y), p == 1 ? 1 : -1);
@@ -150,7 +149,10 @@ inline bool fast_parse_chunk(const char* p, const char* end, int width, int heig
   out.p.reserve(guess);
   double last_t = -INFINITY;
   while (p < end) {
-    if (*p == '\n') { ++p; continue; }
+    if (*p == '\n') {
+      ++p;
+      continue;
+    }
     if (*p == '#') {
       const void* nl = std::memchr(p, '\n', static_cast<std::size_t>(end - p));
       p = nl ? static_cast<const char*>(nl) + 1 : end;
@@ -203,7 +205,8 @@ inline events::EventStream parse_events(std::string_view text, const std::string
   std::vector<std::size_t> cut(static_cast<std::size_t>(pieces) + 1, n);
   cut[0] = 0;
   for (int k = 1; k < pieces; ++k) {
-    const std::size_t guess = std::max(cut[static_cast<std::size_t>(k) - 1], n * static_cast<std::size_t>(k) / static_cast<std::size_t>(pieces));
+    const std::size_t guess =
+        std::max(cut[static_cast<std::size_t>(k) - 1], n * static_cast<std::size_t>(k) / static_cast<std::size_t>(pieces));
     const std::size_t nl = text.find('\n', guess);
     cut[static_cast<std::size_t>(k)] = nl == std::string_view::npos ? n : nl + 1;
   }
@@ -287,8 +290,8 @@ inline void write_poses_txt(const fs::path& path, const geometry::Trajectory& tr
   char buf[256];
   for (std::size_t i = 0; i < tr.size(); ++i) {
     const auto& p = tr.poses()[i];
-    std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", tr.times()[i], p.t.x(), p.t.y(), p.t.z(),
-                  p.q.x(), p.q.y(), p.q.z(), p.q.w());
+    std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", tr.times()[i], p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(),
+                  p.q.z(), p.q.w());
     out += buf;
   }
   write_file_atomic(path, out);
@@ -332,8 +335,6 @@ inline Frames parse_frames(std::string_view text, const std::string& file, const
   }
   return f;
 }
-inline Frames read_frames_txt(const fs::path& path) {
-  return parse_frames(read_file(path), path.string(), path.parent_path());
-}
+inline Frames read_frames_txt(const fs::path& path) { return parse_frames(read_file(path), path.string(), path.parent_path()); }
 
 }  // namespace evnerf::io

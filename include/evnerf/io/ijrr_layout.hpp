@@ -20,13 +20,15 @@ inline Dataset::Views read_views(const fs::path& dir) {
   for (std::size_t k = 0; k < v.poses.size(); ++k) {
     char name[64];
     std::snprintf(name, sizeof name, "images/view_%08zu.png", k);
-    if (!fs::exists(dir / name)) throw Error((dir / "poses.txt").string(), 0, std::string("view ") + std::to_string(k) + ": its image " + name + " is missing");
+    if (!fs::exists(dir / name))
+      throw Error((dir / "poses.txt").string(), 0, std::string("view ") + std::to_string(k) + ": its image " + name + " is missing");
     v.images.push_back(dir / name);
     std::snprintf(name, sizeof name, "depth/view_%08zu.npy", k);
     if (fs::exists(dir / name)) v.depth.push_back(dir / name);
   }
   if (!v.depth.empty() && v.depth.size() != v.poses.size())
-    throw Error((dir / "depth").string(), 0, "has " + std::to_string(v.depth.size()) + " of the " + std::to_string(v.poses.size()) + " views' depth");
+    throw Error((dir / "depth").string(), 0,
+                "has " + std::to_string(v.depth.size()) + " of the " + std::to_string(v.poses.size()) + " views' depth");
   return v;
 }
 
@@ -70,10 +72,8 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     }
   }
   d.from_cache = loaded;
-  if (!opt.poses.empty())
-    d.trajectory = read_pose_source(opt.poses, d.frames);
-  else if (fs::exists(folder / "groundtruth.txt"))
-    d.trajectory = read_poses_txt(folder / "groundtruth.txt");
+  if (!opt.poses.empty()) d.trajectory = read_pose_source(opt.poses, d.frames);
+  else if (fs::exists(folder / "groundtruth.txt")) d.trajectory = read_poses_txt(folder / "groundtruth.txt");
   if (fs::is_directory(folder / "depth"))
     for (std::size_t i = 0; i < d.frames.size(); ++i) {
       char name[64];
@@ -110,7 +110,8 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
   ev.reserve(d.events.size() * 24);
   char buf[160];
   for (std::size_t i = 0; i < d.events.size(); ++i) {
-    const int k = std::snprintf(buf, sizeof buf, "%.9f %d %d %d\n", d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i] > 0 ? 1 : 0);
+    const int k =
+        std::snprintf(buf, sizeof buf, "%.9f %d %d %d\n", d.events.t[i], d.events.x[i], d.events.y[i], d.events.polarity[i] > 0 ? 1 : 0);
     ev.append(buf, static_cast<std::size_t>(k));
   }
   write_file_atomic(dir / "events.txt", ev);
@@ -133,8 +134,11 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
 /// The format's line in io::formats(): a folder holding events.txt (and any folder no other layout claims);
 /// convert writes it for an output with none of the table's extensions.
 inline Format ijrr_format() {
-  return {"ijrr", true, "an IJRR-layout folder (events.txt, calib.txt, groundtruth.txt, images.txt: the Event Camera Dataset's, the simulator's)",
-          [](const std::filesystem::path& p) { return std::filesystem::exists(p / "events.txt"); }, &load_ijrr,
+  return {"ijrr",
+          true,
+          "an IJRR-layout folder (events.txt, calib.txt, groundtruth.txt, images.txt: the Event Camera Dataset's, the simulator's)",
+          [](const std::filesystem::path& p) { return std::filesystem::exists(p / "events.txt"); },
+          &load_ijrr,
           [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_ijrr(p, d); }};
 }
 

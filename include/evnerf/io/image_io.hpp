@@ -28,12 +28,12 @@ inline Image decode_checked(std::string_view bytes, const std::string& file, int
   int w = 0, h = 0, c = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
-  if (!stbi_info_from_memory(data, len, &w, &h, &c))
-    throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
+  if (!stbi_info_from_memory(data, len, &w, &h, &c)) throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
   if (w <= 0 || h <= 0) throw Error(file, 0, "cannot decode image: its header gives no size");
   if (static_cast<long long>(w) * h > kMaxImagePixels)
-    throw Error(file, 0, "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
-                             std::to_string(kMaxImagePixels) + " are accepted)");
+    throw Error(file, 0,
+                "image header announces " + std::to_string(w) + "x" + std::to_string(h) + " pixels (at most " +
+                    std::to_string(kMaxImagePixels) + " are accepted)");
   Image img;
   auto convert = [&](auto* px, float full_scale) {
     if (!px) throw Error(file, 0, std::string("cannot decode image: ") + stbi_failure_reason());
@@ -42,10 +42,8 @@ inline Image decode_checked(std::string_view bytes, const std::string& file, int
     for (std::size_t i = 0; i < img.data.size(); ++i) img.data[i] = px[i] / full_scale;
     stbi_image_free(px);
   };
-  if (stbi_is_16_bit_from_memory(data, len))
-    convert(stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels), 65535.f);
-  else
-    convert(stbi_load_from_memory(data, len, &w, &h, &c, want_channels), 255.f);
+  if (stbi_is_16_bit_from_memory(data, len)) convert(stbi_load_16_from_memory(data, len, &w, &h, &c, want_channels), 65535.f);
+  else convert(stbi_load_from_memory(data, len, &w, &h, &c, want_channels), 255.f);
   return img;
 }
 }  // namespace detail
@@ -71,8 +69,9 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
       const auto byte = [&](std::size_t i) { return std::uint64_t{static_cast<unsigned char>(bytes[at + i])}; };
       const std::uint64_t len = (byte(0) << 24) | (byte(1) << 16) | (byte(2) << 8) | byte(3);
       if (len + 12 > bytes.size() - at)
-        throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (a chunk of " + std::to_string(len) + " bytes at byte " +
-                                 std::to_string(at) + ", " + std::to_string(bytes.size() - at) + " bytes remain)");
+        throw Error(file, 0,
+                    "cannot decode image: truncated or corrupt PNG (a chunk of " + std::to_string(len) + " bytes at byte " +
+                        std::to_string(at) + ", " + std::to_string(bytes.size() - at) + " bytes remain)");
       const std::string_view type = bytes.substr(at + 4, 4);
       if (type == "IHDR" && len >= 10) {
         const std::uint64_t w = (byte(8) << 24) | (byte(9) << 16) | (byte(10) << 8) | byte(11);
@@ -86,8 +85,9 @@ inline Image decode_png(std::string_view bytes, const std::string& file, int wan
       at += 12 + len;
     }
     if (raw > 0 && raw > 1032 * idat + 4096)
-      throw Error(file, 0, "cannot decode image: truncated or corrupt PNG (" + std::to_string(idat) + " bytes of compressed pixels cannot " +
-                               "hold the " + std::to_string(raw) + " bytes its header announces)");
+      throw Error(file, 0,
+                  "cannot decode image: truncated or corrupt PNG (" + std::to_string(idat) + " bytes of compressed pixels cannot " +
+                      "hold the " + std::to_string(raw) + " bytes its header announces)");
   }
   return detail::decode_checked(bytes, file, want_channels);
 }
@@ -106,19 +106,22 @@ inline Image decode_image(std::string_view bytes, const std::string& file, int w
   for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (extension == ".tga") {
     auto b = [&](std::size_t i) { return std::uint64_t{static_cast<unsigned char>(bytes[i])}; };
-    if (bytes.size() < 18) throw Error(file, 0, "cannot decode image: a TGA header is 18 bytes, the file has " + std::to_string(bytes.size()));
+    if (bytes.size() < 18)
+      throw Error(file, 0, "cannot decode image: a TGA header is 18 bytes, the file has " + std::to_string(bytes.size()));
     const std::uint64_t id = b(0), cmap = b(1), type = b(2), cmap_len = b(5) | (b(6) << 8), cmap_bits = b(7);
     const std::uint64_t w = b(12) | (b(13) << 8), h = b(14) | (b(15) << 8), bits = b(16);
     if (type != 1 && type != 2 && type != 3 && type != 9 && type != 10 && type != 11)
       throw Error(file, 0, "cannot decode image: TGA image type " + std::to_string(type) + " (1-3 and 9-11 are read)");
     if (w == 0 || h == 0 || (bits != 8 && bits != 15 && bits != 16 && bits != 24 && bits != 32))
-      throw Error(file, 0, "cannot decode image: TGA header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
-                               std::to_string(bits) + " bits");
+      throw Error(file, 0,
+                  "cannot decode image: TGA header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
+                      std::to_string(bits) + " bits");
     const std::uint64_t head = 18 + id + (cmap ? cmap_len * ((cmap_bits + 7) / 8) : 0), pixels = w * h;
     const std::uint64_t body = bytes.size() > head ? bytes.size() - head : 0, need = pixels * ((bits + 7) / 8);
     if (type < 9 ? body < need : body * 128 < pixels)
-      throw Error(file, 0, "cannot decode image: truncated TGA (" + std::to_string(body) + " bytes of pixel data for " + std::to_string(w) + "x" +
-                               std::to_string(h) + " pixels)");
+      throw Error(file, 0,
+                  "cannot decode image: truncated TGA (" + std::to_string(body) + " bytes of pixel data for " + std::to_string(w) + "x" +
+                      std::to_string(h) + " pixels)");
     return detail::decode_checked(bytes, file, want_channels);
   }
   if (bytes.size() >= 2 && bytes.substr(0, 2) == "BM") {
@@ -129,7 +132,8 @@ inline Image decode_image(std::string_view bytes, const std::string& file, int w
       for (int i = n - 1; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + static_cast<std::size_t>(i)]);
       return v;
     };
-    if (bytes.size() < 26) throw Error(file, 0, "cannot decode image: a BMP header is at least 26 bytes, the file has " + std::to_string(bytes.size()));
+    if (bytes.size() < 26)
+      throw Error(file, 0, "cannot decode image: a BMP header is at least 26 bytes, the file has " + std::to_string(bytes.size()));
     const std::uint64_t offset = u(10, 4), header = u(14, 4);
     std::uint64_t w = 0, h = 0, bits = 0, compression = 0;
     if (header == 12) {
@@ -143,14 +147,17 @@ inline Image decode_image(std::string_view bytes, const std::string& file, int w
       throw Error(file, 0, "cannot decode image: BMP info header of " + std::to_string(header) + " bytes (12 or at least 40 are read)");
     }
     if (compression != 0 && compression != 3)
-      throw Error(file, 0, "cannot decode image: compressed BMP (compression " + std::to_string(compression) + "; uncompressed rows are read)");
+      throw Error(file, 0,
+                  "cannot decode image: compressed BMP (compression " + std::to_string(compression) + "; uncompressed rows are read)");
     if (w == 0 || h == 0 || w >= (1u << 31) || (bits != 1 && bits != 4 && bits != 8 && bits != 16 && bits != 24 && bits != 32))
-      throw Error(file, 0, "cannot decode image: BMP header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
-                               std::to_string(bits) + " bits");
+      throw Error(file, 0,
+                  "cannot decode image: BMP header gives " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
+                      std::to_string(bits) + " bits");
     const std::uint64_t row = (w * bits + 31) / 32 * 4;
     if (offset > bytes.size() || (bytes.size() - offset) / row < h)
-      throw Error(file, 0, "cannot decode image: truncated BMP (" + std::to_string(bytes.size() - std::min<std::uint64_t>(offset, bytes.size())) +
-                               " bytes of pixel data for " + std::to_string(w) + "x" + std::to_string(h) + " pixels)");
+      throw Error(file, 0,
+                  "cannot decode image: truncated BMP (" + std::to_string(bytes.size() - std::min<std::uint64_t>(offset, bytes.size())) +
+                      " bytes of pixel data for " + std::to_string(w) + "x" + std::to_string(h) + " pixels)");
     return detail::decode_checked(bytes, file, want_channels);
   }
   throw Error(file, 0, "cannot decode image: not a PNG, JPEG, TGA or BMP file");

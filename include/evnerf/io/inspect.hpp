@@ -49,18 +49,15 @@ inline Summary summarize(const Dataset& d) {
     s.pose_end = d.trajectory.back();
     for (std::size_t i = 0; i < d.frames.size(); ++i) {
       if (d.frames.t[i] < s.pose_begin) {
-        std::snprintf(buf, sizeof buf, "frame %zu (t = %.6f s) precedes the first pose (t = %.6f s)", i, d.frames.t[i],
-                      s.pose_begin);
+        std::snprintf(buf, sizeof buf, "frame %zu (t = %.6f s) precedes the first pose (t = %.6f s)", i, d.frames.t[i], s.pose_begin);
         s.warnings.push_back(buf);
       } else if (d.frames.t[i] > s.pose_end) {
-        std::snprintf(buf, sizeof buf, "frame %zu (t = %.6f s) follows the last pose (t = %.6f s)", i, d.frames.t[i],
-                      s.pose_end);
+        std::snprintf(buf, sizeof buf, "frame %zu (t = %.6f s) follows the last pose (t = %.6f s)", i, d.frames.t[i], s.pose_end);
         s.warnings.push_back(buf);
       }
     }
     if (s.events && s.t_begin < s.pose_begin) {
-      std::snprintf(buf, sizeof buf, "events start (t = %.6f s) before the first pose (t = %.6f s)", s.t_begin,
-                    s.pose_begin);
+      std::snprintf(buf, sizeof buf, "events start (t = %.6f s) before the first pose (t = %.6f s)", s.t_begin, s.pose_begin);
       s.warnings.push_back(buf);
     }
     if (s.events && s.t_end > s.pose_end) {
@@ -98,16 +95,13 @@ inline std::string format_summary(const Summary& s) {
   o += buf;
   std::snprintf(buf, sizeof buf, "event rate    %.3f Mev/s\n", s.rate / 1e6);
   o += buf;
-  if (s.frames)
-    std::snprintf(buf, sizeof buf, "frames        %zu, %.6f .. %.6f s\n", s.frames, s.frame_begin, s.frame_end);
-  else
-    std::snprintf(buf, sizeof buf, "frames        none\n");
+  if (s.frames) std::snprintf(buf, sizeof buf, "frames        %zu, %.6f .. %.6f s\n", s.frames, s.frame_begin, s.frame_end);
+  else std::snprintf(buf, sizeof buf, "frames        none\n");
   o += buf;
   if (s.poses)
-    std::snprintf(buf, sizeof buf, "poses         %zu, %.6f .. %.6f s (events covered: %s)\n", s.poses, s.pose_begin,
-                  s.pose_end, (s.t_begin >= s.pose_begin && s.t_end <= s.pose_end) ? "all" : "partly");
-  else
-    std::snprintf(buf, sizeof buf, "poses         none\n");
+    std::snprintf(buf, sizeof buf, "poses         %zu, %.6f .. %.6f s (events covered: %s)\n", s.poses, s.pose_begin, s.pose_end,
+                  (s.t_begin >= s.pose_begin && s.t_end <= s.pose_end) ? "all" : "partly");
+  else std::snprintf(buf, sizeof buf, "poses         none\n");
   o += buf;
   if (!s.hot.empty()) {
     std::snprintf(buf, sizeof buf, "hot pixels    %zu suspected (a count far above its neighbours'):", s.hot.size());

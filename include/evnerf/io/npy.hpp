@@ -143,8 +143,7 @@ inline NpyLayout npy_layout_untyped(std::string_view head, const std::string& fi
     auto [q, ec] = std::from_chars(shape.data() + i, shape.data() + shape.size() - 1, d);
     if (ec != std::errc()) fail("shape '" + shown() + "' is not a tuple of sizes");
     if (out.shape.size() == 32) fail("shape '" + shown() + "' has more than 32 dimensions");
-    if (d != 0 && n > (std::numeric_limits<std::size_t>::max() / item) / d)
-      fail("shape '" + shown() + "' is too large to address");
+    if (d != 0 && n > (std::numeric_limits<std::size_t>::max() / item) / d) fail("shape '" + shown() + "' is too large to address");
     out.shape.push_back(d);
     n *= d;
     i = static_cast<std::size_t>(q - shape.data());
@@ -196,16 +195,26 @@ NpyArray<Out> parse_npy_numeric(std::string_view bytes, const std::string& file)
       std::memcpy(&v, p + i * sizeof(T), sizeof(T));
       if constexpr (std::is_floating_point_v<T> && std::is_integral_v<Out>) {
         if (!(v >= -9.2e18 && v <= 9.2e18) || v != std::floor(v))
-          throw Error(file, 0, "element " + std::to_string(i) + " (" + short_number(static_cast<double>(v)) + ") is not a whole number in range");
+          throw Error(file, 0,
+                      "element " + std::to_string(i) + " (" + short_number(static_cast<double>(v)) + ") is not a whole number in range");
       } else if constexpr (std::is_same_v<T, std::uint64_t> && std::is_integral_v<Out>) {
-        if (v > static_cast<std::uint64_t>(INT64_MAX)) throw Error(file, 0, "element " + std::to_string(i) + " does not fit a signed 64-bit integer");
+        if (v > static_cast<std::uint64_t>(INT64_MAX))
+          throw Error(file, 0, "element " + std::to_string(i) + " does not fit a signed 64-bit integer");
       }
       out.data[i] = static_cast<Out>(v);
     }
   };
   if (kind == 'f') item == 4 ? convert(float{}) : convert(double{});
-  else if (kind == 'b' || kind == 'u') item == 1 ? convert(std::uint8_t{}) : item == 2 ? convert(std::uint16_t{}) : item == 4 ? convert(std::uint32_t{}) : convert(std::uint64_t{});
-  else item == 1 ? convert(std::int8_t{}) : item == 2 ? convert(std::int16_t{}) : item == 4 ? convert(std::int32_t{}) : convert(std::int64_t{});
+  else if (kind == 'b' || kind == 'u')
+    item == 1   ? convert(std::uint8_t{})
+    : item == 2 ? convert(std::uint16_t{})
+    : item == 4 ? convert(std::uint32_t{})
+                : convert(std::uint64_t{});
+  else
+    item == 1   ? convert(std::int8_t{})
+    : item == 2 ? convert(std::int16_t{})
+    : item == 4 ? convert(std::int32_t{})
+                : convert(std::int64_t{});
   return out;
 }
 
@@ -218,7 +227,8 @@ inline std::string parse_npy_string(std::string_view bytes, const std::string& f
   const std::size_t len_bytes = major == 1 ? 2 : 4;
   if ((major < 1 || major > 3) || bytes.size() < 8 + len_bytes) fail("unsupported or truncated header");
   std::size_t header_len = std::size_t{static_cast<unsigned char>(bytes[8])} | (std::size_t{static_cast<unsigned char>(bytes[9])} << 8);
-  if (major > 1) header_len |= (std::size_t{static_cast<unsigned char>(bytes[10])} << 16) | (std::size_t{static_cast<unsigned char>(bytes[11])} << 24);
+  if (major > 1)
+    header_len |= (std::size_t{static_cast<unsigned char>(bytes[10])} << 16) | (std::size_t{static_cast<unsigned char>(bytes[11])} << 24);
   if (header_len > bytes.size() - 8 - len_bytes) fail("truncated header");
   const std::string_view header = bytes.substr(8 + len_bytes, header_len);
   std::string_view descr = detail::npy_field(header, "descr");

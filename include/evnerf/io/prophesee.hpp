@@ -45,7 +45,7 @@ struct PropheseeInfo {
   int width = 0, height = 0;
   std::string geometry_from;  ///< which header line (or flag) gave the size
   std::size_t header_bytes = 0;
-  std::size_t events = 0;  ///< CD events decoded (up to the time window's end, where the read stops)
+  std::size_t events = 0;                     ///< CD events decoded (up to the time window's end, where the read stops)
   std::size_t triggers = 0, other_words = 0;  ///< trigger words, and words of other types, skipped
 };
 
@@ -102,7 +102,8 @@ inline long header_int(const std::string& s) {
 inline void sensor_geometry(const PercentHeader& h, const LoadOptions& opt, const std::string& file, PropheseeInfo& info) {
   if (opt.width > 0 && opt.height > 0) {
     info.width = opt.width, info.height = opt.height, info.geometry_from = "--sensor-size";
-  } else if (const auto* fmt = h.find("format"); fmt && fmt->find("width=") != std::string::npos && fmt->find("height=") != std::string::npos) {
+  } else if (const auto* fmt = h.find("format");
+             fmt && fmt->find("width=") != std::string::npos && fmt->find("height=") != std::string::npos) {
     info.width = static_cast<int>(header_int(fmt->substr(fmt->find("width=") + 6)));
     info.height = static_cast<int>(header_int(fmt->substr(fmt->find("height=") + 7)));
     info.geometry_from = "the header's format line";
@@ -120,20 +121,17 @@ inline void sensor_geometry(const PercentHeader& h, const LoadOptions& opt, cons
     if (const auto* s = h.find("sensor_generation")) gen += " gen" + *s;
     std::transform(gen.begin(), gen.end(), gen.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     gen.erase(std::remove(gen.begin(), gen.end(), '.'), gen.end());
-    if (gen.find("genx320") != std::string::npos || gen.find("imx8") != std::string::npos)
-      info.width = 320, info.height = 320;
-    else if (gen.find("gen4") != std::string::npos || gen.find("imx636") != std::string::npos)
-      info.width = 1280, info.height = 720;
-    else if (gen.find("gen3") != std::string::npos)
-      info.width = 640, info.height = 480;
+    if (gen.find("genx320") != std::string::npos || gen.find("imx8") != std::string::npos) info.width = 320, info.height = 320;
+    else if (gen.find("gen4") != std::string::npos || gen.find("imx636") != std::string::npos) info.width = 1280, info.height = 720;
+    else if (gen.find("gen3") != std::string::npos) info.width = 640, info.height = 480;
     info.geometry_from = "the sensor generation of the header's plugin_name";
   }
   if (info.width <= 0 || info.height <= 0)
-    throw Error(file, 0, "the header gives no sensor size (no format, geometry or Width/Height line and no known sensor generation): "
-                         "give it with --sensor-size WxH");
+    throw Error(file, 0,
+                "the header gives no sensor size (no format, geometry or Width/Height line and no known sensor generation): "
+                "give it with --sensor-size WxH");
   check_sensor_size(info.width, info.height, file + " (the sensor size of its header)");
 }
-
 
 /// Collects decoded events: times in microseconds (as the file holds them) into seconds, only those of the
 /// window; checks order and coordinates. `done` once a time passes the window's end. room(n) before a block
@@ -249,8 +247,8 @@ class RawSink {
 /// read, and one warning names the byte offset and the bytes dropped.
 /// Blocks are `block_bytes` long (a multiple of the word).
 template <class Block>
-void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink,
-                std::size_t block_bytes, Block&& block) {
+void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::string& file, const RawSink& sink, std::size_t block_bytes,
+                Block&& block) {
   // Not value-initialised: a small file touches only the pages it reads into.
   const std::size_t kBlock = block_bytes;
   const std::unique_ptr<unsigned char[]> buf(new unsigned char[kBlock]);
@@ -265,9 +263,9 @@ void read_words(std::FILE* f, std::size_t word, std::size_t offset, const std::s
     keep = got - whole;
     if (got < kBlock) {
       if (keep)
-        warn(file + ": byte " + std::to_string(offset) + ": the file ends " + std::to_string(keep) + " byte" + (keep == 1 ? "" : "s") + " into a " +
-             std::to_string(word) + "-byte word (a recording cut short); read to the last whole word, " + std::to_string(keep) + " byte" +
-             (keep == 1 ? "" : "s") + " dropped");
+        warn(file + ": byte " + std::to_string(offset) + ": the file ends " + std::to_string(keep) + " byte" + (keep == 1 ? "" : "s") +
+             " into a " + std::to_string(word) + "-byte word (a recording cut short); read to the last whole word, " +
+             std::to_string(keep) + " byte" + (keep == 1 ? "" : "s") + " dropped");
       return;
     }
     std::memmove(buf.get(), buf.get() + whole, keep);
@@ -340,43 +338,52 @@ bool evt3_words(const unsigned char* p, std::size_t n, std::size_t at, Evt3State
   std::size_t trig = 0, oth = 0;
   const bool go = [&] {
     for (std::size_t i = 0; i < n; ++i) {
-    const unsigned w = le16(p + 2 * i), type = w >> 12;
-    switch (type) {
-      case 0x0: s.y = w & 0x7FF, s.have_y = true; break;
-      case 0x2:
-        if (s.high < 0 || !s.have_y) break;
-        if (!out.add(s.high << 12 | s.low, w & 0x7FF, s.y, w >> 11 & 1, at + 2 * i)) return false;
-        break;
-      case 0x3: s.base = w & 0x7FF, s.pol = w >> 11 & 1; break;
-      case 0x4:
-      case 0x5: {
-        const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
-        out.room(12 + (n - i - 1));  // its 12, and one for each word after it (the block's room() counted one a word)
-        if (s.high >= 0 && s.have_y)
-          for (unsigned m = mask; m; m &= m - 1)
-            if (!out.add(s.high << 12 | s.low, s.base + static_cast<unsigned>(__builtin_ctz(m)), s.y, s.pol, at + 2 * i)) return false;
-        s.base += len;
-        break;
-      }
-      case 0x6: s.low = w & 0xFFF; break;
-      case 0x8: {
-        std::int64_t h = w & 0xFFF;
-        if (s.high >= 0) {
-          h += s.high >> 12 << 12;
-          if (h < s.high) {
-            if (s.high - h < 0x800) {
-              out.bad(at + 2 * i, "EVT_TIME_HIGH runs backwards");
-              return false;
-            }
-            h += 0x1000;  // the 24-bit time wrapped (every 16.8 s)
-          }
+      const unsigned w = le16(p + 2 * i), type = w >> 12;
+      switch (type) {
+        case 0x0:
+          s.y = w & 0x7FF, s.have_y = true;
+          break;
+        case 0x2:
+          if (s.high < 0 || !s.have_y) break;
+          if (!out.add(s.high << 12 | s.low, w & 0x7FF, s.y, w >> 11 & 1, at + 2 * i)) return false;
+          break;
+        case 0x3:
+          s.base = w & 0x7FF, s.pol = w >> 11 & 1;
+          break;
+        case 0x4:
+        case 0x5: {
+          const unsigned mask = type == 0x4 ? w & 0xFFF : w & 0xFF, len = type == 0x4 ? 12 : 8;
+          out.room(12 + (n - i - 1));  // its 12, and one for each word after it (the block's room() counted one a word)
+          if (s.high >= 0 && s.have_y)
+            for (unsigned m = mask; m; m &= m - 1)
+              if (!out.add(s.high << 12 | s.low, s.base + static_cast<unsigned>(__builtin_ctz(m)), s.y, s.pol, at + 2 * i)) return false;
+          s.base += len;
+          break;
         }
-        s.high = h;
-        break;
+        case 0x6:
+          s.low = w & 0xFFF;
+          break;
+        case 0x8: {
+          std::int64_t h = w & 0xFFF;
+          if (s.high >= 0) {
+            h += s.high >> 12 << 12;
+            if (h < s.high) {
+              if (s.high - h < 0x800) {
+                out.bad(at + 2 * i, "EVT_TIME_HIGH runs backwards");
+                return false;
+              }
+              h += 0x1000;  // the 24-bit time wrapped (every 16.8 s)
+            }
+          }
+          s.high = h;
+          break;
+        }
+        case 0xA:
+          ++trig;
+          break;
+        default:
+          ++oth;
       }
-      case 0xA: ++trig; break;
-      default: ++oth;
-    }
     }
     return true;
   }();
@@ -391,7 +398,7 @@ struct Evt3Summary {
   std::int64_t first_high = 0, last_high = 0;  // the first time-high word's 12 bits; the last high, from it
   unsigned low = 0, y = 0, base = 0;           // base: after the last VECT_BASE_X, or the vectors' sum of lengths
   int pol = 0;
-  std::size_t events = 0;                 // events once the run has given a time high and a row of its own
+  std::size_t events = 0;                       // events once the run has given a time high and a row of its own
   std::size_t before[2][2] = {{0, 0}, {0, 0}};  // events before that, by [time high given][row given]
   std::size_t triggers = 0, other = 0;
 
@@ -507,10 +514,8 @@ struct Evt3Summary {
     }
     if (has_low) s.low = low;
     if (has_y) s.y = y, s.have_y = true;
-    if (has_base)
-      s.base = base, s.pol = pol;
-    else
-      s.base += base;
+    if (has_base) s.base = base, s.pol = pol;
+    else s.base += base;
     return true;
   }
 };
@@ -645,8 +650,9 @@ inline void decode_dat(std::FILE* f, std::size_t offset, RawSink& sink, const st
   unsigned char ts[2];
   if (std::fread(ts, 1, 2, f) != 2) throw Error(file, 0, "byte " + std::to_string(offset) + ": no event type and size after the header");
   if (ts[1] != 8)
-    throw Error(file, 0, "byte " + std::to_string(offset + 1) + ": event size " + std::to_string(ts[1]) +
-                             " (a .dat file of CD events has 8-byte records)");
+    throw Error(
+        file, 0,
+        "byte " + std::to_string(offset + 1) + ": event size " + std::to_string(ts[1]) + " (a .dat file of CD events has 8-byte records)");
   std::int64_t wraps = 0, last = -1;
   read_words(f, 8, offset + 2, file, sink, kWordBlock, [&](const unsigned char* p, std::size_t n, std::size_t at) {
     sink.room(n);
@@ -686,8 +692,9 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   info.kind = detail::prophesee_kind(h);
   info.header_bytes = h.bytes;
   if (info.kind != "evt 2.0" && info.kind != "evt 3.0" && info.kind != "dat")
-    throw Error(file, 0, "Prophesee " + (info.kind.empty() ? std::string("file of no known kind") : info.kind) +
-                             ": evnerf reads EVT 2.0 and EVT 3.0 .raw files and .dat CD files");
+    throw Error(file, 0,
+                "Prophesee " + (info.kind.empty() ? std::string("file of no known kind") : info.kind) +
+                    ": evnerf reads EVT 2.0 and EVT 3.0 .raw files and .dat CD files");
   detail::sensor_geometry(h, opt, file, info);
   events::EventStream ev;
   ev.width = info.width;
@@ -695,15 +702,12 @@ inline events::EventStream read_prophesee_events(const std::filesystem::path& pa
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(path, ec);
   detail::RawSink sink(ev, opt, file, info.width, info.height, ec ? 0 : bytes);
-  if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {  // the whole file: about an event per word
+  if (!std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {                                // the whole file: about an event per word
     if (!ec && bytes > h.bytes) sink.reserve((bytes - h.bytes) / (info.kind == "dat" ? 8 : 4));  // EVT 3.0: two words an event
   }
-  if (info.kind == "evt 2.0")
-    detail::decode_evt2(f.get(), h.bytes, sink, info, file);
-  else if (info.kind == "evt 3.0")
-    detail::decode_evt3(f.get(), h.bytes, sink, info, file);
-  else
-    detail::decode_dat(f.get(), h.bytes, sink, file);
+  if (info.kind == "evt 2.0") detail::decode_evt2(f.get(), h.bytes, sink, info, file);
+  else if (info.kind == "evt 3.0") detail::decode_evt3(f.get(), h.bytes, sink, info, file);
+  else detail::decode_dat(f.get(), h.bytes, sink, file);
   sink.finish();
   info.events = sink.count();
   return ev;
@@ -730,7 +734,8 @@ inline Dataset load_prophesee(const std::filesystem::path& path, const LoadOptio
   d.events = read_prophesee_events(path, opt, info);
   attach_calibration_and_poses(path, opt, d, info.width, info.height, "a Prophesee recording");
   char buf[512];
-  std::snprintf(buf, sizeof buf, "prophesee     %s, %dx%d (from %s), %zu header bytes, %zu events in the file, %zu trigger words, %zu other words",
+  std::snprintf(buf, sizeof buf,
+                "prophesee     %s, %dx%d (from %s), %zu header bytes, %zu events in the file, %zu trigger words, %zu other words",
                 info.kind.c_str(), info.width, info.height, info.geometry_from.c_str(), info.header_bytes, info.events, info.triggers,
                 info.other_words);
   d.notes.push_back(buf);
@@ -743,7 +748,8 @@ inline Dataset load_prophesee(const std::filesystem::path& path, const LoadOptio
 inline void write_prophesee_raw(const std::filesystem::path& path, const Dataset& d, const std::string& version) {
   const auto& ev = d.events;
   const int w = d.camera.width(), h = d.camera.height();
-  if (w > 2048 || h > 2048) throw Error(path.string(), 0, "EVT words hold coordinates below 2048; the sensor is " + std::to_string(w) + "x" + std::to_string(h));
+  if (w > 2048 || h > 2048)
+    throw Error(path.string(), 0, "EVT words hold coordinates below 2048; the sensor is " + std::to_string(w) + "x" + std::to_string(h));
   std::string out = "% evt " + version + "\n% format EVT" + (version == "2.0" ? "2" : "3") + ";height=" + std::to_string(h) +
                     ";width=" + std::to_string(w) + "\n% geometry " + std::to_string(w) + "x" + std::to_string(h) +
                     "\n% integrator_name evnerf\n% end\n";
@@ -782,14 +788,22 @@ inline void write_prophesee_raw(const std::filesystem::path& path, const Dataset
 /// The formats' entries in io::formats(): an EVT 2.0 file is written for an output ending in .evt2.raw, EVT 3.0
 /// (what today's sensors write) for any other .raw.
 inline Format evt2_format() {
-  return {"evt2", false, "a Prophesee .raw file in EVT 2.0 (Gen3 and older sensors; '% evt 2.0' in its header)",
-          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 2.0"); }, &load_prophesee,
-          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "2.0"); }, {".evt2.raw"}};
+  return {"evt2",
+          false,
+          "a Prophesee .raw file in EVT 2.0 (Gen3 and older sensors; '% evt 2.0' in its header)",
+          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 2.0"); },
+          &load_prophesee,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "2.0"); },
+          {".evt2.raw"}};
 }
 inline Format evt3_format() {
-  return {"evt3", false, "a Prophesee .raw file in EVT 3.0 (IMX636, Gen4, GenX320; '% evt 3.0' in its header)",
-          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 3.0+"); }, &load_prophesee,
-          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "3.0"); }, {".raw"}};
+  return {"evt3",
+          false,
+          "a Prophesee .raw file in EVT 3.0 (IMX636, Gen4, GenX320; '% evt 3.0' in its header)",
+          [](const std::filesystem::path& p) { return is_prophesee(p, "evt 3.0+"); },
+          &load_prophesee,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions&) { write_prophesee_raw(p, d, "3.0"); },
+          {".raw"}};
 }
 inline Format dat_format() {
   return {"dat", false, "a Prophesee .dat file of CD events ('%' header lines, then 8-byte records)",

@@ -56,11 +56,11 @@ struct Dataset {
   std::filesystem::path folder;
   geometry::Camera camera;
   events::EventStream events;
-  geometry::Trajectory trajectory;  ///< empty when the folder has no groundtruth.txt
-  Frames frames;                    ///< empty when the folder has no images.txt
-  std::vector<std::filesystem::path> depth;  ///< per-frame ground-truth depth (.npy), simulator only
-  std::vector<std::filesystem::path> linear; ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
-  double linear_log_offset = 0;              ///< the sensor's dark end, log(I + offset), with `linear`
+  geometry::Trajectory trajectory;            ///< empty when the folder has no groundtruth.txt
+  Frames frames;                              ///< empty when the folder has no images.txt
+  std::vector<std::filesystem::path> depth;   ///< per-frame ground-truth depth (.npy), simulator only
+  std::vector<std::filesystem::path> linear;  ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
+  double linear_log_offset = 0;               ///< the sensor's dark end, log(I + offset), with `linear`
   /// Held-out views (a simulated recording's novel/): camera poses never on the training path, with their
   /// frames (.png) and depth (.npy); eval scores them apart from the frames along the path.
   struct Views {
@@ -152,8 +152,9 @@ inline void check_sensor_size(long long w, long long h, const std::string& where
   if (w <= 0 || h <= 0 || w > 65535 || h > 65535)
     throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " out of range (1 to 65535 per side)");
   if (w * h > kMaxSensorPixels)
-    throw Error(where, line, "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " has more than " +
-                                 std::to_string(kMaxSensorPixels) + " pixels (refused before allocating per-pixel counts)");
+    throw Error(where, line,
+                "sensor size " + std::to_string(w) + "x" + std::to_string(h) + " has more than " + std::to_string(kMaxSensorPixels) +
+                    " pixels (refused before allocating per-pixel counts)");
 }
 
 /// The poses a user names (LoadOptions::poses): a pose text file (`t px py pz qx qy qz qw`, camera to world;
@@ -175,14 +176,16 @@ inline geometry::Trajectory read_pose_source(const std::filesystem::path& p, con
   if (!fs::exists(images)) throw Error(images.string(), 0, "missing (a COLMAP text model's images.txt)");
   const auto ims = parse_colmap_images(read_file(images), images.string());
   if (frames.paths.empty())
-    throw Error(images.string(), 0, "COLMAP poses are matched to the recording's frame files by name, and this recording has no frame files");
+    throw Error(images.string(), 0,
+                "COLMAP poses are matched to the recording's frame files by name, and this recording has no frame files");
   std::vector<std::pair<double, geometry::Pose>> timed;
   for (const auto& im : ims) {
     int found = -1;
     for (std::size_t f = 0; f < frames.paths.size(); ++f) {
       const std::string path = frames.paths[f].generic_string();
-      const bool match = path == im.name || (path.size() > im.name.size() && path.compare(path.size() - im.name.size(), im.name.size(), im.name) == 0 &&
-                                             path[path.size() - im.name.size() - 1] == '/');
+      const bool match =
+          path == im.name || (path.size() > im.name.size() && path.compare(path.size() - im.name.size(), im.name.size(), im.name) == 0 &&
+                              path[path.size() - im.name.size() - 1] == '/');
       if (!match) continue;
       if (found >= 0) throw Error(images.string(), 0, "image '" + im.name.substr(0, 60) + "' matches two frames");
       found = static_cast<int>(f);
@@ -190,8 +193,9 @@ inline geometry::Trajectory read_pose_source(const std::filesystem::path& p, con
     if (found >= 0) timed.emplace_back(frames.t[static_cast<std::size_t>(found)], im.c2w);
   }
   if (timed.size() < 2)
-    throw Error(images.string(), 0, std::to_string(timed.size()) + " of its " + std::to_string(ims.size()) +
-                                        " images match a frame of the recording by file name (at least 2 needed)");
+    throw Error(images.string(), 0,
+                std::to_string(timed.size()) + " of its " + std::to_string(ims.size()) +
+                    " images match a frame of the recording by file name (at least 2 needed)");
   std::vector<std::size_t> order(timed.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return timed[a].first < timed[b].first; });
@@ -213,8 +217,9 @@ inline geometry::Camera read_calib_source(const std::filesystem::path& p, int w,
   if (cams.size() != 1) throw Error(p.string(), 0, "holds " + std::to_string(cams.size()) + " cameras; one is read");
   const auto& c = cams.begin()->second;
   if (c.width() != w || c.height() != h)
-    throw Error(p.string(), 0, "camera of " + std::to_string(c.width()) + "x" + std::to_string(c.height()) + " for a " + std::to_string(w) + "x" +
-                                   std::to_string(h) + " sensor");
+    throw Error(p.string(), 0,
+                "camera of " + std::to_string(c.width()) + "x" + std::to_string(c.height()) + " for a " + std::to_string(w) + "x" +
+                    std::to_string(h) + " sensor");
   return c;
 }
 
@@ -314,11 +319,11 @@ inline void attach_calibration_and_poses(const std::filesystem::path& path, cons
     d.camera = geometry::Camera(width, height, width, width, 0.5 * width, 0.5 * height);
     d.uncalibrated = true;
   } else {
-    throw Error(calib.string(), 0, std::string("missing: ") + what +
-                                       " takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]]) or --calib");
+    throw Error(
+        calib.string(), 0,
+        std::string("missing: ") + what + " takes its calibration from calib.txt beside it (fx fy cx cy [k1 k2 p1 p2 [k3]]) or --calib");
   }
-  if (!opt.poses.empty())
-    d.trajectory = read_pose_source(opt.poses, d.frames, origin);
+  if (!opt.poses.empty()) d.trajectory = read_pose_source(opt.poses, d.frames, origin);
   else if (std::filesystem::exists(d.folder / "groundtruth.txt"))
     d.trajectory = read_pose_source(d.folder / "groundtruth.txt", d.frames, origin);
 }

@@ -53,7 +53,8 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
   auto numeric = [&](const std::map<std::string, std::string>& m, const fs::path& p, const char* key) {
     return parse_npy_numeric(member(m, p, key), p.string() + " (array '" + key + "')");
   };
-  auto integers = [&](const std::map<std::string, std::string>& m, const fs::path& p, const char* key) {  // exact (ns since 1970 exceed 2^53)
+  auto integers = [&](const std::map<std::string, std::string>& m, const fs::path& p,
+                      const char* key) {  // exact (ns since 1970 exceed 2^53)
     return parse_npy_numeric<std::int64_t>(member(m, p, key), p.string() + " (array '" + key + "')");
   };
   const auto K = numeric(cal, cal_path, "intrinsics");
@@ -75,8 +76,9 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
   std::array<double, 5> k{0, 0, 0, 0, 0};
   if (!zero) {
     if (model != "plumb_bob" || D.size() < 4 || D.size() > 5)
-      throw Error(cal_path.string(), 0, "distortion model '" + model.substr(0, 40) + "' with " + std::to_string(D.size()) +
-                                            " parameters is not read (plumb_bob: k1 k2 p1 p2 [k3]); give --calib");
+      throw Error(cal_path.string(), 0,
+                  "distortion model '" + model.substr(0, 40) + "' with " + std::to_string(D.size()) +
+                      " parameters is not read (plumb_bob: k1 k2 p1 p2 [k3]); give --calib");
     for (std::size_t i = 0; i < D.size(); ++i) k[i] = D[i];
   }
   const double fx = K.data[0], fy = K.data[4], cx = K.data[2], cy = K.data[5];
@@ -113,8 +115,9 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
     const double x = pos.data[2 * i], y = pos.data[2 * i + 1], p = pol.data[i];
     const std::string e = "event " + std::to_string(i);
     if (!(x >= 0 && y >= 0 && x < w && y < h) || x != std::floor(x) || y != std::floor(y))
-      throw Error(ev_path.string(), 0, e + ": pixel (" + short_number(x) + ", " + short_number(y) + ") is not a pixel of the " + std::to_string(w) +
-                                           "x" + std::to_string(h) + " sensor");
+      throw Error(ev_path.string(), 0,
+                  e + ": pixel (" + short_number(x) + ", " + short_number(y) + ") is not a pixel of the " + std::to_string(w) + "x" +
+                      std::to_string(h) + " sensor");
     if (p != 0 && p != 1 && p != -1) throw Error(ev_path.string(), 0, e + ": polarity " + short_number(p) + " (expected bool, 0/1 or ±1)");
     const double tr = relative(ts.data[i], ev_path, e);
     if (i > 0 && tr < s.events.t.back()) throw Error(ev_path.string(), 0, e + ": time goes back");
@@ -128,7 +131,8 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
     const auto T = integers(pz, pose_path, "T_wc_timestamp");
     const std::size_t m = T.data.size();
     if (P.data.size() != 3 * m || Q.data.size() != 4 * m)
-      throw Error(pose_path.string(), 0, "expected T_wc_position M×3, T_wc_orientation M×4 and T_wc_timestamp M (M = " + std::to_string(m) + ")");
+      throw Error(pose_path.string(), 0,
+                  "expected T_wc_position M×3, T_wc_orientation M×4 and T_wc_timestamp M (M = " + std::to_string(m) + ")");
     std::vector<double> times;
     std::vector<geometry::Pose> poses;
     for (std::size_t i = 0; i < m; ++i) {
@@ -137,7 +141,8 @@ inline RobustENerfSequence read_robust_e_nerf(const std::filesystem::path& folde
       pose.t = Vec3(P.data[3 * i], P.data[3 * i + 1], P.data[3 * i + 2]);
       const double qx = Q.data[4 * i], qy = Q.data[4 * i + 1], qz = Q.data[4 * i + 2], qw = Q.data[4 * i + 3];
       const double nq = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
-      if (!pose.t.allFinite() || !(nq > 0.5 && nq < 1.5)) throw Error(pose_path.string(), 0, e + ": not finite, or its quaternion far from unit length");
+      if (!pose.t.allFinite() || !(nq > 0.5 && nq < 1.5))
+        throw Error(pose_path.string(), 0, e + ": not finite, or its quaternion far from unit length");
       pose.q = Quat(qw / nq, qx / nq, qy / nq, qz / nq);
       const double t = relative(T.data[i], pose_path, e);
       if (!times.empty() && !(t > times.back())) throw Error(pose_path.string(), 0, e + ": pose times must increase strictly");
@@ -173,8 +178,8 @@ inline Dataset load_robust_e_nerf(const std::filesystem::path& folder, const Loa
 
 /// The format's line in io::formats().
 inline Format robust_e_nerf_format() {
-  return {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)", &is_robust_e_nerf,
-          &load_robust_e_nerf};
+  return {"robust-e-nerf", true, "a Robust e-NeRF sequence folder (raw_events.npz, camera_poses.npz, camera_calibration.npz)",
+          &is_robust_e_nerf, &load_robust_e_nerf};
 }
 
 }  // namespace evnerf::io

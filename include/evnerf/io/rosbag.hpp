@@ -51,7 +51,7 @@
 namespace evnerf::io {
 
 inline constexpr std::size_t kBagMaxRecordHeader = std::size_t{1} << 20;  ///< a record header (fields)
-inline constexpr std::uint64_t kBagMaxChunk = std::uint64_t{1} << 31;      ///< a chunk, uncompressed
+inline constexpr std::uint64_t kBagMaxChunk = std::uint64_t{1} << 31;     ///< a chunk, uncompressed
 inline constexpr std::string_view kBagMagic = "#ROSBAG V2.0\n";
 
 /// One topic of a bag: its message type and how many messages it has.
@@ -75,8 +75,8 @@ struct BagRecording {
   std::int64_t max_x = -1, max_y = -1;    ///< the largest pixel coordinates among the events
   int array_width = 0, array_height = 0;  ///< the event messages' own `width`/`height` fields (0: absent)
   std::vector<double> frame_times;
-  std::vector<Image> frames;              ///< float in [0, 1]; Bayer mosaics demosaiced to RGB
-  std::string frame_encoding;             ///< the frames' encoding (mono8, bgr8, bayer_rggb8, ...)
+  std::vector<Image> frames;   ///< float in [0, 1]; Bayer mosaics demosaiced to RGB
+  std::string frame_encoding;  ///< the frames' encoding (mono8, bgr8, bayer_rggb8, ...)
   bool has_camera_info = false;
   int info_width = 0, info_height = 0;
   double fx = 0, fy = 0, cx = 0, cy = 0;
@@ -118,8 +118,9 @@ class BagFile {
   std::uint64_t size() const { return size_; }
   void read(std::uint64_t off, void* dst, std::uint64_t n, const std::string& what) {
     if (off > size_ || n > size_ - off)
-      throw Error(name_, 0, what + " at byte " + std::to_string(off) + " runs past the end of the file (" + std::to_string(size_) +
-                                " bytes; truncated?)");
+      throw Error(
+          name_, 0,
+          what + " at byte " + std::to_string(off) + " runs past the end of the file (" + std::to_string(size_) + " bytes; truncated?)");
     if (n == 0) return;
     if (fseeko(f_, static_cast<off_t>(off), SEEK_SET) != 0 || std::fread(dst, 1, n, f_) != n)
       throw Error(name_, 0, "read error at byte " + std::to_string(off) + ": " + std::strerror(errno));
@@ -174,11 +175,16 @@ inline std::uint32_t bag_field_u32(const BagHeader& h, std::string_view name, co
 inline std::uint64_t bag_field_u64(const BagHeader& h, std::string_view name, const std::string& where) {
   return bag_u64(reinterpret_cast<const unsigned char*>(bag_field(h, name, 8, where).data()));
 }
-inline int bag_op(const BagHeader& h, const std::string& where) {
-  return static_cast<unsigned char>(bag_field(h, "op", 1, where)[0]);
-}
+inline int bag_op(const BagHeader& h, const std::string& where) { return static_cast<unsigned char>(bag_field(h, "op", 1, where)[0]); }
 
-enum BagOp : int { kBagMessage = 0x02, kBagFileHeader = 0x03, kBagIndexData = 0x04, kBagChunk = 0x05, kBagChunkInfo = 0x06, kBagConnection = 0x07 };
+enum BagOp : int {
+  kBagMessage = 0x02,
+  kBagFileHeader = 0x03,
+  kBagIndexData = 0x04,
+  kBagChunk = 0x05,
+  kBagChunkInfo = 0x06,
+  kBagConnection = 0x07
+};
 
 /// One record of a buffer (a chunk's contents): its header and data; false at the buffer's end.
 inline bool next_bag_record(std::string_view buf, std::size_t& pos, BagHeader& h, std::string_view& data, const std::string& where) {
@@ -245,8 +251,8 @@ class Lz4Context {
 
 /// A chunk's records, decompressed. The output grows only as decompressed bytes arrive (a header that
 /// claims gigabytes for a few compressed bytes allocates nothing for them).
-inline std::string_view decompress_bag_chunk(std::string_view compression, std::string_view src, std::uint64_t size,
-                                             std::vector<char>& out, const std::string& where, Lz4Context& lz4) {
+inline std::string_view decompress_bag_chunk(std::string_view compression, std::string_view src, std::uint64_t size, std::vector<char>& out,
+                                             const std::string& where, Lz4Context& lz4) {
   if (size > kBagMaxChunk)
     throw Error(where + ": chunk claims " + std::to_string(size) + " uncompressed bytes (limit " + std::to_string(kBagMaxChunk) + ")");
   if (compression == "none") {
@@ -331,15 +337,45 @@ inline std::string_view decompress_bag_chunk(std::string_view compression, std::
 
 // ---- message definitions ------------------------------------------------------------------------
 
-enum class Prim : std::uint8_t { Bool, Int8, UInt8, Int16, UInt16, Int32, UInt32, Int64, UInt64, Float32, Float64, String, Time, Duration, Struct };
+enum class Prim : std::uint8_t {
+  Bool,
+  Int8,
+  UInt8,
+  Int16,
+  UInt16,
+  Int32,
+  UInt32,
+  Int64,
+  UInt64,
+  Float32,
+  Float64,
+  String,
+  Time,
+  Duration,
+  Struct
+};
 
 constexpr int prim_size(Prim p) {
   switch (p) {
-    case Prim::Bool: case Prim::Int8: case Prim::UInt8: return 1;
-    case Prim::Int16: case Prim::UInt16: return 2;
-    case Prim::Int32: case Prim::UInt32: case Prim::Float32: return 4;
-    case Prim::Int64: case Prim::UInt64: case Prim::Float64: case Prim::Time: case Prim::Duration: return 8;
-    default: return -1;
+    case Prim::Bool:
+    case Prim::Int8:
+    case Prim::UInt8:
+      return 1;
+    case Prim::Int16:
+    case Prim::UInt16:
+      return 2;
+    case Prim::Int32:
+    case Prim::UInt32:
+    case Prim::Float32:
+      return 4;
+    case Prim::Int64:
+    case Prim::UInt64:
+    case Prim::Float64:
+    case Prim::Time:
+    case Prim::Duration:
+      return 8;
+    default:
+      return -1;
   }
 }
 constexpr bool prim_integer(Prim p) { return p <= Prim::UInt64; }
@@ -371,10 +407,10 @@ struct MsgSchema {
 
 inline bool parse_prim(std::string_view t, Prim& p) {
   static constexpr std::pair<std::string_view, Prim> table[] = {
-      {"bool", Prim::Bool},     {"int8", Prim::Int8},       {"byte", Prim::Int8},     {"uint8", Prim::UInt8},   {"char", Prim::UInt8},
-      {"int16", Prim::Int16},   {"uint16", Prim::UInt16},   {"int32", Prim::Int32},   {"uint32", Prim::UInt32}, {"int64", Prim::Int64},
-      {"uint64", Prim::UInt64}, {"float32", Prim::Float32}, {"float64", Prim::Float64}, {"string", Prim::String}, {"time", Prim::Time},
-      {"duration", Prim::Duration}};
+      {"bool", Prim::Bool},       {"int8", Prim::Int8},     {"byte", Prim::Int8},     {"uint8", Prim::UInt8},
+      {"char", Prim::UInt8},      {"int16", Prim::Int16},   {"uint16", Prim::UInt16}, {"int32", Prim::Int32},
+      {"uint32", Prim::UInt32},   {"int64", Prim::Int64},   {"uint64", Prim::UInt64}, {"float32", Prim::Float32},
+      {"float64", Prim::Float64}, {"string", Prim::String}, {"time", Prim::Time},     {"duration", Prim::Duration}};
   for (const auto& [name, prim] : table)
     if (t == name) {
       p = prim;
@@ -418,7 +454,8 @@ inline MsgSchema parse_msg_definition(std::string_view root_type, std::string_vi
     if (const auto hash = line.find('#'); hash != std::string_view::npos) line = trim(line.substr(0, hash));
     if (line.empty()) continue;
     const auto sp = line.find_first_of(" \t");
-    if (sp == std::string_view::npos) throw Error(where + ": message definition line '" + std::string(line.substr(0, 60)) + "' has no field name");
+    if (sp == std::string_view::npos)
+      throw Error(where + ": message definition line '" + std::string(line.substr(0, 60)) + "' has no field name");
     std::string_view type = line.substr(0, sp), name = trim(line.substr(sp));
     if (name.find('=') != std::string_view::npos) continue;  // a constant: no bytes in the message
     if (name.find_first_of(" \t") != std::string_view::npos)
@@ -433,7 +470,8 @@ inline MsgSchema parse_msg_definition(std::string_view root_type, std::string_vi
       } else {
         std::int64_t v = 0;
         for (char c : n) {
-          if (c < '0' || c > '9' || v > (std::int64_t{1} << 31)) throw Error(where + ": message definition: bad array length in '" + std::string(type.substr(0, 60)) + "'");
+          if (c < '0' || c > '9' || v > (std::int64_t{1} << 31))
+            throw Error(where + ": message definition: bad array length in '" + std::string(type.substr(0, 60)) + "'");
           v = v * 10 + (c - '0');
         }
         if (v == 0) throw Error(where + ": message definition: array of length 0 in '" + std::string(type) + "'");
@@ -473,8 +511,8 @@ inline MsgSchema parse_msg_definition(std::string_view root_type, std::string_vi
           }
       }
       if (k < 0)
-        throw Error(where + ": message definition: field '" + bag_shown(f.name) + "' of " + bag_shown(owner) + " has type '" + bag_shown(f.type_name) +
-                    "', whose definition is not included");
+        throw Error(where + ": message definition: field '" + bag_shown(f.name) + "' of " + bag_shown(owner) + " has type '" +
+                    bag_shown(f.type_name) + "', whose definition is not included");
       f.type = k;
     }
   }
@@ -559,14 +597,23 @@ inline double msg_read_number(const MsgField& f, MsgCursor& c) {
   const unsigned char* p = c.p;
   c.p += n;
   switch (f.prim) {
-    case Prim::Bool: case Prim::UInt8: return p[0];
-    case Prim::Int8: return static_cast<std::int8_t>(p[0]);
-    case Prim::UInt16: return std::uint16_t(p[0] | p[1] << 8);
-    case Prim::Int16: return static_cast<std::int16_t>(std::uint16_t(p[0] | p[1] << 8));
-    case Prim::UInt32: return bag_u32(p);
-    case Prim::Int32: return static_cast<std::int32_t>(bag_u32(p));
-    case Prim::UInt64: return static_cast<double>(bag_u64(p));
-    case Prim::Int64: return static_cast<double>(static_cast<std::int64_t>(bag_u64(p)));
+    case Prim::Bool:
+    case Prim::UInt8:
+      return p[0];
+    case Prim::Int8:
+      return static_cast<std::int8_t>(p[0]);
+    case Prim::UInt16:
+      return std::uint16_t(p[0] | p[1] << 8);
+    case Prim::Int16:
+      return static_cast<std::int16_t>(std::uint16_t(p[0] | p[1] << 8));
+    case Prim::UInt32:
+      return bag_u32(p);
+    case Prim::Int32:
+      return static_cast<std::int32_t>(bag_u32(p));
+    case Prim::UInt64:
+      return static_cast<double>(bag_u64(p));
+    case Prim::Int64:
+      return static_cast<double>(static_cast<std::int64_t>(bag_u64(p)));
     case Prim::Float32: {
       float v;
       std::memcpy(&v, p, 4);
@@ -577,23 +624,35 @@ inline double msg_read_number(const MsgField& f, MsgCursor& c) {
       std::memcpy(&v, p, 8);
       return v;
     }
-    default: throw Error(*c.where + ": field '" + bag_shown(f.name) + "' is not a number");
+    default:
+      throw Error(*c.where + ": field '" + bag_shown(f.name) + "' is not a number");
   }
 }
 
-inline bool is_number_field(const MsgField& f) { return f.array == 0 && f.prim != Prim::Struct && f.prim != Prim::String && f.prim != Prim::Time && f.prim != Prim::Duration; }
-
+inline bool is_number_field(const MsgField& f) {
+  return f.array == 0 && f.prim != Prim::Struct && f.prim != Prim::String && f.prim != Prim::Time && f.prim != Prim::Duration;
+}
 
 inline std::int64_t msg_int_at(Prim p, const unsigned char* q) {
   switch (p) {
-    case Prim::Bool: case Prim::UInt8: return q[0];
-    case Prim::Int8: return static_cast<std::int8_t>(q[0]);
-    case Prim::UInt16: return std::uint16_t(q[0] | q[1] << 8);
-    case Prim::Int16: return static_cast<std::int16_t>(std::uint16_t(q[0] | q[1] << 8));
-    case Prim::UInt32: return bag_u32(q);
-    case Prim::Int32: return static_cast<std::int32_t>(bag_u32(q));
-    case Prim::UInt64: case Prim::Int64: return static_cast<std::int64_t>(bag_u64(q));
-    default: return 0;
+    case Prim::Bool:
+    case Prim::UInt8:
+      return q[0];
+    case Prim::Int8:
+      return static_cast<std::int8_t>(q[0]);
+    case Prim::UInt16:
+      return std::uint16_t(q[0] | q[1] << 8);
+    case Prim::Int16:
+      return static_cast<std::int16_t>(std::uint16_t(q[0] | q[1] << 8));
+    case Prim::UInt32:
+      return bag_u32(q);
+    case Prim::Int32:
+      return static_cast<std::int32_t>(bag_u32(q));
+    case Prim::UInt64:
+    case Prim::Int64:
+      return static_cast<std::int64_t>(bag_u64(q));
+    default:
+      return 0;
   }
 }
 
@@ -649,8 +708,8 @@ inline bool event_layout(const MsgSchema& s, EventLayout& L, std::string& why) {
   bool got[4] = {false, false, false, false};
   std::int64_t off = 0;
   for (const auto& f : t.fields) {
-    const std::int64_t size = (f.prim == Prim::Struct ? s.types[static_cast<std::size_t>(f.type)].fixed : prim_size(f.prim)) *
-                              (f.array > 0 ? f.array : 1);
+    const std::int64_t size =
+        (f.prim == Prim::Struct ? s.types[static_cast<std::size_t>(f.type)].fixed : prim_size(f.prim)) * (f.array > 0 ? f.array : 1);
     if (f.array == 0) {
       if (f.name == "x" && prim_integer(f.prim)) L.ox = off, L.px = f.prim, got[0] = true;
       if (f.name == "y" && prim_integer(f.prim)) L.oy = off, L.py = f.prim, got[1] = true;
@@ -733,7 +792,9 @@ inline BagIndex read_bag_index(BagFile& f) {
   if (std::string_view(magic, 13) != kBagMagic) {
     if (std::string_view(magic, 9) == "#ROSBAG V") {
       const std::string_view v(magic + 9, 4);
-      throw Error(f.name(), 0, "ROS bag version '" + bag_shown(v.substr(0, v.find('\n'))) + "' is not read (only 2.0; 'rosbag fix' converts older bags)");
+      throw Error(
+          f.name(), 0,
+          "ROS bag version '" + bag_shown(v.substr(0, v.find('\n'))) + "' is not read (only 2.0; 'rosbag fix' converts older bags)");
     }
     throw Error(f.name(), 0, "not a ROS bag (no '#ROSBAG V2.0' line at its start)");
   }
@@ -765,8 +826,8 @@ inline BagIndex read_bag_index(BagFile& f) {
     }
     idx.records_end = off;
     if (!cut.empty())
-      warn(f.name() + ": " + cut + " (a recording cut short); its records are read to the last whole one, " + std::to_string(f.size() - off) +
-           " bytes dropped" + (limit < f.size() ? " (the index only)" : ""));
+      warn(f.name() + ": " + cut + " (a recording cut short); its records are read to the last whole one, " +
+           std::to_string(f.size() - off) + " bytes dropped" + (limit < f.size() ? " (the index only)" : ""));
     return idx;
   };
   if (idx.index_pos == 0) return scanned(f.size(), "");
@@ -777,7 +838,8 @@ inline BagIndex read_bag_index(BagFile& f) {
   std::string data;
   while (off < f.size()) {
     if (const std::string why = bag_record_cut(f, off); !why.empty())
-      return scanned(idx.index_pos, "the index, at byte " + std::to_string(idx.index_pos) + ", is cut short at byte " + std::to_string(off) + ": " + why);
+      return scanned(idx.index_pos,
+                     "the index, at byte " + std::to_string(idx.index_pos) + ", is cut short at byte " + std::to_string(off) + ": " + why);
     const auto [doff, len] = read_bag_record(f, off, hb, h);
     const std::string at = f.name() + ": index record at byte " + std::to_string(off);
     const int op = bag_op(h, at);
@@ -790,8 +852,10 @@ inline BagIndex read_bag_index(BagFile& f) {
       BagChunkInfo ci;
       ci.pos = bag_field_u64(h, "chunk_pos", at);
       const std::uint32_t count = bag_field_u32(h, "count", at);
-      if (std::uint64_t{count} * 8 != len) throw Error(at + ": chunk info lists " + std::to_string(count) + " connections in " + std::to_string(len) + " bytes");
-      if (ci.pos < idx.first_record || ci.pos >= idx.index_pos) throw Error(at + ": chunk position " + std::to_string(ci.pos) + " lies outside the chunks");
+      if (std::uint64_t{count} * 8 != len)
+        throw Error(at + ": chunk info lists " + std::to_string(count) + " connections in " + std::to_string(len) + " bytes");
+      if (ci.pos < idx.first_record || ci.pos >= idx.index_pos)
+        throw Error(at + ": chunk position " + std::to_string(ci.pos) + " lies outside the chunks");
       data.resize(len);
       f.read(doff, data.data(), len, "chunk info record");
       for (std::uint32_t i = 0; i < count; ++i) {
@@ -913,14 +977,17 @@ inline std::vector<BagTopic> rosbag_topics(const std::filesystem::path& path) {
     for (const auto& ci : idx.chunks)
       for (const auto& [conn, n] : ci.counts) counts[conn] += n;
   } else {
-    detail::for_each_bag_message(f, idx, [](std::uint32_t) { return true; },
-                                 [&](std::uint32_t conn, detail::RosTime, std::string_view, const std::string&) { ++counts[conn]; });
+    detail::for_each_bag_message(
+        f, idx, [](std::uint32_t) { return true; },
+        [&](std::uint32_t conn, detail::RosTime, std::string_view, const std::string&) { ++counts[conn]; });
   }
   std::map<std::string, BagTopic> topics;
   for (const auto& [id, c] : idx.conns) {
     auto& t = topics[c.topic];
     if (!t.type.empty() && t.type != c.type)
-      throw Error(f.name(), 0, "topic " + detail::bag_shown(c.topic) + " carries two types (" + detail::bag_shown(t.type) + ", " + detail::bag_shown(c.type) + ")");
+      throw Error(f.name(), 0,
+                  "topic " + detail::bag_shown(c.topic) + " carries two types (" + detail::bag_shown(t.type) + ", " +
+                      detail::bag_shown(c.type) + ")");
     t.topic = c.topic;
     t.type = c.type;
     t.messages += counts[id];
@@ -950,7 +1017,8 @@ inline void msg_read_xyzw(const MsgSchema& s, const MsgField& f, MsgCursor& c, d
     got[k] = true;
     return true;
   });
-  if (!(got[0] && got[1] && got[2] && got[3])) throw Error(*c.where + ": field '" + bag_shown(f.name) + "' lacks x, y, z" + (quat ? ", w" : ""));
+  if (!(got[0] && got[1] && got[2] && got[3]))
+    throw Error(*c.where + ": field '" + bag_shown(f.name) + "' lacks x, y, z" + (quat ? ", w" : ""));
 }
 
 inline RosTime msg_read_header_stamp(const MsgSchema& s, const MsgField& f, MsgCursor& c, bool& got) {
@@ -1047,7 +1115,9 @@ class BagTopics {
     for (const auto& [id, c] : idx.conns) {
       auto& v = conns_[c.topic];
       if (!v.empty() && idx.conns.at(v.front()).type != c.type)
-        throw Error(name_, 0, "topic " + bag_shown(c.topic) + " carries two types (" + bag_shown(idx.conns.at(v.front()).type) + ", " + bag_shown(c.type) + ")");
+        throw Error(name_, 0,
+                    "topic " + bag_shown(c.topic) + " carries two types (" + bag_shown(idx.conns.at(v.front()).type) + ", " +
+                        bag_shown(c.type) + ")");
       v.push_back(id);
     }
     for (const auto& [topic, ids] : conns_) listing_.push_back(bag_shown(topic) + " (" + bag_shown(idx.conns.at(ids.front()).type) + ")");
@@ -1061,7 +1131,10 @@ class BagTopics {
     if (schema_errors_.count(id)) return nullptr;
     const auto& c = idx_.conns.at(id);
     try {
-      return &schemas_.emplace(id, parse_msg_definition(c.type, c.definition, name_ + ": topic " + bag_shown(c.topic) + " (" + bag_shown(c.type) + ")")).first->second;
+      return &schemas_
+                  .emplace(id, parse_msg_definition(c.type, c.definition,
+                                                    name_ + ": topic " + bag_shown(c.topic) + " (" + bag_shown(c.type) + ")"))
+                  .first->second;
     } catch (const Error& e) {
       schema_errors_[id] = e.what();
       return nullptr;
@@ -1098,20 +1171,25 @@ class BagTopics {
     if (!requested.empty()) {
       if (!conns_.count(requested))
         throw Error(name_, 0, "no topic '" + bag_shown(requested) + "' (" + flag + "); the bag's topics: " + join_topics(listing_));
-      if (!fits(requested, why)) throw Error(name_, 0, "topic " + bag_shown(requested) + " (" + bag_shown(type_of(requested)) + ") cannot be the " + role + ": " + why);
+      if (!fits(requested, why))
+        throw Error(name_, 0,
+                    "topic " + bag_shown(requested) + " (" + bag_shown(type_of(requested)) + ") cannot be the " + role + ": " + why);
       return requested;
     }
     std::vector<std::string> c, shown;
     for (const auto& [topic, ids] : conns_)
       if (fits(topic, why)) c.push_back(topic), shown.push_back(bag_shown(topic));
     if (c.size() > 1)
-      throw Error(name_, 0, "several topics could be the " + role + " (" + join_topics(shown) + "): choose one with " + flag +
-                                (required ? "" : " (or 'none')"));
+      throw Error(name_, 0,
+                  "several topics could be the " + role + " (" + join_topics(shown) + "): choose one with " + flag +
+                      (required ? "" : " (or 'none')"));
     if (c.empty()) {
       if (required) {
         std::string unread;  // definitions that could not be parsed may hide the topic looked for
         if (!schema_errors_.empty()) unread = "; " + schema_errors_.begin()->second;
-        throw Error(name_, 0, "no " + role + " topic (an array of events with x, y, ts, polarity); the bag's topics: " + join_topics(listing_) + unread);
+        throw Error(
+            name_, 0,
+            "no " + role + " topic (an array of events with x, y, ts, polarity); the bag's topics: " + join_topics(listing_) + unread);
       }
       return std::string();
     }
@@ -1155,7 +1233,8 @@ struct BagGatherer {
     msg_walk(s, 0, c, [&](const MsgField& fl, MsgCursor& cc) {
       if ((fl.name == "width" || fl.name == "height") && is_number_field(fl)) {
         const double v = msg_read_number(fl, cc);
-        if (v < 0 || v > 65535) throw Error(where + ": field '" + bag_shown(fl.name) + "' is " + short_number(v) + " (expected 0 to 65535)");
+        if (v < 0 || v > 65535)
+          throw Error(where + ": field '" + bag_shown(fl.name) + "' is " + short_number(v) + " (expected 0 to 65535)");
         (fl.name == "width" ? rec.array_width : rec.array_height) = static_cast<int>(v);
         return true;
       }
@@ -1180,7 +1259,8 @@ struct BagGatherer {
         const std::int64_t x = msg_int_at(L.px, q + L.ox), y = msg_int_at(L.py, q + L.oy);
         const double t = rel(RosTime{bag_u32(q + L.ots), bag_u32(q + L.ots + 4)});
         if (x < 0 || y < 0 || x > 65535 || y > 65535)
-          throw Error(where + ", event " + std::to_string(i) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") out of range");
+          throw Error(where + ", event " + std::to_string(i) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                      ") out of range");
         if (t < last) {
           if (i > 0)
             throw Error(where + ", event " + std::to_string(i) + ": time goes back (" + short_number(t) + " s after " + short_number(last) +
@@ -1228,9 +1308,9 @@ struct BagGatherer {
     Image img = bag_image(w, h, enc, big, step, data, len, where);
     if (!frames.empty() && (img.width != frames.front().second.width || img.height != frames.front().second.height ||
                             img.channels != frames.front().second.channels))
-      throw Error(where + ": frame of " + std::to_string(img.width) + "x" + std::to_string(img.height) + "x" + std::to_string(img.channels) +
-                  " after frames of " + std::to_string(frames.front().second.width) + "x" + std::to_string(frames.front().second.height) + "x" +
-                  std::to_string(frames.front().second.channels));
+      throw Error(where + ": frame of " + std::to_string(img.width) + "x" + std::to_string(img.height) + "x" +
+                  std::to_string(img.channels) + " after frames of " + std::to_string(frames.front().second.width) + "x" +
+                  std::to_string(frames.front().second.height) + "x" + std::to_string(frames.front().second.channels));
     if (rec.frame_encoding.empty()) rec.frame_encoding = enc;
     frames.emplace_back(rel(stamped && !stamp.zero() ? stamp : record_time), std::move(img));
   }
@@ -1253,8 +1333,10 @@ struct BagGatherer {
     });
     if (K.size() != 9) throw Error(where + ": camera info without K (float64[9])");
     if (!(K[0] > 0) || !(K[4] > 0) || !std::isfinite(K[0]) || !std::isfinite(K[4]) || !std::isfinite(K[2]) || !std::isfinite(K[5]))
-      throw Error(where + ": camera info K has no positive, finite focal lengths (fx " + short_number(K[0]) + ", fy " + short_number(K[4]) + ")");
-    if (binx > 1 || biny > 1) throw Error(where + ": binned camera info (binning " + short_number(binx) + "x" + short_number(biny) + ") is not read");
+      throw Error(where + ": camera info K has no positive, finite focal lengths (fx " + short_number(K[0]) + ", fy " + short_number(K[4]) +
+                  ")");
+    if (binx > 1 || biny > 1)
+      throw Error(where + ": binned camera info (binning " + short_number(binx) + "x" + short_number(biny) + ") is not read");
     for (double v : D)
       if (!std::isfinite(v)) throw Error(where + ": camera info D holds a value that is not finite");
     const bool zero = std::all_of(D.begin(), D.end(), [](double v) { return v == 0; });
@@ -1264,7 +1346,8 @@ struct BagGatherer {
         throw Error(where + ": plumb_bob distortion with " + std::to_string(D.size()) + " coefficients (expected 5)");
       for (std::size_t i = 0; i < D.size() && i < 5; ++i) k[i] = D[i];
       for (std::size_t i = 5; i < D.size(); ++i)
-        if (D[i] != 0) throw Error(where + ": rational_polynomial distortion with k4..k6 not zero is not read (the camera model has k1 k2 p1 p2 k3)");
+        if (D[i] != 0)
+          throw Error(where + ": rational_polynomial distortion with k4..k6 not zero is not read (the camera model has k1 k2 p1 p2 k3)");
     } else {
       throw Error(where + ": distortion model '" + model + "' is not read (plumb_bob, or rational_polynomial with k4..k6 zero)");
     }
@@ -1309,7 +1392,8 @@ struct BagGatherer {
     auto by_time = [](const auto& v) {
       std::vector<std::size_t> order(v.size());
       std::iota(order.begin(), order.end(), std::size_t{0});
-      std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return v[a].first != v[b].first ? v[a].first < v[b].first : a < b; });
+      std::sort(order.begin(), order.end(),
+                [&](std::size_t a, std::size_t b) { return v[a].first != v[b].first ? v[a].first < v[b].first : a < b; });
       return order;
     };
     for (auto i : by_time(frames)) {
@@ -1333,15 +1417,18 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
   BagFile f(path);
   BagIndex idx = read_bag_index(f);
   if (!idx.indexed)  // connections first (they may be anywhere in the chunks), then the messages
-    for_each_bag_message(f, idx, [](std::uint32_t) { return false; }, [](std::uint32_t, RosTime, std::string_view, const std::string&) {});
+    for_each_bag_message(
+        f, idx, [](std::uint32_t) { return false; }, [](std::uint32_t, RosTime, std::string_view, const std::string&) {});
   if (idx.conns.empty()) throw Error(f.name(), 0, "the bag has no connections (no topics)");
 
   BagTopics topics(f, idx);
   BagRecording rec;
-  rec.events_topic = topics.choose("events", "--events-topic", opt.events_topic,
-                                   [&](const std::string& t, std::string& why) { return topics.fits_events(t, why); }, true);
+  rec.events_topic = topics.choose(
+      "events", "--events-topic", opt.events_topic, [&](const std::string& t, std::string& why) { return topics.fits_events(t, why); },
+      true);
   rec.images_topic = topics.choose("frames", "--images-topic", opt.images_topic, topics.of_type({"sensor_msgs/Image"}), false);
-  rec.camera_info_topic = topics.choose("camera info", "--camera-info-topic", opt.camera_info_topic, topics.of_type({"sensor_msgs/CameraInfo"}), false);
+  rec.camera_info_topic =
+      topics.choose("camera info", "--camera-info-topic", opt.camera_info_topic, topics.of_type({"sensor_msgs/CameraInfo"}), false);
   rec.poses_topic = topics.choose("poses", "--poses-topic", opt.poses_topic,
                                   topics.of_type({"geometry_msgs/PoseStamped", "nav_msgs/Odometry", "geometry_msgs/TransformStamped",
                                                   "geometry_msgs/PoseWithCovarianceStamped"}),
@@ -1349,8 +1436,8 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
 
   enum Role : int { kNone, kEvents, kImages, kInfo, kPoses };
   std::map<std::uint32_t, Role> role;
-  for (const auto& [topic, r] : {std::pair{rec.events_topic, kEvents}, {rec.images_topic, kImages}, {rec.camera_info_topic, kInfo},
-                                 {rec.poses_topic, kPoses}})
+  for (const auto& [topic, r] :
+       {std::pair{rec.events_topic, kEvents}, {rec.images_topic, kImages}, {rec.camera_info_topic, kInfo}, {rec.poses_topic, kPoses}})
     if (!topic.empty())
       for (auto id : topics.connections(topic)) {
         if (!topics.schema(id)) throw Error(topics.schema_error(id));
@@ -1369,7 +1456,8 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
         const MsgSchema& s = *topics.schema(conn);
         const std::string where = at + " (topic " + bag_shown(idx.conns.at(conn).topic) + ", message " + std::to_string(counts[r]) + ")";
         ++counts[r];
-        MsgCursor c{reinterpret_cast<const unsigned char*>(body.data()), reinterpret_cast<const unsigned char*>(body.data()) + body.size(), &where};
+        MsgCursor c{reinterpret_cast<const unsigned char*>(body.data()), reinterpret_cast<const unsigned char*>(body.data()) + body.size(),
+                    &where};
         if (r == kEvents) gather.events(s, c, where);
         else if (r == kImages) gather.image(s, c, where, record_time);
         else if (r == kInfo) gather.camera_info(s, c, where);
@@ -1377,7 +1465,8 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
       },
       opt.progress);
   if (rec.events.empty())
-    throw Error(f.name(), 0, "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
+    throw Error(f.name(), 0,
+                "topic " + bag_shown(rec.events_topic) + " holds no events (" + std::to_string(counts[kEvents]) + " messages)");
   gather.finish();
   return rec;
 }
@@ -1386,10 +1475,10 @@ inline BagRecording read_rosbag(const std::filesystem::path& path, const BagOpti
 
 /// How write_rosbag lays out a bag.
 struct BagWriteOptions {
-  std::string compression = "lz4";           ///< "none", "bz2" or "lz4"
-  std::int64_t origin_sec = 0;               ///< added to every time (ROS time must not be negative)
-  std::size_t chunk_bytes = 768 * 1024;      ///< a chunk is closed once it holds this much (rosbag's default)
-  double events_per_message = 1e-3;          ///< seconds of events per EventArray message
+  std::string compression = "lz4";       ///< "none", "bz2" or "lz4"
+  std::int64_t origin_sec = 0;           ///< added to every time (ROS time must not be negative)
+  std::size_t chunk_bytes = 768 * 1024;  ///< a chunk is closed once it holds this much (rosbag's default)
+  double events_per_message = 1e-3;      ///< seconds of events per EventArray message
 };
 
 namespace detail {
@@ -1414,7 +1503,8 @@ inline std::string bag_u64s(std::uint64_t v) {
   return s;
 }
 /// A record: header fields (name, value bytes), then the data.
-inline void bag_put_record(std::string& out, std::initializer_list<std::pair<std::string_view, std::string_view>> fields, std::string_view data) {
+inline void bag_put_record(std::string& out, std::initializer_list<std::pair<std::string_view, std::string_view>> fields,
+                           std::string_view data) {
   std::string h;
   for (const auto& [k, v] : fields) {
     bag_put_u32(h, static_cast<std::uint32_t>(k.size() + 1 + v.size()));
@@ -1434,24 +1524,28 @@ struct BagType {
   const char* md5;
   const char* definition;
 };
-inline constexpr const char* kBagHeaderDef = "================================================================================\nMSG: std_msgs/Header\n"
-                                              "uint32 seq\ntime stamp\nstring frame_id\n";
+inline constexpr const char* kBagHeaderDef =
+    "================================================================================\nMSG: std_msgs/Header\n"
+    "uint32 seq\ntime stamp\nstring frame_id\n";
 inline const BagType kBagEventArray{"dvs_msgs/EventArray", "5e8beee5a6c107e504c2e78903c224b8",
                                     "Header header\nuint32 height\nuint32 width\nEvent[] events\n"};
 inline const BagType kBagCameraInfo{"sensor_msgs/CameraInfo", "c9a58c1b0b154e0e6da7578cb991d214",
                                     "Header header\nuint32 height\nuint32 width\nstring distortion_model\nfloat64[] D\nfloat64[9] K\n"
                                     "float64[9] R\nfloat64[12] P\nuint32 binning_x\nuint32 binning_y\nRegionOfInterest roi\n"};
-inline const BagType kBagImage{"sensor_msgs/Image", "060021388200f6f0f447d0fcd9c64743",
-                               "Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n"};
+inline const BagType kBagImage{
+    "sensor_msgs/Image", "060021388200f6f0f447d0fcd9c64743",
+    "Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n"};
 inline const BagType kBagPoseStamped{"geometry_msgs/PoseStamped", "d3812c3cbc69362b77dc0b19b345f8f5", "Header header\nPose pose\n"};
 inline std::string bag_definition(const BagType& t) {
   std::string d = std::string(t.definition) + kBagHeaderDef;
   const std::string sep = "================================================================================\n";
   if (&t == &kBagEventArray) d += sep + "MSG: dvs_msgs/Event\nuint16 x\nuint16 y\ntime ts\nbool polarity\n";
-  if (&t == &kBagCameraInfo) d += sep + "MSG: sensor_msgs/RegionOfInterest\nuint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n";
+  if (&t == &kBagCameraInfo)
+    d += sep + "MSG: sensor_msgs/RegionOfInterest\nuint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n";
   if (&t == &kBagPoseStamped)
-    d += sep + "MSG: geometry_msgs/Pose\nPoint position\nQuaternion orientation\n" + sep + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n" +
-         sep + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n";
+    d += sep + "MSG: geometry_msgs/Pose\nPoint position\nQuaternion orientation\n" + sep +
+         "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n" + sep +
+         "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n";
   return d;
 }
 
@@ -1498,8 +1592,13 @@ class BagWriter {
         bag_put_u32(data, conn);
         bag_put_u32(data, n);
       }
-      bag_put_record(out_, {{"op", "\x06"}, {"ver", bag_u32s(1)}, {"chunk_pos", bag_u64s(ci.pos)}, {"start_time", bag_u64s(ci.start)},
-                            {"end_time", bag_u64s(ci.end)}, {"count", bag_u32s(static_cast<std::uint32_t>(ci.counts.size()))}},
+      bag_put_record(out_,
+                     {{"op", "\x06"},
+                      {"ver", bag_u32s(1)},
+                      {"chunk_pos", bag_u64s(ci.pos)},
+                      {"start_time", bag_u64s(ci.start)},
+                      {"end_time", bag_u64s(ci.end)},
+                      {"count", bag_u32s(static_cast<std::uint32_t>(ci.counts.size()))}},
                      data);
     }
     index_pos_ = index_pos;
@@ -1522,8 +1621,11 @@ class BagWriter {
   /// The file header record, padded (as rosbag does) so that its header and data take 4096 bytes.
   void put_file_header() {
     std::string h;
-    bag_put_record(h, {{"op", "\x03"}, {"index_pos", bag_u64s(index_pos_)}, {"conn_count", bag_u32s(static_cast<std::uint32_t>(conns_.size()))},
-                       {"chunk_count", bag_u32s(static_cast<std::uint32_t>(infos_.size()))}},
+    bag_put_record(h,
+                   {{"op", "\x03"},
+                    {"index_pos", bag_u64s(index_pos_)},
+                    {"conn_count", bag_u32s(static_cast<std::uint32_t>(conns_.size()))},
+                    {"chunk_count", bag_u32s(static_cast<std::uint32_t>(infos_.size()))}},
                    "");
     const std::size_t header_len = h.size() - 8;
     out_ += h.substr(0, h.size() - 4);
@@ -1553,15 +1655,18 @@ class BagWriter {
       packed.resize(n);
     }
     Info info{out_.size(), ros_time(start_), ros_time(end_), {}};
-    bag_put_record(out_, {{"op", "\x05"}, {"compression", compression_}, {"size", bag_u32s(static_cast<std::uint32_t>(chunk_.size()))}}, packed);
+    bag_put_record(out_, {{"op", "\x05"}, {"compression", compression_}, {"size", bag_u32s(static_cast<std::uint32_t>(chunk_.size()))}},
+                   packed);
     for (const auto& [conn, entries] : index_) {
       std::string data;
       for (const auto& [t, off] : entries) {
         bag_put_u64(data, t);
         bag_put_u32(data, off);
       }
-      bag_put_record(out_, {{"op", "\x04"}, {"ver", bag_u32s(1)}, {"conn", bag_u32s(conn)}, {"count", bag_u32s(static_cast<std::uint32_t>(entries.size()))}},
-                     data);
+      bag_put_record(
+          out_,
+          {{"op", "\x04"}, {"ver", bag_u32s(1)}, {"conn", bag_u32s(conn)}, {"count", bag_u32s(static_cast<std::uint32_t>(entries.size()))}},
+          data);
       info.counts.emplace_back(conn, static_cast<std::uint32_t>(entries.size()));
     }
     infos_.push_back(std::move(info));
@@ -1606,8 +1711,9 @@ inline void write_rosbag(const std::filesystem::path& path, const events::EventS
   auto ns_of = [&](double t, const char* what) {  // ROS time: 0 to 2^32 s
     const double s = static_cast<double>(opt.origin_sec) + t;
     if (!(s >= 0 && s < 4294967295.0))
-      throw Error(file, 0, std::string("write_rosbag: ") + what + " at " + short_number(t) + " s after the origin " + std::to_string(opt.origin_sec) +
-                               " s lies outside ROS time (0 to 2^32 s)");
+      throw Error(file, 0,
+                  std::string("write_rosbag: ") + what + " at " + short_number(t) + " s after the origin " +
+                      std::to_string(opt.origin_sec) + " s lies outside ROS time (0 to 2^32 s)");
     return static_cast<std::uint64_t>(opt.origin_sec * 1000000000 + std::llround(t * 1e9));
   };
   require(frames.size() == frame_times.size(), file + ": write_rosbag: frames and times differ in number");
@@ -1660,8 +1766,8 @@ inline void write_rosbag(const std::filesystem::path& path, const events::EventS
       m.reserve(m.size() + 13 * (it.b - it.a));
       for (std::size_t k = it.a; k < it.b; ++k) {
         const std::uint64_t ns = ns_of(ev.t[k], "an event");
-        const unsigned char xy[4] = {static_cast<unsigned char>(ev.x[k]), static_cast<unsigned char>(ev.x[k] >> 8), static_cast<unsigned char>(ev.y[k]),
-                                     static_cast<unsigned char>(ev.y[k] >> 8)};
+        const unsigned char xy[4] = {static_cast<unsigned char>(ev.x[k]), static_cast<unsigned char>(ev.x[k] >> 8),
+                                     static_cast<unsigned char>(ev.y[k]), static_cast<unsigned char>(ev.y[k] >> 8)};
         m.append(reinterpret_cast<const char*>(xy), 4);
         bag_put_u32(m, static_cast<std::uint32_t>(ns / 1000000000));
         bag_put_u32(m, static_cast<std::uint32_t>(ns % 1000000000));
@@ -1706,18 +1812,17 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
       w = rec.info_width, h = rec.info_height, from = "the camera info on " + rec.camera_info_topic;
     else if (rec.array_width > 0 && rec.array_height > 0)
       w = rec.array_width, h = rec.array_height, from = "the event messages on " + rec.events_topic;
-    else if (!rec.frames.empty())
-      w = rec.frames[0].width, h = rec.frames[0].height, from = "the first frame on " + rec.images_topic;
-    else
-      w = static_cast<int>(rec.max_x + 1), h = static_cast<int>(rec.max_y + 1), from = "the events' extent";
+    else if (!rec.frames.empty()) w = rec.frames[0].width, h = rec.frames[0].height, from = "the first frame on " + rec.images_topic;
+    else w = static_cast<int>(rec.max_x + 1), h = static_cast<int>(rec.max_y + 1), from = "the events' extent";
   }
   check_sensor_size(w, h, file + " (" + from + ")");
   if (rec.max_x >= w || rec.max_y >= h) {
     for (std::size_t i = 0; i < rec.events.size(); ++i)
       if (rec.events.x[i] >= w || rec.events.y[i] >= h)
-        throw Error(file, 0, "event " + std::to_string(i) + " of topic " + rec.events_topic + ": pixel (" + std::to_string(rec.events.x[i]) +
-                                 ", " + std::to_string(rec.events.y[i]) + ") lies outside the " + std::to_string(w) + "x" + std::to_string(h) +
-                                 " sensor (" + from + ")");
+        throw Error(file, 0,
+                    "event " + std::to_string(i) + " of topic " + rec.events_topic + ": pixel (" + std::to_string(rec.events.x[i]) + ", " +
+                        std::to_string(rec.events.y[i]) + ") lies outside the " + std::to_string(w) + "x" + std::to_string(h) +
+                        " sensor (" + from + ")");
   }
   Dataset d;
   d.folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
@@ -1731,7 +1836,9 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
   } else {
     const fs::path calib = d.folder / "calib.txt";
     if (!fs::exists(calib))
-      throw Error(file, 0, "no camera info topic and no " + calib.string() + " beside the bag: give the calibration (fx fy cx cy [k1 k2 p1 p2 [k3]])");
+      throw Error(
+          file, 0,
+          "no camera info topic and no " + calib.string() + " beside the bag: give the calibration (fx fy cx cy [k1 k2 p1 p2 [k3]])");
     d.camera = read_calib_txt(calib, w, h);
   }
   d.frames.t = rec.frame_times;
@@ -1774,8 +1881,13 @@ inline std::string rosbag_summary(const std::filesystem::path& path) {
 
 /// The format's line in io::formats(): written for an output ending in .bag; inspect lists its topics.
 inline Format rosbag_format() {
-  return {"rosbag", false, kRosbagDescription, &is_rosbag, &load_rosbag,
-          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions& o) { write_rosbag_recording(p, d, o.compression); }, {".bag"},
+  return {"rosbag",
+          false,
+          kRosbagDescription,
+          &is_rosbag,
+          &load_rosbag,
+          [](const std::filesystem::path& p, const Dataset& d, const WriteOptions& o) { write_rosbag_recording(p, d, o.compression); },
+          {".bag"},
           &rosbag_summary};
 }
 

@@ -58,8 +58,7 @@ class LineScanner {
     double v = 0;
     auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
     if (ec == std::errc::result_out_of_range) fail(std::string("field '") + name + "' is out of range");
-    if (ec != std::errc() || p != tok.data() + tok.size())
-      fail(std::string("field '") + name + "' is not a number: '" + shown(tok) + "'");
+    if (ec != std::errc() || p != tok.data() + tok.size()) fail(std::string("field '") + name + "' is not a number: '" + shown(tok) + "'");
     if (!std::isfinite(v)) fail(std::string("field '") + name + "' is not finite: '" + shown(tok) + "'");
     return v;
   }

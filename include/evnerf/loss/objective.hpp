@@ -59,9 +59,8 @@ struct PixelLoss {
 /// a saturated n⁺ has no upper end and one with a saturated n⁻ no lower end (the pixel may have changed
 /// more than it could fire), and dloss/dτ is added to `gtau` where not null.
 template <BoundPolicy Bound>
-PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const int* nneg, const double* bp, const double* bm,
-                            double* gbp, double* gbm, double log_eps = EventBounds{}.eps, const DeadTimeCounts& dt = {},
-                            double* gtau = nullptr) {
+PixelLoss window_pixel_loss(double l0, double l1, int L, const int* npos, const int* nneg, const double* bp, const double* bm, double* gbp,
+                            double* gbm, double log_eps = EventBounds{}.eps, const DeadTimeCounts& dt = {}, double* gtau = nullptr) {
   unsigned open = 0;
   if (dt)
     for (int k = 0; k < L; ++k) open |= dt.limited[k];
@@ -140,9 +139,9 @@ struct ProbeComposite {
 /// `scratch` is a thread's state between rays and score. EvNerf's fifth parameter takes one (a bare bound
 /// policy means SliceInterval<that bound>).
 template <class O>
-concept Objective = std::default_initializable<O> && requires(const O& o, const TileView& t, RayList& rays, typename O::scratch& s,
-                                                              const RenderedValues<ProbeComposite, float>& v, const WindowThresholds<float>& th,
-                                                              double* losses) {
+concept Objective = std::default_initializable<O> &&
+    requires(const O& o, const TileView& t, RayList& rays, typename O::scratch& s, const RenderedValues<ProbeComposite, float>& v,
+             const WindowThresholds<float>& th, double* losses) {
   typename O::pixels;
   { O::max_window } -> std::convertible_to<int>;
   { O::n_terms } -> std::convertible_to<int>;
@@ -160,8 +159,9 @@ concept Objective = std::default_initializable<O> && requires(const O& o, const 
 /// the step's pixels) and adds its gradients; `active` false means it renders and adds nothing (the step is
 /// then the objective's alone, to the bit); `rays_per_pixel` its expected rays per step pixel.
 template <class R>
-concept Regulariser = std::default_initializable<R> && requires(const R& r, const TileView& t, RayList& rays, typename R::scratch& s,
-                                                                const RenderedValues<ProbeComposite, float>& v, const WindowThresholds<float>& th) {
+concept Regulariser = std::default_initializable<R> &&
+    requires(const R& r, const TileView& t, RayList& rays, typename R::scratch& s, const RenderedValues<ProbeComposite, float>& v,
+             const WindowThresholds<float>& th) {
   { R::name } -> std::convertible_to<const char*>;
   r.rays(t, rays, s);
   { r.score(t, v, th, s) } -> std::convertible_to<double>;
@@ -309,16 +309,16 @@ struct Plus : O {
   }
   template <class F>
   void each(F&& f, scratch& s) const {
-    [&]<std::size_t... I>(std::index_sequence<I...>) {
-      (f(std::get<I>(regularisers), std::get<I>(s.terms), static_cast<int>(I)), ...);
-    }(std::index_sequence_for<R...>{});
+    [&]<std::size_t... I>(std::index_sequence<I...>) { (f(std::get<I>(regularisers), std::get<I>(s.terms), static_cast<int>(I)), ...); }
+    (std::index_sequence_for<R...>{});
   }
 };
 
 template <class P>
 struct as_objective {
-  static_assert(Objective<P>, "EvNerf: the fifth parameter must be an objective (loss::SliceInterval, loss::WindowInterval, loss::Plus, "
-                              "your own) or a bound policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts).");
+  static_assert(Objective<P>,
+                "EvNerf: the fifth parameter must be an objective (loss::SliceInterval, loss::WindowInterval, loss::Plus, "
+                "your own) or a bound policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts).");
   using type = P;
 };
 template <BoundPolicy P>

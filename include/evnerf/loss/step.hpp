@@ -51,9 +51,9 @@ struct StepDraw {
 /// intervals) weighs each event by the crossings it stands for (StepDraw::wpos); negative: plain counts.
 /// Deterministic for a given rng.
 template <class O>
-void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix,
-               double noise_ratio, int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr,
-               int per_interval = 1, double refractory = -1) {
+void draw_step(const events::SliceSet& slices, const std::vector<bool>& enabled, const events::CountPrefix& prefix, double noise_ratio,
+               int pixels_per_step, Rng& rng, StepDraw& d, const events::PixelSites* sites = nullptr, int per_interval = 1,
+               double refractory = -1) {
   require(per_interval >= 1, "train_step: slices per interval must be at least 1, got " + std::to_string(per_interval));
   const std::size_t N = slices.size();
   auto trainable = [&](std::size_t i) { return enabled.empty() || enabled[i]; };
@@ -237,7 +237,7 @@ struct WindowThresholds {
   int len = 1;
   const double* pos = nullptr;
   const double* neg = nullptr;
-  Scalar* grad = nullptr;  ///< B⁺_k's at 2k, B⁻_k's at 2k + 1; null: fixed thresholds
+  Scalar* grad = nullptr;             ///< B⁺_k's at 2k, B⁻_k's at 2k + 1; null: fixed thresholds
   double* refractory_grad = nullptr;  ///< where dloss/dτ goes (a learned refractory period; null: none)
   void add(int k, double dpos, double dneg) const {
     if (!grad) return;

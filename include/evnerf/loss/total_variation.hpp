@@ -52,10 +52,14 @@ struct LogTv {
 enum class TvNeighbours { Any, Vertical, Horizontal, Across };
 inline const char* tv_neighbours_name(TvNeighbours n) {
   switch (n) {
-    case TvNeighbours::Vertical: return "vertical";
-    case TvNeighbours::Horizontal: return "horizontal";
-    case TvNeighbours::Across: return "across";
-    case TvNeighbours::Any: break;
+    case TvNeighbours::Vertical:
+      return "vertical";
+    case TvNeighbours::Horizontal:
+      return "horizontal";
+    case TvNeighbours::Across:
+      return "across";
+    case TvNeighbours::Any:
+      break;
   }
   return "any";
 }
@@ -124,7 +128,7 @@ struct TotalVariation : TvTerm {
     share = SharePerMille / 1000.0;
   }
   struct scratch {
-    int first_ray = 0;     ///< the term's first ray in the tile's list
+    int first_ray = 0;             ///< the term's first ray in the tile's list
     std::vector<int> tile_pixels;  ///< the tile pixels drawn in, in the order of their rays
   };
   void rays(const TileView& t, RayList& rays, scratch& s) const {

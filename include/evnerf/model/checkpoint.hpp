@@ -20,7 +20,7 @@ namespace evnerf {
 /// of what it was trained on.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
 std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::serialize(const std::string& name,
-                                                                                   const io::CheckpointRun& run) const {
+                                                                                        const io::CheckpointRun& run) const {
   static_assert(std::is_same_v<Scalar, float>, "EvNerf::serialize: checkpoints hold float models");
   io::CheckpointHeader h;
   h.name = name;
@@ -49,7 +49,7 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
 /// only when the whole file has been read and checked. Returns the file's record of the run.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
 io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::deserialize(const std::string& b,
-                                                                                          const std::string& file) {
+                                                                                                const std::string& file) {
   static_assert(std::is_same_v<Scalar, float>, "EvNerf::deserialize: checkpoints hold float models");
   io::CheckpointReader r(b, file);
   const io::CheckpointHeader h = io::read_checkpoint_header(r);
@@ -85,7 +85,9 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
     for (std::size_t i = 0; i < v.size(); ++i)
       if (!std::isfinite(v[i]) || (non_negative && v[i] < 0))
         r.fail(std::string(what) + " " + std::to_string(i) + " of " + std::to_string(v.size()) + " is " +
-               (std::isfinite(v[i]) ? "negative" : std::isnan(v[i]) ? "NaN" : "infinite") +
+               (std::isfinite(v[i]) ? "negative"
+                : std::isnan(v[i])  ? "NaN"
+                                    : "infinite") +
                " (a checkpoint train writes holds only finite values)");
   };
   finite(params.values, "parameter", false);

@@ -52,8 +52,8 @@ struct StepStats {
   static constexpr int kMaxTerms = 4;
   std::array<double, kMaxTerms> term_loss{};
   std::size_t rays = 0;
-  std::size_t samples = 0;           ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
-  std::size_t backward_samples = 0;  ///< samples run backward (fewer still behind opaque surfaces)
+  std::size_t samples = 0;                  ///< field evaluations (fewer than rays × samples per ray when cells are skipped)
+  std::size_t backward_samples = 0;         ///< samples run backward (fewer still behind opaque surfaces)
   std::size_t first_slice = 0, window = 1;  ///< the step's window of slices [first, first + window)
   /// event_loss by pass (coarse, fine): a two-network sampler's fine depths are drawn from the coarse
   /// weights and held fixed in the backward (as in NeRF), so the coarse network's gradient is that of the
@@ -113,7 +113,8 @@ class EvNerf {
   EvNerf() = default;
   /// A fresh model for `n_slices` slices, seeded initialisation.
   EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
-      : renderer_(box), n_slices_(n_slices), params_(renderer_type::n_params + 2 * n_slices), adam_(renderer_type::n_params + 2 * n_slices, adam) {
+      : renderer_(box), n_slices_(n_slices), params_(renderer_type::n_params + 2 * n_slices),
+        adam_(renderer_type::n_params + 2 * n_slices, adam) {
     Rng rng(seed);
     for (int f = 0; f < n_fields; ++f) {
       Rng r = rng.split(static_cast<std::uint64_t>(f));
@@ -147,7 +148,8 @@ class EvNerf {
   /// that keeps no average (or one of another size) starts one from its current parameters; one that
   /// does keeps its values and takes the new decay. 0 drops the average: renders use the parameters.
   void set_average(double decay) {
-    require(std::isfinite(decay) && decay >= 0 && decay < 1, "the parameter average's decay must be in [0, 1), got " + std::to_string(decay));
+    require(std::isfinite(decay) && decay >= 0 && decay < 1,
+            "the parameter average's decay must be in [0, 1), got " + std::to_string(decay));
     if (decay == 0) {
       average_ = {};
     } else if (!average_.active() || average_.values().size() != params_.size()) {
@@ -279,6 +281,7 @@ class EvNerf {
   }
   /// The name of the objective's term k (0: the event term; log.jsonl writes `<name>_loss` for the others).
   static const char* term_name(int k) { return objective_type::term_name(k); }
+
  private:
   /// train_step's statistics as a vector that shards add up and processes sum (StepStats::summed_fields'
   /// order), then the slices' counts.
@@ -296,10 +299,8 @@ class EvNerf {
     StepStats s;
     std::size_t i = 0;
     StepStats::summed_fields(s, [&](auto& v) {
-      if constexpr (std::is_integral_v<std::remove_reference_t<decltype(v)>>)
-        v = static_cast<std::remove_reference_t<decltype(v)>>(t[i++]);
-      else
-        v = t[i++] / count;
+      if constexpr (std::is_integral_v<std::remove_reference_t<decltype(v)>>) v = static_cast<std::remove_reference_t<decltype(v)>>(t[i++]);
+      else v = t[i++] / count;
     });
     s.first_slice = window_.first;
     s.window = window_.len;
@@ -326,11 +327,11 @@ class EvNerf {
     std::vector<Rng> rng;
     std::vector<double> bp, bm;
     typename objective_type::scratch scratch;
-    std::array<double, 2> pass_loss{};                ///< the thread's event loss by pass, this step
+    std::array<double, 2> pass_loss{};                 ///< the thread's event loss by pass, this step
     std::array<double, StepStats::kMaxTerms> terms{};  ///< the thread's regulariser terms, this step
-    double distortion = 0;                            ///< the thread's distortion term, this step
-    double refractory_grad = 0;                       ///< the thread's dloss/dτ, this step
-    std::size_t rays = 0;                             ///< the thread's rays, this step
+    double distortion = 0;                             ///< the thread's distortion term, this step
+    double refractory_grad = 0;                        ///< the thread's dloss/dτ, this step
+    std::size_t rays = 0;                              ///< the thread's rays, this step
   };
 
   /// One tile of the step (pixels p0 .. p0 + P of the step's draw): the objective's rays, each with its random
@@ -348,15 +349,15 @@ class EvNerf {
   nn::ParameterBuffer<Scalar> params_;
   nn::Adam<Scalar> adam_;
   nn::ParameterAverage<Scalar> average_;  ///< inactive unless set_average(); renders use it when active
-  std::vector<TileWork> work_;  ///< gradients()'s per-thread scratch (no state: any content gives the same step)
-  StepWindow window_;           ///< the last gradients()'s window (train_step applies Adam to its thresholds)
-  std::vector<std::size_t> touched_;  ///< the last step's threshold entries (lazy Adam)
-  std::vector<Scalar> shard_sum_;     ///< train_step's sum of the shards before the current one
-  double distortion_ = 0;       ///< the distortion regulariser's weight (set_distortion)
-  bool ray_termination_ = false;  ///< training rays stop behind ray_cut_ (set_ray_termination)
+  std::vector<TileWork> work_;            ///< gradients()'s per-thread scratch (no state: any content gives the same step)
+  StepWindow window_;                     ///< the last gradients()'s window (train_step applies Adam to its thresholds)
+  std::vector<std::size_t> touched_;      ///< the last step's threshold entries (lazy Adam)
+  std::vector<Scalar> shard_sum_;         ///< train_step's sum of the shards before the current one
+  double distortion_ = 0;                 ///< the distortion regulariser's weight (set_distortion)
+  bool ray_termination_ = false;          ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
-  objective_type objective_;    ///< the objective and its regularisers' settings (objective(), term<T>())
-  RefractoryState refractory_;  ///< the period the counts are read with (set_refractory)
+  objective_type objective_;         ///< the objective and its regularisers' settings (objective(), term<T>())
+  RefractoryState refractory_;       ///< the period the counts are read with (set_refractory)
   double last_refractory_grad_ = 0;  ///< the step's dloss/dτ, for apply_update
 };
 

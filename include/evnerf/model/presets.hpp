@@ -24,11 +24,12 @@ using PaperField = field::FieldOf<Frequency<10>, Frequency<4>, MlpShape{.width =
 template <int C = 1, class Prec = Fp32, class Radiance = field::ExpRadiance>
 using FastField = field::FieldOf<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, MlpShape{.width = 64, .hidden_layers = 1}, 15,
                                  MlpShape{.width = 64, .hidden_layers = 2}, C, ReLU, Prec, ReLU, Radiance>;
-static_assert(std::is_same_v<FastField<1, Fp32, field::SigmoidRadiance>,
-                             field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16>, Mlp<15 + 16, 64, 2, 1>>>,
-              "FastField: the derived widths are the ones written out");
-static_assert(std::is_same_v<PaperField<>, field::Field<Frequency<10>, Frequency<4>, Mlp<63, 256, 8, 257, ReLU, Identity, 4>,
-                                                        Mlp<256 + 27, 128, 1, 1>>>,
+static_assert(
+    std::is_same_v<FastField<1, Fp32, field::SigmoidRadiance>,
+                   field::Field<HashGrid<16, 2, 15, 16, 1024>, SphericalHarmonics<4>, Mlp<32, 64, 1, 16>, Mlp<15 + 16, 64, 2, 1>>>,
+    "FastField: the derived widths are the ones written out");
+static_assert(std::is_same_v<PaperField<>,
+                             field::Field<Frequency<10>, Frequency<4>, Mlp<63, 256, 8, 257, ReLU, Identity, 4>, Mlp<256 + 27, 128, 1, 1>>>,
               "PaperField: the derived widths are the ones written out");
 
 /// The paper's model: its field, 64 + 128 hierarchical samples, the one-slice interval of split counts

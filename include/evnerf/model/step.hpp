@@ -13,7 +13,8 @@ namespace evnerf {
 /// when its centre projects into the image of one of up to 64 boundary poses spread over the recording,
 /// within the ball's projected radius, between near and far.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sampler(const TrainingData& data, long step, std::uint64_t seed) {
+void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sampler(const TrainingData& data, long step,
+                                                                                      std::uint64_t seed) {
   render::SamplerUpdate u;
   u.step = step;
   u.seed = seed;
@@ -40,8 +41,9 @@ void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sa
 /// other processes, averaged; then the optimiser step.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
 template <class Exchange>
-StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile,
-                                                                     const StepShards& shards, Exchange&& exchange) {
+StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_step(const TrainingData& data, int pixels_per_step,
+                                                                                       std::uint64_t seed, int pixels_per_tile,
+                                                                                       const StepShards& shards, Exchange&& exchange) {
   check_data(data);
   require(shards.count >= 1 && shards.ranks >= 1 && shards.count % shards.ranks == 0 && shards.rank >= 0 && shards.rank < shards.ranks,
           "train_step: the shards per step (" + std::to_string(shards.count) + ") must be a positive multiple of the processes (" +
@@ -93,7 +95,8 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
 /// gradients: the step's draw (window, pixels, noise), its tiles rendered and scored in parallel with
 /// per-thread gradients reduced in a fixed order, the deferred table gradients flushed, the threshold floor.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed, int pixels_per_tile, int shard) {
+StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::gradients(const TrainingData& data, int pixels_per_step,
+                                                                                      std::uint64_t seed, int pixels_per_tile, int shard) {
   check_data(data);
   const long s = adam_.step();
   Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
@@ -164,8 +167,8 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   for (std::size_t k = 0; k < L; ++k) {
     const std::size_t to = threshold_offset() + 2 * (first + k);
     if constexpr (ThresholdP::learnable && ThresholdP::lambda > 0) {
-      const auto fl = ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init},
-                                         std::array<double, 2>{params_.values[to], params_.values[to + 1]});
+      const auto fl =
+          ad::value_and_grad(loss::ThresholdFloor{ThresholdP::init}, std::array<double, 2>{params_.values[to], params_.values[to + 1]});
       st.threshold_loss += ThresholdP::lambda * fl.value;
       params_.grads[to] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[0]);
       params_.grads[to + 1] += static_cast<Scalar>(ThresholdP::lambda * fl.grad[1]);
@@ -185,8 +188,9 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
 /// train_tile: one tile's rays as the objective lists them, each with its random stream, forward through
 /// every pass, the objective's score of each pass, the distortion term, backward.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_tile(const TrainingData& data, const StepWindow& sw, int p0, int P, int batch,
-                                                                     std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
+double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_tile(const TrainingData& data, const StepWindow& sw, int p0,
+                                                                                    int P, int batch, std::uint64_t ray_key, Scalar* grads,
+                                                                                    TileWork& w) const {
   loss::TileView t;
   t.draw = &sw;
   t.p0 = p0;
@@ -230,7 +234,7 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   double loss = 0;
   for (int net = 0; net < n_fields; ++net) {
     const loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(),
-                                                                        w.rw.pass[net].dcolor.data(), channels};
+                                                                       w.rw.pass[net].dcolor.data(), channels};
     std::array<double, StepStats::kMaxTerms> l{};
     objective_.score(t, v, th, w.scratch, l.data());
     w.pass_loss[net] += l[0];

@@ -54,9 +54,9 @@ std::string checkpoint_variant(const std::filesystem::path& path) {
   ((pick.empty() && h.name == V::name && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
   ((pick.empty() && fits.template operator()<typename V::model>() ? (pick = V::name, 0) : 0), ...);
   if (pick.empty())
-    throw Error(path.string(), 0, "written by variant '" + h.name + "' with the loss '" + h.loss + "'" +
-                                      " and the architecture '" + h.architecture + "'" +
-                                      ", which no variant of this program matches");
+    throw Error(path.string(), 0,
+                "written by variant '" + h.name + "' with the loss '" + h.loss + "'" + " and the architecture '" + h.architecture + "'" +
+                    ", which no variant of this program matches");
   return pick;
 }
 

@@ -43,10 +43,16 @@ struct IdentityEncoding {
   static constexpr int in_dims = D, out_dims = D;
   static std::string name() { return "identity " + std::to_string(D); }
   static constexpr std::size_t n_params = 0;
-  template <class T> static void init(T*, Rng&) {}
-  template <class T> static void forward(const T*, const T* x, T* y) { std::copy(x, x + D, y); }
-  template <class T> static void backward(const T*, const T*, const T* dy, T*, T* dx) {
-    if (dx) for (int i = 0; i < D; ++i) dx[i] += dy[i];
+  template <class T>
+  static void init(T*, Rng&) {}
+  template <class T>
+  static void forward(const T*, const T* x, T* y) {
+    std::copy(x, x + D, y);
+  }
+  template <class T>
+  static void backward(const T*, const T*, const T* dy, T*, T* dx) {
+    if (dx)
+      for (int i = 0; i < D; ++i) dx[i] += dy[i];
   }
 };
 
@@ -58,7 +64,8 @@ struct Frequency {
   static constexpr int in_dims = D, out_dims = D * (1 + 2 * N);
   static std::string name() { return "frequency " + std::to_string(N) + " of " + std::to_string(D); }
   static constexpr std::size_t n_params = 0;
-  template <class T> static void init(T*, Rng&) {}
+  template <class T>
+  static void init(T*, Rng&) {}
   template <class T>
   static void forward(const T*, const T* x, T* y) {
     for (int d = 0; d < D; ++d) y[d] = x[d];
@@ -94,7 +101,8 @@ struct SphericalHarmonics {
   static constexpr int constant_outputs = 1;
   static std::string name() { return "spherical harmonics " + std::to_string(Degree); }
   static constexpr std::size_t n_params = 0;
-  template <class T> static void init(T*, Rng&) {}
+  template <class T>
+  static void init(T*, Rng&) {}
 
   /// The basis on any value type (plain scalars or ad expressions); calls out(i, value) per coefficient.
   template <class X, class Y, class Z, class Out>

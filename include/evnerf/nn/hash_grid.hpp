@@ -39,8 +39,8 @@ struct HashGrid {
   static constexpr int in_dims = 3, out_dims = Levels * F;
   static constexpr bool unit_cube_input = true;  ///< points in [0, 1]³ (field::Field maps the box to it)
   static std::string name() {
-    return "hash grid " + std::to_string(Levels) + "x" + std::to_string(F) + " 2^" + std::to_string(Log2T) + " " +
-           std::to_string(BaseRes) + ".." + std::to_string(MaxRes);
+    return "hash grid " + std::to_string(Levels) + "x" + std::to_string(F) + " 2^" + std::to_string(Log2T) + " " + std::to_string(BaseRes) +
+           ".." + std::to_string(MaxRes);
   }
   static constexpr std::uint32_t table_size = 1u << Log2T;
   static constexpr std::size_t n_params = static_cast<std::size_t>(Levels) * table_size * F;
@@ -100,8 +100,8 @@ struct HashGrid {
     const T wd[3][2] = {{T(1) - frac[0], frac[0]}, {T(1) - frac[1], frac[1]}, {T(1) - frac[2], frac[2]}};
     for (int c = 0; c < 8; ++c) {
       const int bx = c & 1, by = (c >> 1) & 1, bz = (c >> 2) & 1;
-      const std::uint32_t idx = lv.dense ? term[0][bx] + term[1][by] + term[2][bz]
-                                         : (term[0][bx] ^ term[1][by] ^ term[2][bz]) & (table_size - 1);
+      const std::uint32_t idx =
+          lv.dense ? term[0][bx] + term[1][by] + term[2][bz] : (term[0][bx] ^ term[1][by] ^ term[2][bz]) & (table_size - 1);
       const T w = (wd[0][bx] * wd[1][by]) * wd[2][bz];
       const T dw[3] = {(bx ? s : -s) * (wd[1][by] * wd[2][bz]), (by ? s : -s) * (wd[0][bx] * wd[2][bz]),
                        (bz ? s : -s) * (wd[0][bx] * wd[1][by])};
@@ -135,7 +135,9 @@ struct HashGrid {
         const T* yj = y + static_cast<std::size_t>(j) * out_dims;
         for (int f = 0; f < out_dims; ++f)
           if (std::bit_cast<std::uint32_t>(yj[f]) != std::bit_cast<std::uint32_t>(one[f])) {
-            std::fprintf(stderr, "evnerf: EVNERF_CHECK_KERNELS: HashGrid::forward_batch point %d of %d (%a %a %a), feature %d is %a where forward() gives %a\n",
+            std::fprintf(stderr,
+                         "evnerf: EVNERF_CHECK_KERNELS: HashGrid::forward_batch point %d of %d (%a %a %a), feature %d is %a where "
+                         "forward() gives %a\n",
                          j, n, p[3 * j], p[3 * j + 1], p[3 * j + 2], f, yj[f], one[f]);
             std::abort();
           }
@@ -198,9 +200,7 @@ struct HashGrid {
   }
 #endif
 #if defined(__AVX512F__)
-  static __mmask8 lanes8(int n, int j0) {
-    return n - j0 >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - j0)) - 1);
-  }
+  static __mmask8 lanes8(int n, int j0) { return n - j0 >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - j0)) - 1); }
   static __m256 gather8(const float* p, __m256i at, __mmask8 k) { return _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), k, at, p, 4); }
 
   /// forward_batch for float with two features per entry, 8 points at a time: an entry is one 64-bit

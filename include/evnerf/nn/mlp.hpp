@@ -32,8 +32,7 @@ using CMatMap = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic
 /// Samples are columns of column-major matrices (features × samples). Parameters are one flat array:
 /// per layer, W (out × in, column-major) then b (out). `Prec` (Fp32 or Bf16, nn/detail/bf16.hpp) sets how the
 /// float matrix products round their operands; double always computes in double.
-template <int In, int Width, int Depth, int Out, class HiddenAct = ReLU, class OutAct = Identity, int Skip = -1,
-          class Prec = Fp32>
+template <int In, int Width, int Depth, int Out, class HiddenAct = ReLU, class OutAct = Identity, int Skip = -1, class Prec = Fp32>
 struct Mlp {
   static_assert(Activation<HiddenAct>, "Mlp: HiddenAct must be an activation type such as ReLU, Softplus, Sigmoid, TruncExp or Identity.");
   static_assert(Activation<OutAct>, "Mlp: OutAct must be an activation type such as ReLU, Softplus, Sigmoid, TruncExp or Identity.");
@@ -42,8 +41,7 @@ struct Mlp {
   static_assert(Depth >= 0, "Mlp: the number of hidden layers cannot be negative.");
   static_assert(Depth == 0 || Width >= 1, "Mlp: hidden layers need a positive width.");
   static_assert(Skip >= -1, "Mlp: Skip must be -1 (no skip) or a hidden layer index.");
-  static_assert(Skip + 1 < Depth || Skip == -1,
-                "Mlp: the skip connection must feed a hidden layer: Skip + 1 must be less than Depth.");
+  static_assert(Skip + 1 < Depth || Skip == -1, "Mlp: the skip connection must feed a hidden layer: Skip + 1 must be less than Depth.");
   static_assert(std::is_same_v<Prec, Fp32> || std::is_same_v<Prec, Bf16>, "Mlp: Prec must be nn::Fp32 or nn::Bf16.");
 
   static constexpr int in_dims = In, out_dims = Out, width = Width, depth = Depth, skip = Skip;
@@ -54,8 +52,8 @@ struct Mlp {
   /// The shape as checkpoints record it (the product precision is not part of it: FP32 and bf16 twins share
   /// their parameters).
   static std::string name() {
-    std::string n = "mlp " + std::to_string(In) + ">" + std::to_string(Width) + "x" + std::to_string(Depth) + ">" +
-                    std::to_string(Out) + " ";
+    std::string n =
+        "mlp " + std::to_string(In) + ">" + std::to_string(Width) + "x" + std::to_string(Depth) + ">" + std::to_string(Out) + " ";
     n.append(HiddenAct::name).append("/").append(OutAct::name);
     if (Skip >= 0) n.append(" skip ").append(std::to_string(Skip));
     return n;
@@ -67,18 +65,14 @@ struct Mlp {
     return std::is_same_v<T, float> && std::is_same_v<Prec, Bf16> && bf16::available();
   }
 
-  static constexpr int layer_in(int l) {
-    return l == 0 ? In : Width + (l == Skip + 1 && Skip >= 0 ? In : 0);
-  }
+  static constexpr int layer_in(int l) { return l == 0 ? In : Width + (l == Skip + 1 && Skip >= 0 ? In : 0); }
   static constexpr int layer_out(int l) { return l == Depth ? Out : Width; }
   static constexpr std::size_t weight_offset(int l) {
     std::size_t o = 0;
     for (int i = 0; i < l; ++i) o += static_cast<std::size_t>(layer_in(i)) * layer_out(i) + layer_out(i);
     return o;
   }
-  static constexpr std::size_t bias_offset(int l) {
-    return weight_offset(l) + static_cast<std::size_t>(layer_in(l)) * layer_out(l);
-  }
+  static constexpr std::size_t bias_offset(int l) { return weight_offset(l) + static_cast<std::size_t>(layer_in(l)) * layer_out(l); }
   static constexpr std::size_t n_params = weight_offset(n_layers);
   /// Multiply-adds per sample in the forward pass (the backward costs about twice that).
   static constexpr std::size_t macs_per_sample() {
@@ -257,8 +251,8 @@ struct Mlp {
         bf16::pack_across(dz, out, n, out, ws.pack_a.data(), out);
         bf16::pack_across(src, in, n, in, ws.pack_b.data(), in + 1);
         for (int p = 0; p < np; ++p) ws.pack_b[static_cast<std::size_t>(p) * (in + 1) + in] = bf16::pair(1.f, 1.f);
-        bf16::product<true>(bf16::Operands{out, in + 1, np, ws.pack_a.data(), out, ws.pack_b.data(), in + 1, 1,
-                                           dparams + weight_offset(l), out});
+        bf16::product<true>(
+            bf16::Operands{out, in + 1, np, ws.pack_a.data(), out, ws.pack_b.data(), in + 1, 1, dparams + weight_offset(l), out});
       } else {
         gemm::product<true>(gemm::Operands<T>{out, in, n, dz, out, src, in, 1, dparams + weight_offset(l), out});
         T* db = dparams + bias_offset(l);
@@ -282,8 +276,7 @@ struct Mlp {
         if constexpr (bf16_products<T>())
           bf16::product<decltype(accumulate)::value>(
               bf16::Operands{rows, n, kp, ws.pack_a.data() + row0, in, ws.pack_b.data(), 1, kp, c, ldc}, epi...);
-        else
-          gemm::product<decltype(accumulate)::value>(gemm::Operands<T>{rows, n, out, wt + row0, in, dz, 1, out, c, ldc}, epi...);
+        else gemm::product<decltype(accumulate)::value>(gemm::Operands<T>{rows, n, out, wt + row0, in, dz, 1, out, c, ldc}, epi...);
       };
       if (l == 0) {
         multiply(std::true_type{}, 0, std::min(in, dx_rows), dx, in);

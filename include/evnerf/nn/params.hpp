@@ -138,8 +138,8 @@ class Adam {
     const double lr = cfg_.lr * std::pow(cfg_.decay, static_cast<double>(step_ - 1) / cfg_.decay_steps);
     const double bc1 = 1 - std::pow(cfg_.beta1, static_cast<double>(step_));
     const double bc2 = 1 - std::pow(cfg_.beta2, static_cast<double>(step_));
-    const T a = static_cast<T>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<T>(cfg_.beta1),
-            b2 = static_cast<T>(cfg_.beta2), eps = static_cast<T>(cfg_.eps * std::sqrt(bc2));
+    const T a = static_cast<T>(lr * std::sqrt(bc2) / bc1), b1 = static_cast<T>(cfg_.beta1), b2 = static_cast<T>(cfg_.beta2),
+            eps = static_cast<T>(cfg_.eps * std::sqrt(bc2));
     T *p = values.data(), *m = m_.data(), *v = v_.data();
     const T* g = grads.data();
     parallel_blocks(dense_end, 1 << 16, [&](std::size_t b, std::size_t e, int) { detail::adam_range(p, g, m, v, b, e, a, b1, b2, eps); });

@@ -34,37 +34,49 @@ inline void define_dataset(py::module_& m) {
   ds.def_property_readonly("height", [](const Dataset& s) { return s.d->camera.height(); });
   ds.def_property_readonly("name", [](const Dataset& s) { return s.d->folder.string(); });
   ds.def_property_readonly("bayer", [](const Dataset& s) { return s.d->bayer_pattern; });
-  ds.def_property_readonly("intrinsics", [](const Dataset& s) {
-    const auto& c = s.d->camera;
-    const auto& k = c.distortion();
-    return std::vector<double>{c.fx(), c.fy(), c.cx(), c.cy(), k[0], k[1], k[2], k[3], k[4]};
-  }, "[fx, fy, cx, cy, k1, k2, p1, p2, k3]");
-  ds.def_property_readonly("events", [](py::object self) {
-    const auto& s = self.cast<const Dataset&>();
-    const auto& e = s.d->events;
-    py::dict v;
-    v["x"] = view(e.x, self);
-    v["y"] = view(e.y, self);
-    v["t"] = view(e.t, self);
-    v["p"] = view(e.polarity, self);
-    return py::module_::import("types").attr("SimpleNamespace")(**v);
-  }, "x, y (uint16), t (float64 seconds), p (int8, ±1): read-only numpy views of the recording's events, no copy");
+  ds.def_property_readonly(
+      "intrinsics",
+      [](const Dataset& s) {
+        const auto& c = s.d->camera;
+        const auto& k = c.distortion();
+        return std::vector<double>{c.fx(), c.fy(), c.cx(), c.cy(), k[0], k[1], k[2], k[3], k[4]};
+      },
+      "[fx, fy, cx, cy, k1, k2, p1, p2, k3]");
+  ds.def_property_readonly(
+      "events",
+      [](py::object self) {
+        const auto& s = self.cast<const Dataset&>();
+        const auto& e = s.d->events;
+        py::dict v;
+        v["x"] = view(e.x, self);
+        v["y"] = view(e.y, self);
+        v["t"] = view(e.t, self);
+        v["p"] = view(e.polarity, self);
+        return py::module_::import("types").attr("SimpleNamespace")(**v);
+      },
+      "x, y (uint16), t (float64 seconds), p (int8, ±1): read-only numpy views of the recording's events, no copy");
   ds.def("__len__", [](const Dataset& s) { return s.d->events.size(); });
-  ds.def_property_readonly("poses", [](const Dataset& s) {
-    const auto& tr = s.d->trajectory;
-    py::array_t<double> a({static_cast<py::ssize_t>(tr.size()), py::ssize_t{8}});
-    for (std::size_t i = 0; i < tr.size(); ++i) {
-      const auto& p = tr.poses()[i];
-      const double r[8] = {tr.times()[i], p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w()};
-      for (int c = 0; c < 8; ++c) a.mutable_at(static_cast<py::ssize_t>(i), c) = r[c];
-    }
-    return a;
-  }, "N x 8: t, px, py, pz, qx, qy, qz, qw (camera to world)");
-  ds.def("pose_at", [](const Dataset& s, double t) { return matrix_of(s.d->trajectory.pose_at(t)); }, py::arg("t"),
-         "the 4x4 camera-to-world pose at time t (interpolated)");
-  ds.def_property_readonly("frame_times", [](const Dataset& s) { return to_numpy(s.d->frames.t, {static_cast<py::ssize_t>(s.d->frames.size())}); });
-  ds.def("frame", [](const Dataset& s, std::size_t i) { return image_to_numpy(io::frame_image(s.d->frames, i)); }, py::arg("i"),
-         "frame i as an H x W (x 3) float array in [0, 1]");
+  ds.def_property_readonly(
+      "poses",
+      [](const Dataset& s) {
+        const auto& tr = s.d->trajectory;
+        py::array_t<double> a({static_cast<py::ssize_t>(tr.size()), py::ssize_t{8}});
+        for (std::size_t i = 0; i < tr.size(); ++i) {
+          const auto& p = tr.poses()[i];
+          const double r[8] = {tr.times()[i], p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w()};
+          for (int c = 0; c < 8; ++c) a.mutable_at(static_cast<py::ssize_t>(i), c) = r[c];
+        }
+        return a;
+      },
+      "N x 8: t, px, py, pz, qx, qy, qz, qw (camera to world)");
+  ds.def(
+      "pose_at", [](const Dataset& s, double t) { return matrix_of(s.d->trajectory.pose_at(t)); }, py::arg("t"),
+      "the 4x4 camera-to-world pose at time t (interpolated)");
+  ds.def_property_readonly("frame_times",
+                           [](const Dataset& s) { return to_numpy(s.d->frames.t, {static_cast<py::ssize_t>(s.d->frames.size())}); });
+  ds.def(
+      "frame", [](const Dataset& s, std::size_t i) { return image_to_numpy(io::frame_image(s.d->frames, i)); }, py::arg("i"),
+      "frame i as an H x W (x 3) float array in [0, 1]");
   ds.def("__repr__", [](const Dataset& s) {
     const auto& d = *s.d;
     return "<evnerf.Dataset '" + d.folder.string() + "': " + std::to_string(d.camera.width()) + "x" + std::to_string(d.camera.height()) +
@@ -77,8 +89,9 @@ inline void define_dataset(py::module_& m) {
 inline void define_recordings(py::module_& m) {
   m.def(
       "load",
-      [](const fs::path& path, std::optional<fs::path> calib, std::optional<fs::path> poses, std::optional<std::pair<double, double>> window,
-         const std::string& format, std::optional<std::pair<int, int>> sensor_size, py::object progress) {
+      [](const fs::path& path, std::optional<fs::path> calib, std::optional<fs::path> poses,
+         std::optional<std::pair<double, double>> window, const std::string& format, std::optional<std::pair<int, int>> sensor_size,
+         py::object progress) {
         io::LoadOptions o;
         if (calib) o.calib = *calib;
         if (poses) o.poses = *poses;
@@ -115,13 +128,14 @@ inline void define_recordings(py::module_& m) {
       "A simulated recording of a built-in scene (evnerf.scenes), 'random', 'mesh' (mesh= a 3-D file, seen along an orbit as "
       "`evnerf simulate mesh FILE` sees it, with held-out views when written to out) or a scene file, as `evnerf simulate` makes it; "
       "width and height 0: the scene's default (240 x 180, 346 x 260 for a mesh). "
-      "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of " + sim::sensor_param_names() +
+      "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of " +
+      sim::sensor_param_names() +
       " as keywords (evnerf.sensor_model shows the result). "
       "Without out it stays in memory (frames, no depth or linear truth); with out it is written there (IJRR layout) and loaded.";
   m.def(
       "simulate",
-      [](const std::string& scene, std::optional<fs::path> out, const std::string& sensor, bool bayer, bool hdr, std::uint64_t seed, int width,
-         int height, double focal, double noise_ratio, std::optional<fs::path> mesh, const py::kwargs& sensor_parameters) {
+      [](const std::string& scene, std::optional<fs::path> out, const std::string& sensor, bool bayer, bool hdr, std::uint64_t seed,
+         int width, int height, double focal, double noise_ratio, std::optional<fs::path> mesh, const py::kwargs& sensor_parameters) {
         sim::SimulateOptions o;
         if (mesh) o.mesh.file = *mesh;
         if (mesh && scene != "mesh") throw Error("simulate: mesh= goes with the scene 'mesh'");
@@ -144,8 +158,7 @@ inline void define_recordings(py::module_& m) {
       },
       py::arg("scene") = "planes", py::kw_only(), py::arg("out") = py::none(), py::arg("sensor") = "ideal", py::arg("bayer") = false,
       py::arg("hdr") = false, py::arg("seed") = 1, py::arg("width") = 0, py::arg("height") = 0, py::arg("focal") = 0.0,
-      py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(),
-      simulate_doc.c_str());
+      py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(), simulate_doc.c_str());
   m.def(
       "sensor_model",
       [](const std::string& sensor, std::uint64_t seed, const py::kwargs& sensor_parameters) {
@@ -163,20 +176,27 @@ inline void define_models(py::module_& m) {
   py::class_<Model> model(m, "Model", "A trained or loaded model of any of this module's variants.", py::module_local());
   model.def_readonly("variant", &Model::variant);
   model.def_readonly("channels", &Model::channels);
-  model.def_readonly("run", &Model::run, "what train() did (steps, seconds, final_loss, stopped, collapse checks, the refractory period it ended with: learned or given, None when the counts were read as they are); empty when loaded");
+  model.def_readonly("run", &Model::run,
+                     "what train() did (steps, seconds, final_loss, stopped, collapse checks, the refractory period it ended with: learned "
+                     "or given, None when the counts were read as they are); empty when loaded");
   model.def_property_readonly("width", [](const Model& s) { return s.renderable.desc.camera.width(); });
   model.def_property_readonly("height", [](const Model& s) { return s.renderable.desc.camera.height(); });
   model.def_property_readonly("boundary_times", [](const Model& s) {
     return to_numpy(s.renderable.desc.times, {static_cast<py::ssize_t>(s.renderable.desc.times.size())});
   });
-  model.def_property_readonly("boundary_poses", [](const Model& s) { return matrices_of(s.renderable.desc.poses); },
-                              "N x 4 x 4 camera-to-world poses at the slice boundaries");
-  model.def_property_readonly("step", [](const Model& s) -> py::object { return s.step ? py::object(py::int_(s.step())) : py::object(py::none()); });
-  model.def_property_readonly("thresholds", [](const Model& s) -> py::object {
-    if (!s.thresholds) return py::none();
-    const auto v = s.thresholds();
-    return to_numpy(v, {static_cast<py::ssize_t>(v.size() / 2), 2});
-  }, "per slice (B+, B-) as an N x 2 array (None for a per-channel model)");
+  model.def_property_readonly(
+      "boundary_poses", [](const Model& s) { return matrices_of(s.renderable.desc.poses); },
+      "N x 4 x 4 camera-to-world poses at the slice boundaries");
+  model.def_property_readonly(
+      "step", [](const Model& s) -> py::object { return s.step ? py::object(py::int_(s.step())) : py::object(py::none()); });
+  model.def_property_readonly(
+      "thresholds",
+      [](const Model& s) -> py::object {
+        if (!s.thresholds) return py::none();
+        const auto v = s.thresholds();
+        return to_numpy(v, {static_cast<py::ssize_t>(v.size() / 2), 2});
+      },
+      "per slice (B+, B-) as an N x 2 array (None for a per-channel model)");
   model.def(
       "render",
       [](const Model& s, py::handle pose) {
@@ -210,14 +230,22 @@ inline void define_models(py::module_& m) {
         nlohmann::json rows = nlohmann::json::array();
         const train::Config defaults;
         for (const auto& s : train::settings())
-          rows.push_back({{"name", s.name}, {"default", s.get(defaults)}, {"allowed", s.numeric() ? s.range_text() : s.integral() ? "any" : "any of its kind"},
-                          {"integer", s.integral()}, {"numeric", s.numeric()}, {"lo", s.lo}, {"hi", s.hi}, {"lo_open", s.lo_open},
-                          {"hi_open", s.hi_open}, {"help", s.help}});
+          rows.push_back({{"name", s.name},
+                          {"default", s.get(defaults)},
+                          {"allowed", s.numeric()    ? s.range_text()
+                                      : s.integral() ? "any"
+                                                     : "any of its kind"},
+                          {"integer", s.integral()},
+                          {"numeric", s.numeric()},
+                          {"lo", s.lo},
+                          {"hi", s.hi},
+                          {"lo_open", s.lo_open},
+                          {"hi_open", s.hi_open},
+                          {"help", s.help}});
         return json_to_python(rows);
       },
       "the training settings train() takes as keywords: name, default, allowed values, help (train::settings(), the same table as "
       "the command line's flags)");
-
 
   m.def(
       "evaluate",
@@ -276,8 +304,8 @@ inline void define_models(py::module_& m) {
         if (oracle && !gt.empty()) {
           for (const auto& g : gt) truths.push_back(eval::scored_truth(g, a));
           const auto o = eval::offset_oracle(aligned, truths);
-          r["oracle"] = py::dict(py::arg("rows_psnr") = o.rows_psnr, py::arg("columns_psnr") = o.columns_psnr,
-                                 py::arg("both_psnr") = o.both_psnr);
+          r["oracle"] =
+              py::dict(py::arg("rows_psnr") = o.rows_psnr, py::arg("columns_psnr") = o.columns_psnr, py::arg("both_psnr") = o.both_psnr);
         }
         return r;
       },

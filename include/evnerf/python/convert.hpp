@@ -79,7 +79,8 @@ inline std::string shape_text(const py::array& a) {
 /// `obj` as a numpy array whose dtype is of one of `kinds` ('i' signed, 'u' unsigned, 'f' floating, 'b'
 /// bool), then converted to T. Never a silent conversion between kinds (floats are not truncated to pixels).
 template <class T>
-py::array_t<T, py::array::c_style> array_of(py::handle obj, const std::string& name, const std::string& kinds, const std::string& expected) {
+py::array_t<T, py::array::c_style> array_of(py::handle obj, const std::string& name, const std::string& kinds,
+                                            const std::string& expected) {
   py::array a = py::array::ensure(obj);
   if (!a) type_error(name + ": expected a numpy array (" + expected + ")");
   const char kind = a.dtype().kind();
@@ -164,8 +165,8 @@ inline std::vector<Image> images_of(py::handle obj, const std::string& name, int
     if (!u8 && kind != 'f') type_error(what + ": expected float (0 to 1) or uint8 pixels, got " + dtype_name(items[i]));
     const auto& a = items[i];
     if (!((a.ndim() == 2 || (a.ndim() == 3 && (a.shape(2) == 1 || a.shape(2) == 3))) && a.shape(0) == height && a.shape(1) == width))
-      throw Error(what + ": expected shape (" + std::to_string(height) + ", " + std::to_string(width) + ") or (" +
-                  std::to_string(height) + ", " + std::to_string(width) + ", 3), got " + shape_text(a));
+      throw Error(what + ": expected shape (" + std::to_string(height) + ", " + std::to_string(width) + ") or (" + std::to_string(height) +
+                  ", " + std::to_string(width) + ", 3), got " + shape_text(a));
     const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
     Image im(width, height, a.ndim() == 3 ? static_cast<int>(a.shape(2)) : 1);
     std::memcpy(im.data.data(), f.data(), im.data.size() * sizeof(float));
@@ -195,7 +196,8 @@ inline Dataset make_dataset(py::handle x, py::handle y, py::handle t, py::handle
   ev.width = width;
   ev.height = height;
   const auto n = static_cast<std::size_t>(ax.shape(0));
-  if (static_cast<std::size_t>(ay.shape(0)) != n || static_cast<std::size_t>(at.shape(0)) != n || static_cast<std::size_t>(ap.shape(0)) != n)
+  if (static_cast<std::size_t>(ay.shape(0)) != n || static_cast<std::size_t>(at.shape(0)) != n ||
+      static_cast<std::size_t>(ap.shape(0)) != n)
     throw Error(name + ": arrays differ in length (x " + std::to_string(ax.shape(0)) + ", y " + std::to_string(ay.shape(0)) + ", t " +
                 std::to_string(at.shape(0)) + ", p " + std::to_string(ap.shape(0)) + ")");
   const std::int64_t* px = ax.data();
@@ -234,7 +236,8 @@ inline Dataset make_dataset(py::handle x, py::handle y, py::handle t, py::handle
       for (int c = 0; c < 8; ++c)
         if (!std::isfinite(r[c])) throw Error("poses: row " + std::to_string(i) + " has a non-finite entry");
       const double qn = std::sqrt(r[4] * r[4] + r[5] * r[5] + r[6] * r[6] + r[7] * r[7]);
-      if (qn < 0.5 || qn > 1.5) throw Error("poses: row " + std::to_string(i) + ": quaternion is far from unit length (norm " + short_number(qn) + ")");
+      if (qn < 0.5 || qn > 1.5)
+        throw Error("poses: row " + std::to_string(i) + ": quaternion is far from unit length (norm " + short_number(qn) + ")");
       geometry::Pose q;
       q.t = Vec3(r[1], r[2], r[3]);
       q.q = Quat(r[7] / qn, r[4] / qn, r[5] / qn, r[6] / qn);

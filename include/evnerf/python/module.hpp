@@ -69,7 +69,9 @@ Model wrap(std::shared_ptr<M> model, const std::string& variant, std::shared_ptr
   m.renderable.near = model->box().near;
   m.renderable.far = model->box().far;
   auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(m.renderable.desc.camera));
-  m.renderable.render = [model, dirs, cam = m.renderable.desc.camera](const geometry::Pose& pose) { return model->render(cam, *dirs, pose); };
+  m.renderable.render = [model, dirs, cam = m.renderable.desc.camera](const geometry::Pose& pose) {
+    return model->render(cam, *dirs, pose);
+  };
   m.renderable.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
     return model->render(cam, render::pixel_directions(cam), pose);
   };
@@ -93,8 +95,9 @@ Model load_model(const fs::path& path, const std::string& channel_upsampling) {
     auto model = std::make_shared<M>();
     const auto run = std::make_shared<const io::CheckpointRun>(train::load_checkpoint(path, *model));
     if (run->times.empty())
-      throw Error(path.string(), 0, "the checkpoint records no training run (no camera, no slice boundaries): a model needs one that "
-                                    "train wrote");
+      throw Error(path.string(), 0,
+                  "the checkpoint records no training run (no camera, no slice boundaries): a model needs one that "
+                  "train wrote");
     out = wrap(model, name, run);
     return 0;
   });
@@ -152,10 +155,10 @@ Model train_model(const Dataset& ds, const std::string& preset, py::object callb
     py::list checks;
     for (const auto& c : r.checks)
       checks.append(py::dict(py::arg("step") = c.step, py::arg("log_spread") = c.log_spread, py::arg("collapsed") = c.collapsed()));
-    result.run = py::dict(py::arg("steps") = r.steps, py::arg("seconds") = r.seconds, py::arg("final_loss") = r.final_loss,
-                          py::arg("rays_per_second") = r.rays_per_second, py::arg("stopped") = r.stopped,
-                          py::arg("collapse_checks") = checks,
-                          py::arg("refractory") = model.refractory().active() ? py::object(py::float_(model.refractory().seconds)) : py::none());
+    result.run =
+        py::dict(py::arg("steps") = r.steps, py::arg("seconds") = r.seconds, py::arg("final_loss") = r.final_loss,
+                 py::arg("rays_per_second") = r.rays_per_second, py::arg("stopped") = r.stopped, py::arg("collapse_checks") = checks,
+                 py::arg("refractory") = model.refractory().active() ? py::object(py::float_(model.refractory().seconds)) : py::none());
     return 0;
   });
   return result;
@@ -176,16 +179,20 @@ void define(py::module_& m) {
   m.def("load_model", &load_model<V...>, py::arg("path"), py::arg("channel_upsampling") = "volume",
         "a model.ckpt of any compiled-in variant, or channels.json of train --per-channel (channel_upsampling: 'volume' "
         "renders each channel's volume at every pixel, 'sites' renders its sites and interpolates)");
-  m.def("train", &train_model<V...>, py::arg("dataset"), py::kw_only(), py::arg("preset") = default_variant, py::arg("callback") = py::none(),
-        py::arg("out") = py::none(), py::arg("resume") = false,
-        (train_doc = "Trains a variant (" + [&] {
-          std::string s;
-          for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
-          return s;
-        }() + ") on a dataset; returns the Model. Settings as keywords (evnerf.settings() describes each): " + setting_names() +
-              ". callback(step, loss, thresholds) "
-              "runs after every step; returning False stops the run. With out, settings.json, log.jsonl and model.ckpt are written there (resume "
-              "continues from it); without, nothing is written.").c_str());
+  m.def("train", &train_model<V...>, py::arg("dataset"), py::kw_only(), py::arg("preset") = default_variant,
+        py::arg("callback") = py::none(), py::arg("out") = py::none(), py::arg("resume") = false,
+        (train_doc = "Trains a variant (" +
+                     [&] {
+                       std::string s;
+                       for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+                       return s;
+                     }() +
+                     ") on a dataset; returns the Model. Settings as keywords (evnerf.settings() describes each): " + setting_names() +
+                     ". callback(step, loss, thresholds) "
+                     "runs after every step; returning False stops the run. With out, settings.json, log.jsonl and model.ckpt are written "
+                     "there (resume "
+                     "continues from it); without, nothing is written.")
+            .c_str());
 }
 
 }  // namespace evnerf::python

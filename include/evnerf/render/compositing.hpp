@@ -48,7 +48,7 @@ double interval_length(int S, int k, const T* t, double dir_norm, bool backgroun
 template <class T>
 struct RayComposite {
   std::vector<T> alpha, dalpha_dsigma, trans, weight, lum, dlum_draw;  // per sample (lum: C per sample)
-  std::vector<T> color;                                               // C
+  std::vector<T> color;                                                // C
   T depth = 0, opacity = 0;
   /// With a background: the transmittance left behind the last sample (the background's weight in color)
   /// and the background's C values (the caller's, kept alive until the backward); else 0 and null.
@@ -71,8 +71,8 @@ struct RayComposite {
 /// α = 0 and dα/dσ = 0 whatever its δ, so they are written without evaluating exp; the results are the
 /// same bits.
 template <class T, class DensityAct = nn::ReLU, class RadianceAct = nn::Sigmoid>
-void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm,
-                       const T* noise, RayComposite<T>& r, const T* skipped = nullptr, const T* background = nullptr) {
+void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* raw, const T* t, T dir_norm, const T* noise,
+                       RayComposite<T>& r, const T* skipped = nullptr, const T* background = nullptr) {
   r.alpha.resize(S);
   r.dalpha_dsigma.resize(S);
   r.trans.resize(S);
@@ -103,7 +103,8 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
       r.dalpha_dsigma[k] = dalpha_skip;
     } else {
       const double delta = interval_length(S, k, t, dir_norm, background != nullptr);
-      const auto a = ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0}, std::array<double, 1>{double(sk)});
+      const auto a =
+          ad::value_and_grad(AlphaOfDensity<DensityAct>{delta, noise ? double(noise[k]) : 0.0}, std::array<double, 1>{double(sk)});
       r.alpha[k] = static_cast<T>(a.value);
       r.dalpha_dsigma[k] = static_cast<T>(a.grad[0]);
     }

@@ -146,8 +146,8 @@ struct OccupancySkipping {
   static constexpr int grid_res = Res, update_interval = Interval, warmup_steps = Warmup;
   static constexpr double kOccupiedAlpha = AlphaPerMille / 1000.0;
   static std::string name() {
-    return "occupancy " + std::to_string(N) + " grid " + std::to_string(Res) + " every " + std::to_string(Interval) +
-           " after " + std::to_string(Warmup) + (AlphaPerMille == 10 ? "" : " alpha " + std::to_string(AlphaPerMille) + "/1000") +
+    return "occupancy " + std::to_string(N) + " grid " + std::to_string(Res) + " every " + std::to_string(Interval) + " after " +
+           std::to_string(Warmup) + (AlphaPerMille == 10 ? "" : " alpha " + std::to_string(AlphaPerMille) + "/1000") +
            std::string(Spacing::name);
   }
   using spacing = Spacing;

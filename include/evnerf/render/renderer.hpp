@@ -53,23 +53,23 @@ class Renderer {
   /// One network's pass over a batch of rays: depths, inputs, outputs, composites and what backward needs.
   struct Pass {
     typename FieldT::template Workspace<T> ws;
-    int S = 0;                                ///< samples per ray
-    std::vector<T> t, noise, pts, dirs;      ///< R×S depths and density noise; 3·R·S points and directions
-    std::vector<RayComposite<T>> comp;        ///< one per ray
-    std::vector<T> dcolor;                    ///< R×C, dL/dcolor of comp: the caller fills it before backward()
-    std::vector<T> dweight;                   ///< R×S, dL/dw of comp's weights (a regulariser), or empty
-    std::vector<int> active, keep;            ///< evaluated samples; of those, the ones that go backward
+    int S = 0;                                       ///< samples per ray
+    std::vector<T> t, noise, pts, dirs;              ///< R×S depths and density noise; 3·R·S points and directions
+    std::vector<RayComposite<T>> comp;               ///< one per ray
+    std::vector<T> dcolor;                           ///< R×C, dL/dcolor of comp: the caller fills it before backward()
+    std::vector<T> dweight;                          ///< R×S, dL/dw of comp's weights (a regulariser), or empty
+    std::vector<int> active, keep;                   ///< evaluated samples; of those, the ones that go backward
     std::vector<std::uint64_t> noise_key, noise_at;  ///< per ray: where its density noise is drawn (draw_noise)
     std::vector<T> cpts, cdirs, sig_full, raw_full, cdsigma, cdraw, dsigma, draw, ray_trans;
-    std::array<T, channels> background{};    ///< the backdrop behind the rays, per channel (comp's point here)
-    std::array<T, channels> black{};         ///< what lies behind a ray that stopped early (zeros)
+    std::array<T, channels> background{};  ///< the backdrop behind the rays, per channel (comp's point here)
+    std::array<T, channels> black{};       ///< what lies behind a ray that stopped early (zeros)
   };
   /// Scratch of one thread; buffers are reused from batch to batch (no state: any content gives the same result).
   struct Workspace {
     std::array<Pass, networks> pass;
-    std::size_t evaluated = 0;            ///< field evaluations so far
-    std::size_t backward_samples = 0;     ///< samples run backward so far
-    bool early_termination = false;       ///< evaluation rays: stop a ray behind kEvalTransmittance
+    std::size_t evaluated = 0;         ///< field evaluations so far
+    std::size_t backward_samples = 0;  ///< samples run backward so far
+    bool early_termination = false;    ///< evaluation rays: stop a ray behind kEvalTransmittance
     /// Training rays: stop a ray behind kMinTransmittance (forward_terminating), where the sampler skips.
     /// Its samples there carry no gradient either way; what changes is the forward's composite, by less
     /// than kMinTransmittance of a ray's luminance, and the time: the samples behind are not evaluated.
@@ -77,7 +77,7 @@ class Renderer {
     /// With training_termination: the transmittance behind which a training ray stops and its samples go
     /// no further backward (kMinTransmittance unless the model sets another, Model::set_ray_termination).
     T training_cut = kMinTransmittance;
-    std::vector<T> one;                   ///< a ray's fine depths
+    std::vector<T> one;  ///< a ray's fine depths
     /// The backdrop of the last forward (known or learned): its luminance per channel and that luminance's
     /// derivative by its raw value (0 for a known one).
     std::array<T, channels> backdrop{}, dbackdrop_draw{};
@@ -186,10 +186,9 @@ class Renderer {
   /// (rows differ in cost: sky against floor), so the image's bits depend on neither the batch size nor the
   /// thread count. With `early_termination` (the default) a ray stops being evaluated once its
   /// transmittance falls below kEvalTransmittance: what lies behind changes a pixel by less than that.
-  Rendering render(const T* params, const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs,
-                   const geometry::Pose& pose, bool early_termination = true, int rows_per_batch = kRenderRows) const {
-    Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1),
-                  Image(cam.width(), cam.height(), 1)};
+  Rendering render(const T* params, const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
+                   bool early_termination = true, int rows_per_batch = kRenderRows) const {
+    Rendering out{Image(cam.width(), cam.height(), channels), Image(cam.width(), cam.height(), 1), Image(cam.width(), cam.height(), 1)};
     const int H = cam.height(), W = cam.width();
     const int G = std::max(1, rows_per_batch);
     const std::size_t batches = static_cast<std::size_t>((H + G - 1) / G);
@@ -323,7 +322,8 @@ class Renderer {
   }
   static T noise_of(const Pass& p, int i) {
     const int r = i / p.S, k = i % p.S;
-    Rng g = Rng::from_state(p.noise_key[static_cast<std::size_t>(r)], p.noise_at[static_cast<std::size_t>(r)] + 2 * static_cast<std::uint64_t>(k));
+    Rng g = Rng::from_state(p.noise_key[static_cast<std::size_t>(r)],
+                            p.noise_at[static_cast<std::size_t>(r)] + 2 * static_cast<std::uint64_t>(k));
     return static_cast<T>(g.normal());
   }
   /// p.noise for the R×S samples: drawn where evaluated (every sample unless `active_only`), 0 elsewhere.
@@ -450,9 +450,10 @@ class Renderer {
           const std::size_t i = static_cast<std::size_t>(r) * S + k;
           const T nz = training ? p.noise[i] : T(0);
           const double delta = interval_length(S, k, p.t.data() + static_cast<std::size_t>(r) * S, dn, has_backdrop());
-          const double alpha = skip_zero && p.sig_full[i] == kSkippedDensity && nz == T(0)
-                                   ? 0.0
-                                   : 1.0 - std::exp(-(FieldT::density_activation::f(training ? p.sig_full[i] + nz : p.sig_full[i]) * delta));
+          const double alpha =
+              skip_zero && p.sig_full[i] == kSkippedDensity && nz == T(0)
+                  ? 0.0
+                  : 1.0 - std::exp(-(FieldT::density_activation::f(training ? p.sig_full[i] + nz : p.sig_full[i]) * delta));
           p.ray_trans[r] *= static_cast<T>(1.0 - alpha + kTransmittanceEpsilon);
         }
         alive = alive || p.ray_trans[r] > cut;
@@ -521,10 +522,10 @@ class Renderer {
     for (int r = 0; r < R; ++r) {
       const std::size_t o = static_cast<std::size_t>(r) * S;
       const bool stopped = terminating && p.ray_trans[static_cast<std::size_t>(r)] <= cut;
-      composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(S, channels, sigma + o * stride, stride, raw + o * channels,
-                                                                p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
-                                                                training ? p.noise.data() + o : nullptr, p.comp[r],
-                                                                skipped ? &kSkippedDensity : nullptr, stopped && background ? p.black.data() : background);
+      composite_forward<T, typename FieldT::density_activation, typename FieldT::radiance::activation>(
+          S, channels, sigma + o * stride, stride, raw + o * channels, p.t.data() + o, static_cast<T>(dir[r].norm() / box_.density_length),
+          training ? p.noise.data() + o : nullptr, p.comp[r], skipped ? &kSkippedDensity : nullptr,
+          stopped && background ? p.black.data() : background);
     }
     p.dcolor.assign(static_cast<std::size_t>(R) * channels, T(0));
     p.dweight.clear();

@@ -59,8 +59,8 @@ struct LogDepth {
   static constexpr std::string_view name = " log-spaced";
   /// The renderer calls this when it is given a box (outside any parallel region).
   static void check(double near, double far) {
-    require(near > 0 && far > near, "samples spaced in log depth need 0 < near < far, got near " + short_number(near) + " and far " +
-                                        short_number(far));
+    require(near > 0 && far > near,
+            "samples spaced in log depth need 0 < near < far, got near " + short_number(near) + " and far " + short_number(far));
   }
   /// Bin k of n spans [near·r^(k/n), near·r^((k+1)/n)], r = far/near; its centre in log depth, or a point
   /// drawn uniformly in log depth inside it. Needs check(near, far).
@@ -82,8 +82,8 @@ struct OffsetLogDepth {
   /// The renderer calls this when it is given a box (outside any parallel region).
   static void check(double near, double far) {
     require(near + offset > 0 && far > near, "samples spaced in log(depth + " + short_number(offset) +
-                                                 ") need near + offset > 0 and far > near, got near " + short_number(near) +
-                                                 " and far " + short_number(far));
+                                                 ") need near + offset > 0 and far > near, got near " + short_number(near) + " and far " +
+                                                 short_number(far));
   }
   /// Bin k of n spans [exp(a + k·s/n) − c, exp(a + (k + 1)·s/n) − c], a = ln(near + c), s = ln(far + c) − a; its
   /// centre in log(z + c), or a point drawn uniformly in log(z + c) inside it.
@@ -143,22 +143,20 @@ struct SamplerUpdate {
 /// ray from the coarse pass's weights, evaluated by a second network.
 template <class S>
 concept Sampler = std::semiregular<S> &&
-                  requires(S& s, const S& cs, float* t, Rng* rng, const float* p, const SamplerUpdate& u, std::string_view bytes) {
-                    requires S::n_coarse >= 2 && S::n_fine >= 0;
-                    { S::two_networks } -> std::convertible_to<bool>;
-                    { S::skips_samples } -> std::convertible_to<bool>;
-                    { S::name() } -> std::convertible_to<std::string>;
-                    cs.coarse_depths(1, 0.f, 1.f, rng, t);
-                    { cs.skipping() } -> std::same_as<bool>;
-                    { cs.evaluates(p) } -> std::same_as<bool>;
-                    { cs.occupied_fraction() } -> std::convertible_to<double>;
-                    s.update(u);
-                    { cs.serialize() } -> std::same_as<std::string>;
-                    { s.deserialize(bytes) } -> std::same_as<bool>;
-                  } &&
-                  (!S::two_networks || requires(const S& cs, const float* t, const float* w, Rng* rng, std::vector<float>& out) {
-                    cs.refine(1, t, w, rng, out);
-                  });
+    requires(S& s, const S& cs, float* t, Rng* rng, const float* p, const SamplerUpdate& u, std::string_view bytes) {
+  requires S::n_coarse >= 2 && S::n_fine >= 0;
+  { S::two_networks } -> std::convertible_to<bool>;
+  { S::skips_samples } -> std::convertible_to<bool>;
+  { S::name() } -> std::convertible_to<std::string>;
+  cs.coarse_depths(1, 0.f, 1.f, rng, t);
+  { cs.skipping() } -> std::same_as<bool>;
+  { cs.evaluates(p) } -> std::same_as<bool>;
+  { cs.occupied_fraction() } -> std::convertible_to<double>;
+  s.update(u);
+  { cs.serialize() } -> std::same_as<std::string>;
+  { s.deserialize(bytes) } -> std::same_as<bool>;
+} &&(!S::two_networks ||
+     requires(const S& cs, const float* t, const float* w, Rng* rng, std::vector<float>& out) { cs.refine(1, t, w, rng, out); });
 
 /// N stratified samples per ray (spaced by the DepthSpacing policy), one network, every sample evaluated.
 template <int N, DepthSpacing Spacing = UniformDepth>

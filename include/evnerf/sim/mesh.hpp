@@ -32,9 +32,7 @@
 namespace evnerf::sim {
 
 /// sRGB-encoded value (texture files) to linear albedo.
-inline double srgb_to_linear(double c) {
-  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-}
+inline double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 
 /// A texture as a pyramid of linear RGB levels, each the 2×2 box filter of the one before, sampled
 /// trilinearly (bilinear within a level, linear between the two levels around the footprint) with
@@ -204,8 +202,9 @@ class Mesh final : public Surface {
     if (!std::filesystem::is_regular_file(where.file, ec)) throw Error(file, 0, "no such mesh file");
     Assimp::Importer importer;
     importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-    const aiScene* sc = importer.ReadFile(file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
-                                                    aiProcess_PreTransformVertices | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    const aiScene* sc =
+        importer.ReadFile(file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
+                                    aiProcess_PreTransformVertices | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
     if (!sc) {
       const std::string why = importer.GetErrorString();
       if (why.find("No meshes remaining") != std::string::npos)  // what is left after points and lines are taken out
@@ -221,25 +220,25 @@ class Mesh final : public Surface {
       const aiMaterial* mat = sc->mMaterials[i];
       Material out;
       aiString tex;
-      const bool has_tex = mat->GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS ||
-                           mat->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS;
+      const bool has_tex =
+          mat->GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS || mat->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS;
       aiColor4D c;
-      if (mat->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS)
-        out.colour = Vec3(c.r, c.g, c.b);  // glTF: the factor multiplies the texture
-      else if (!has_tex && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS)
-        out.colour = Vec3(c.r, c.g, c.b);
+      if (mat->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS) out.colour = Vec3(c.r, c.g, c.b);  // glTF: the factor multiplies the texture
+      else if (!has_tex && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) out.colour = Vec3(c.r, c.g, c.b);
       if (has_tex) {
         if (auto img = load_texture(sc, tex.C_Str(), where.file, file)) {
           out.texture = static_cast<int>(m.textures_.size());
           m.textures_.emplace_back(*img, true);
         } else {
-          if (mat->Get(AI_MATKEY_BASE_COLOR, c) != AI_SUCCESS && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) out.colour = Vec3(c.r, c.g, c.b);
+          if (mat->Get(AI_MATKEY_BASE_COLOR, c) != AI_SUCCESS && mat->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS)
+            out.colour = Vec3(c.r, c.g, c.b);
           if (missing.insert(tex.C_Str()).second)
             warn(file + ": texture '" + std::string(tex.C_Str()) + "' not found beside the model (material " + std::to_string(i) +
                  " and any other that uses it show their base colour)");
         }
       }
-      if (!out.colour.allFinite() || out.colour.minCoeff() < 0) throw Error(file, 0, "material " + std::to_string(i) + " has a colour that is negative or not finite");
+      if (!out.colour.allFinite() || out.colour.minCoeff() < 0)
+        throw Error(file, 0, "material " + std::to_string(i) + " has a colour that is negative or not finite");
       m.materials_.push_back(out);
     }
     if (m.materials_.empty()) m.materials_.push_back(Material{Vec3(0.8, 0.8, 0.8), -1});
@@ -251,12 +250,14 @@ class Mesh final : public Surface {
       for (unsigned v = 0; v < am->mNumVertices; ++v) {
         const aiVector3D& p = am->mVertices[v];
         if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-          throw Error(file, 0, "mesh " + std::to_string(k) + " ('" + std::string(am->mName.C_Str()) + "'): vertex " + std::to_string(v) +
-                                   " has a coordinate that is not finite");
+          throw Error(file, 0,
+                      "mesh " + std::to_string(k) + " ('" + std::string(am->mName.C_Str()) + "'): vertex " + std::to_string(v) +
+                          " has a coordinate that is not finite");
         m.pos_.emplace_back(p.x, p.y, p.z);
         m.nrm_.push_back(am->mNormals && std::isfinite(am->mNormals[v].x) ? Vec3(am->mNormals[v].x, am->mNormals[v].y, am->mNormals[v].z)
                                                                           : Vec3::Zero());
-        m.uv_.push_back(am->mTextureCoords[0] ? Eigen::Vector2d(am->mTextureCoords[0][v].x, am->mTextureCoords[0][v].y) : Eigen::Vector2d::Zero());
+        m.uv_.push_back(am->mTextureCoords[0] ? Eigen::Vector2d(am->mTextureCoords[0][v].x, am->mTextureCoords[0][v].y)
+                                              : Eigen::Vector2d::Zero());
         m.col_.push_back(am->mColors[0] ? Vec3(am->mColors[0][v].r, am->mColors[0][v].g, am->mColors[0][v].b) : Vec3::Ones());
       }
       const auto material = std::min<std::uint32_t>(am->mMaterialIndex, static_cast<std::uint32_t>(m.materials_.size() - 1));
@@ -325,11 +326,13 @@ class Mesh final : public Surface {
 
   /// A texture named `name`, embedded in the scene or a file found by resolve_texture; nothing when no file
   /// is found (the material then keeps its base colour). A file found but undecodable is an error.
-  static std::optional<Image> load_texture(const aiScene* sc, const std::string& name, const std::filesystem::path& model, const std::string& file) {
+  static std::optional<Image> load_texture(const aiScene* sc, const std::string& name, const std::filesystem::path& model,
+                                           const std::string& file) {
     if (const aiTexture* t = sc->GetEmbeddedTexture(name.c_str())) {
       const std::string what = file + " (embedded texture '" + name + "')";
       if (t->mHeight == 0)  // compressed: mWidth bytes of a PNG or JPEG file
-        return io::decode_image(std::string_view(reinterpret_cast<const char*>(t->pcData), t->mWidth), what, 3, std::string(".") + t->achFormatHint);
+        return io::decode_image(std::string_view(reinterpret_cast<const char*>(t->pcData), t->mWidth), what, 3,
+                                std::string(".") + t->achFormatHint);
       if (static_cast<long long>(t->mWidth) * t->mHeight > io::kMaxImagePixels) throw Error(what, 0, "the texture is too large");
       Image img(static_cast<int>(t->mWidth), static_cast<int>(t->mHeight), 3);
       for (std::size_t i = 0; i < static_cast<std::size_t>(t->mWidth) * t->mHeight; ++i) {
@@ -352,7 +355,7 @@ class Mesh final : public Surface {
   void place(const MeshPlacement& where) {
     Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
     if (where.up == "+y") turn = Eigen::Vector3d(1, -1, -1).asDiagonal();  // 180° about x
-    else if (where.up == "+z") turn << 1, 0, 0, 0, 0, -1, 0, 1, 0;     // +90° about x: +z → -y
+    else if (where.up == "+z") turn << 1, 0, 0, 0, 0, -1, 0, 1, 0;         // +90° about x: +z → -y
     else if (where.up != "-y") throw Error(file_, 0, "the up axis must be +y, +z or -y, not '" + where.up + "'");
     Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
     for (const auto& p : pos_) {
@@ -392,7 +395,8 @@ class Mesh final : public Surface {
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), pos_.size()));
-    auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles()));
+    auto* ix =
+        static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles()));
     if (!v || !ix) {
       rtcReleaseGeometry(g);
       throw Error(file_, 0, "Embree could not allocate the mesh's buffers");

@@ -6,9 +6,10 @@
 // What a seed gives: one of the three kinds of path (slider, orbit arc, hand-held; seed mod 3), a floor and
 // a back wall, 2–5 boxes, spheres and rectangles in view, textures with natural-image statistics (fractal
 // value noise, whose octaves halve in amplitude as they double in frequency, i.e. a 1/f² power spectrum),
-// checkers and stripes no finer than the sensor resolves at their distance, or photos from a folder; colours in which dark (albedo down to 0.01) and bright
-// (up to 0.95) regions are both large; and a light of high dynamic range (ambient 0.05–0.4 against a
-// directional light of 0.4–2.5, so radiance spans up to 8.6 nats). Depends on core/ and sim/scene.hpp.
+// checkers and stripes no finer than the sensor resolves at their distance, or photos from a folder; colours
+// in which dark (albedo down to 0.01) and bright (up to 0.95) regions are both large; and a light of high
+// dynamic range (ambient 0.05–0.4 against a directional light of 0.4–2.5, so radiance spans up to 8.6 nats).
+// Depends on core/ and sim/scene.hpp.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -56,10 +57,8 @@ class SceneWriter {
     if (kind == 0) {
       const int seed = static_cast<int>(below(100000)), octaves = 4 + static_cast<int>(below(3));
       t = fmt("noise %.3f %d %d", uniform(0.08, 0.3) * resolvable, octaves, seed);
-    } else if (kind == 1)
-      t = fmt("checker %.3f", uniform(0.3, 1.0) * resolvable);
-    else if (kind == 2)
-      t = fmt("stripes %.3f", uniform(0.3, 1.0) * resolvable);
+    } else if (kind == 1) t = fmt("checker %.3f", uniform(0.3, 1.0) * resolvable);
+    else if (kind == 2) t = fmt("stripes %.3f", uniform(0.3, 1.0) * resolvable);
     else {
       const double scale = uniform(0.3, 1.5);
       return fmt("image %s %.3f", pictures_[below(pictures_.size())].c_str(), scale);
@@ -156,8 +155,8 @@ inline std::string random_scene_text(std::uint64_t seed, const std::vector<std::
       const Vec3 u = (Vec3::UnitX() - n.x() * n).normalized();
       const std::string texture = w.texture(z);
       const double half_v = w.uniform(0.15, 0.4), half_u = w.uniform(0.15, 0.5);
-      s += SceneWriter::fmt("plane %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f  %s\n", x, y, z, n.x(), n.y(), n.z(),
-                            u.x(), u.y(), u.z(), half_u, half_v, texture.c_str());
+      s += SceneWriter::fmt("plane %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f %.4f  %.4f %.4f  %s\n", x, y, z, n.x(), n.y(), n.z(), u.x(),
+                            u.y(), u.z(), half_u, half_v, texture.c_str());
     }
   }
   if (path_kind == 0) {

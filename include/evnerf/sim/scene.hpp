@@ -104,10 +104,10 @@ struct Texture {
 /// Analytic primitives. Planes are rectangles (half sizes hu, hv along axes u, v; 0 = unbounded).
 struct Primitive {
   enum Kind { Plane, Box, Sphere } kind = Plane;
-  Vec3 p = Vec3::Zero();           ///< plane point / box or sphere centre
-  Vec3 n = Vec3::UnitZ();          ///< plane normal
+  Vec3 p = Vec3::Zero();   ///< plane point / box or sphere centre
+  Vec3 n = Vec3::UnitZ();  ///< plane normal
   Vec3 u = Vec3::UnitX(), v = Vec3::UnitY();
-  Vec3 half = Vec3::Ones();        ///< plane: (hu, hv, -); box: half extents
+  Vec3 half = Vec3::Ones();  ///< plane: (hu, hv, -); box: half extents
   double radius = 1;
   Texture tex;
 };
@@ -195,8 +195,14 @@ struct Scene {
           }
           double a = (pr.p[k] - pr.half[k] - o[k]) / d[k], b = (pr.p[k] + pr.half[k] - o[k]) / d[k];
           if (a > b) std::swap(a, b);
-          if (a > t0) { t0 = a; axis0 = k; }
-          if (b < t1) { t1 = b; axis1 = k; }
+          if (a > t0) {
+            t0 = a;
+            axis0 = k;
+          }
+          if (b < t1) {
+            t1 = b;
+            axis1 = k;
+          }
         }
         if (t0 > t1) continue;
         int axis = axis0;
@@ -412,7 +418,8 @@ inline SceneSpec parse_scene(std::string_view text, const std::string& file, con
         const std::string path(s.word("environment image"));
         std::error_code ec;
         if (!std::filesystem::is_regular_file(folder / path, ec))
-          s.fail("cannot load the environment '" + io::LineScanner::shown(path) + "': not a file in " + io::LineScanner::shown(folder.string()));
+          s.fail("cannot load the environment '" + io::LineScanner::shown(path) + "': not a file in " +
+                 io::LineScanner::shown(folder.string()));
         try {
           spec.scene.environment = std::make_shared<Image>(io::read_png(folder / path, 3));
         } catch (const Error& e) {

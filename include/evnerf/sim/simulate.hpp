@@ -63,14 +63,14 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
 /// orbit (or a hemisphere spiral) by a DAVIS346-sized sensor.
 struct MeshCapture {
   std::filesystem::path file;
-  std::string up = "+y";           ///< the file's up axis (+y, +z or -y)
-  std::string path = "orbit";      ///< orbit (one revolution a second at `elevation`) or spiral (5° to 75°)
-  double radius = 3.0;             ///< camera distance from the object's centre
-  double elevation = 30.0;         ///< degrees above the horizon
-  double wobble = 0.0;             ///< orbit: degrees the elevation swings once over the path
-  double duration = 1.0;           ///< seconds (the orbit: one revolution each)
-  double novel_elevation = 50.0;   ///< degrees: the held-out orbit scored as novel views (NaN: none)
-  std::string background = "grey"; ///< black, white, grey (0.5) or an equirectangular environment (.png)
+  std::string up = "+y";            ///< the file's up axis (+y, +z or -y)
+  std::string path = "orbit";       ///< orbit (one revolution a second at `elevation`) or spiral (5° to 75°)
+  double radius = 3.0;              ///< camera distance from the object's centre
+  double elevation = 30.0;          ///< degrees above the horizon
+  double wobble = 0.0;              ///< orbit: degrees the elevation swings once over the path
+  double duration = 1.0;            ///< seconds (the orbit: one revolution each)
+  double novel_elevation = 50.0;    ///< degrees: the held-out orbit scored as novel views (NaN: none)
+  std::string background = "grey";  ///< black, white, grey (0.5) or an equirectangular environment (.png)
 };
 
 /// The scene description text of a mesh capture (what `simulate mesh` saves as scene.txt). Refuses
@@ -80,7 +80,8 @@ inline std::string mesh_scene_text(const MeshCapture& m) {
     if (!ok) throw Error("simulate mesh: " + what);
   };
   check(!m.file.empty(), "the mesh file is missing (simulate mesh FILE)");
-  check(m.file.string().find_first_of(" \t\n#") == std::string::npos, "the mesh file's path must not hold spaces, tabs or '#' ('" + m.file.string() + "')");
+  check(m.file.string().find_first_of(" \t\n#") == std::string::npos,
+        "the mesh file's path must not hold spaces, tabs or '#' ('" + m.file.string() + "')");
   check(m.radius > 1.05 && m.radius <= 100, "--orbit-radius must be in (1.05, 100] (the object fills the unit sphere)");
   check(std::abs(m.elevation) + std::abs(m.wobble) < 89, "--elevation (with --wobble) must stay within ±89 degrees");
   check(m.duration > 0 && m.duration <= 60, "--duration must be in (0, 60] seconds");
@@ -88,7 +89,8 @@ inline std::string mesh_scene_text(const MeshCapture& m) {
   check(m.path == "orbit" || m.path == "spiral", "--path must be orbit or spiral, not '" + m.path + "'");
   std::string bg = m.background == "black" ? "0 0 0" : m.background == "white" ? "1 1 1" : m.background == "grey" ? "0.5 0.5 0.5" : "";
   if (bg.empty()) {  // an environment picture
-    check(std::filesystem::path(m.background).extension() == ".png", "--background must be black, white, grey or an equirectangular .png, not '" + m.background + "'");
+    check(std::filesystem::path(m.background).extension() == ".png",
+          "--background must be black, white, grey or an equirectangular .png, not '" + m.background + "'");
     const std::string env = std::filesystem::absolute(m.background).lexically_normal().string();
     check(env.find_first_of(" \t\n#") == std::string::npos, "the environment's path must not hold spaces, tabs or '#' ('" + env + "')");
     bg = "image " + env;
@@ -99,27 +101,26 @@ inline std::string mesh_scene_text(const MeshCapture& m) {
   t += std::string("background ") + bg + "\n";
   t += "mesh " + file + " 0 0 0 1 up " + m.up + "\n";
   if (m.path == "orbit")
-    t += "path orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.elevation) + " " + short_number(m.duration) + " " + short_number(m.wobble) + "\n";
-  else
-    t += "path spiral 0 0 0 " + short_number(m.radius) + " 5 75 " + short_number(m.duration) + " " + short_number(m.duration) + "\n";
-  if (!std::isnan(m.novel_elevation))
-    t += "novel orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.novel_elevation) + " 1\n";
+    t += "path orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.elevation) + " " + short_number(m.duration) + " " +
+         short_number(m.wobble) + "\n";
+  else t += "path spiral 0 0 0 " + short_number(m.radius) + " 5 75 " + short_number(m.duration) + " " + short_number(m.duration) + "\n";
+  if (!std::isnan(m.novel_elevation)) t += "novel orbit 0 0 0 " + short_number(m.radius) + " " + short_number(m.novel_elevation) + " 1\n";
   return t;
 }
 
 /// What `evnerf simulate` asks of a simulation besides the scene.
 struct SimulateOptions {
-  SensorOptions sensor;    ///< the sensor's model and parameters (sensor_model)
-  bool bayer = false;      ///< RGGB mosaic (always on for the built-in colour scene, blocks)
-  bool hdr = false;        ///< high dynamic range lighting and the linear truth (sim::hdr_lighting)
-  std::uint64_t seed = 1;  ///< sensor noise; with the scene 'random', also the scene
+  SensorOptions sensor;            ///< the sensor's model and parameters (sensor_model)
+  bool bayer = false;              ///< RGGB mosaic (always on for the built-in colour scene, blocks)
+  bool hdr = false;                ///< high dynamic range lighting and the linear truth (sim::hdr_lighting)
+  std::uint64_t seed = 1;          ///< sensor noise; with the scene 'random', also the scene
   std::filesystem::path textures;  ///< with 'random': photos (.png) to texture surfaces with
   double log_offset = SensorConfig{}.log_offset;
-  double noise_ratio = 0;  ///< uniform random events added, as a fraction of the signal events
+  double noise_ratio = 0;     ///< uniform random events added, as a fraction of the signal events
   int width = 0, height = 0;  ///< pixels; 0 = the scene's default (240 × 180; 346 × 260 for a mesh capture)
-  double focal = 0;  ///< pixels; 0 = scaled with the width (200 at 240)
-  MeshCapture mesh;  ///< with the scene 'mesh': the file and its capture
-  bool progress = true;  ///< a progress bar on stderr
+  double focal = 0;           ///< pixels; 0 = scaled with the width (200 at 240)
+  MeshCapture mesh;           ///< with the scene 'mesh': the file and its capture
+  bool progress = true;       ///< a progress bar on stderr
 };
 
 /// Simulates a built-in scene, 'random' (a procedural scene from the seed), 'mesh' (o.mesh's capture of a

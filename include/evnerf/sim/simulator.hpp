@@ -28,23 +28,23 @@ namespace evnerf::sim {
 
 struct SensorConfig {
   int width = 240, height = 180;
-  double fx = 200, fy = 200, cx = 120, cy = 90;  ///< cx, cy < 0 → image centre
+  double fx = 200, fy = 200, cx = 120, cy = 90;       ///< cx, cy < 0 → image centre
   double threshold_pos = 0.25, threshold_neg = 0.25;  ///< contrast thresholds (log units, both > 0)
-  double mismatch = 0.0;             ///< per-pixel threshold deviation: relative standard deviation
-  double refractory = 0.0;           ///< seconds
-  double noise_rate = 0.0;           ///< background activity, events per pixel per second
-  double noise_ratio = 0.0;          ///< extra uniform random events, as a fraction of the signal events
-                                     ///< (Ev-NeRF's noise-robustness experiment: 0.5 adds half as many)
-  int hot_pixels = 0;                ///< pixels firing at `hot_rate`
+  double mismatch = 0.0;                              ///< per-pixel threshold deviation: relative standard deviation
+  double refractory = 0.0;                            ///< seconds
+  double noise_rate = 0.0;                            ///< background activity, events per pixel per second
+  double noise_ratio = 0.0;                           ///< extra uniform random events, as a fraction of the signal events
+                                                      ///< (Ev-NeRF's noise-robustness experiment: 0.5 adds half as many)
+  int hot_pixels = 0;                                 ///< pixels firing at `hot_rate`
   double hot_rate = 200.0;
-  double jitter = 0.0;               ///< timestamp jitter standard deviation, seconds
-  double frame_rate = 24.0;          ///< APS frames per second
-  double exposure = 1.0;             ///< frame gain (events see every level; frames clip at 1)
-  double log_offset = 1e-4;          ///< the dark end: pixels respond to log(I + log_offset), I the linear
-                                     ///< radiance (a photoreceptor's dark current, not a hard clamp)
-  bool hdr = false;                  ///< always write linear/ ground truth (also written when a frame clips)
-  bool bayer = false;                ///< RGGB colour filter: each pixel sees one channel
-  double max_step_fraction = 0.4;    ///< max log change per step, as a fraction of the threshold
+  double jitter = 0.0;                      ///< timestamp jitter standard deviation, seconds
+  double frame_rate = 24.0;                 ///< APS frames per second
+  double exposure = 1.0;                    ///< frame gain (events see every level; frames clip at 1)
+  double log_offset = 1e-4;                 ///< the dark end: pixels respond to log(I + log_offset), I the linear
+                                            ///< radiance (a photoreceptor's dark current, not a hard clamp)
+  bool hdr = false;                         ///< always write linear/ ground truth (also written when a frame clips)
+  bool bayer = false;                       ///< RGGB colour filter: each pixel sees one channel
+  double max_step_fraction = 0.4;           ///< max log change per step, as a fraction of the threshold
   double min_step = 5e-4, max_step = 5e-3;  ///< seconds
   std::uint64_t seed = 1;
 
@@ -67,11 +67,11 @@ struct Recording {
   geometry::Camera camera;
   events::EventStream events;
   std::vector<double> frame_times;
-  std::vector<Image> frames;   ///< grey (or RGB with bayer), in [0, 1]
-  std::vector<Image> depth;    ///< z-depth per frame (inf where nothing is hit)
-  std::vector<Image> linear;   ///< linear radiance per frame, unclipped (grey, or RGB with bayer): HDR truth
-  bool clipped = false;        ///< some frame pixel exceeded 1 (frames lost highlights)
-  double log_offset = 0;       ///< the sensor's, to score HDR renders in the space the events see
+  std::vector<Image> frames;  ///< grey (or RGB with bayer), in [0, 1]
+  std::vector<Image> depth;   ///< z-depth per frame (inf where nothing is hit)
+  std::vector<Image> linear;  ///< linear radiance per frame, unclipped (grey, or RGB with bayer): HDR truth
+  bool clipped = false;       ///< some frame pixel exceeded 1 (frames lost highlights)
+  double log_offset = 0;      ///< the sensor's, to score HDR renders in the space the events see
   geometry::Trajectory trajectory;
   std::size_t renders = 0;
   std::string scene_name;  ///< the scene's own name
@@ -185,7 +185,8 @@ class Simulator {
           dirs[static_cast<std::size_t>(x)] = pose.q * Vec3((x + 0.5 - cfg_.cx) / cfg_.fx, (double(y) + 0.5 - cfg_.cy) / cfg_.fy, 1.0);
         spec_.scene.shade(pose.t, dirs, pix_angle, std::span<Vec3>(rgb.data() + y * W, static_cast<std::size_t>(W)), tt);
         if (depth)
-          for (int x = 0; x < W; ++x) (*depth)[y * W + x] = static_cast<float>(tt[static_cast<std::size_t>(x)]);  // d has unit camera z: t is z-depth
+          for (int x = 0; x < W; ++x)
+            (*depth)[y * W + x] = static_cast<float>(tt[static_cast<std::size_t>(x)]);  // d has unit camera z: t is z-depth
       }
     });
   }
@@ -367,20 +368,23 @@ inline void write_views(const std::filesystem::path& dir, const Recording::Views
   char buf[256];
   for (std::size_t k = 0; k < v.poses.size(); ++k) {
     const auto& p = v.poses[k];
-    std::snprintf(buf, sizeof buf, "%zu %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", k, p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w());
+    std::snprintf(buf, sizeof buf, "%zu %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", k, p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(),
+                  p.q.w());
     poses += buf;
     char name[64];
     std::snprintf(name, sizeof name, "images/view_%08zu.png", k);
     io::write_png(dir / name, v.frames[k]);
     std::snprintf(name, sizeof name, "depth/view_%08zu.npy", k);
-    io::save_npy(dir / name, v.depth[k].data.data(), {static_cast<std::size_t>(v.depth[k].height), static_cast<std::size_t>(v.depth[k].width)});
+    io::save_npy(dir / name, v.depth[k].data.data(),
+                 {static_cast<std::size_t>(v.depth[k].height), static_cast<std::size_t>(v.depth[k].width)});
   }
   write_file_atomic(dir / "poses.txt", poses);
 }
 
-/// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt)
-/// plus sensor.txt, sensor_model.txt (sensor_model_text) and depth/frame_XXXXXXXX.npy; with HDR truth also linear/frame_XXXXXXXX.npy (float32,
-/// H×W or H×W×3) and linear/log_offset.txt; with held-out views novel/ (write_views). Every file is written atomically.
+/// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt) plus
+/// sensor.txt, sensor_model.txt (sensor_model_text) and depth/frame_XXXXXXXX.npy; with HDR truth also
+/// linear/frame_XXXXXXXX.npy (float32, H×W or H×W×3) and linear/log_offset.txt; with held-out views novel/
+/// (write_views). Every file is written atomically.
 inline void write_recording(const std::filesystem::path& dir, const Recording& rec) {
   namespace fs = std::filesystem;
   fs::create_directories(dir / "images");
@@ -403,7 +407,8 @@ inline void write_recording(const std::filesystem::path& dir, const Recording& r
     std::snprintf(buf, sizeof buf, "%.9f %s\n", rec.frame_times[f], name);
     images += buf;
     std::snprintf(name, sizeof name, "depth/frame_%08zu.npy", f);
-    io::save_npy(dir / name, rec.depth[f].data.data(), {static_cast<std::size_t>(rec.depth[f].height), static_cast<std::size_t>(rec.depth[f].width)});
+    io::save_npy(dir / name, rec.depth[f].data.data(),
+                 {static_cast<std::size_t>(rec.depth[f].height), static_cast<std::size_t>(rec.depth[f].width)});
     if (f < rec.linear.size()) {
       const Image& l = rec.linear[f];
       std::snprintf(name, sizeof name, "linear/frame_%08zu.npy", f);

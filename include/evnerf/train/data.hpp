@@ -42,9 +42,8 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   if (b.size() < 2) {
     const double lo = std::max(t0, d.trajectory.front()), hi = std::min(t1, d.trajectory.back());
     if (!(hi > lo))
-      throw Error(d.folder.string() + ": the poses (" + short_number(d.trajectory.front()) + " .. " +
-                  short_number(d.trajectory.back()) + " s) do not cover the events (" + short_number(t0) + " .. " +
-                  short_number(t1) + " s)");
+      throw Error(d.folder.string() + ": the poses (" + short_number(d.trajectory.front()) + " .. " + short_number(d.trajectory.back()) +
+                  " s) do not cover the events (" + short_number(t0) + " .. " + short_number(t1) + " s)");
     b = events::uniform_boundaries(lo, hi, std::max<std::size_t>(2, static_cast<std::size_t>((hi - lo) * 24)));
     frame_ids.assign(b.size(), static_cast<std::size_t>(-1));
   }
@@ -79,7 +78,8 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
     td.masked = events::suspected_hot_pixels(d.events);
     if (!td.masked.empty()) {
       const int w = d.camera.width();
-      std::vector<std::uint8_t> mask = d.sites.empty() ? std::vector<std::uint8_t>(static_cast<std::size_t>(w) * d.camera.height(), 1) : d.sites;
+      std::vector<std::uint8_t> mask =
+          d.sites.empty() ? std::vector<std::uint8_t>(static_cast<std::size_t>(w) * d.camera.height(), 1) : d.sites;
       for (const auto& h : td.masked) mask[static_cast<std::size_t>(h.y) * w + h.x] = 0;
       td.sites = events::PixelSites(std::move(mask));
     }

@@ -89,9 +89,7 @@ struct Setting {
            std::holds_alternative<std::uint64_t Config::*>(member);
   }
   /// Whether a number is allowed (finite and inside the interval).
-  bool allows(double v) const {
-    return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
-  }
+  bool allows(double v) const { return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi); }
   /// The interval as words: "> 0", ">= 0", "in [1, 64]", "in [0, 1)", "any" (for --help and errors).
   std::string range_text() const {
     auto num = [](double x) { return short_number(x); };
@@ -235,7 +233,8 @@ inline void check(const Config& c) {
     const double v = s.number(c);
     if (!s.allows(v)) throw Error("train: " + std::string(s.name) + " must be " + s.range_text() + ", got " + short_number(v));
   }
-  if (!(c.far > c.near)) throw Error("train: far must be greater than near, got near " + short_number(c.near) + " and far " + short_number(c.far));
+  if (!(c.far > c.near))
+    throw Error("train: far must be greater than near, got near " + short_number(c.near) + " and far " + short_number(c.far));
   if (c.group && c.shard_count() % c.group->size() != 0)
     throw Error("train: the shards per step (" + std::to_string(c.shard_count()) + ") must be a multiple of the processes (" +
                 std::to_string(c.group->size()) + ")");

@@ -40,8 +40,9 @@ struct CollapseCheck {
   bool collapsed() const { return flat_renders || loss_stuck; }
   std::string describe() const {
     std::string d = "at step " + std::to_string(step) + ": ";
-    if (flat_renders) d += "the renders are almost constant (log-luminance spread " + short_number(log_spread, 4) + " nats < " +
-                           short_number(kMinLogSpread, 4) + ")";
+    if (flat_renders)
+      d += "the renders are almost constant (log-luminance spread " + short_number(log_spread, 4) + " nats < " +
+           short_number(kMinLogSpread, 4) + ")";
     if (flat_renders && loss_stuck) d += "; ";
     if (loss_stuck)
       d += "the event loss is not improving (" + short_number(recent_loss, 4) + " now, " + short_number(start_loss, 4) +
@@ -140,9 +141,10 @@ inline constexpr double kRayCut = 1e-2;
 
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl`
-/// (started afresh when the model is at step 0, appended to on a resume: one line every `kLogEvery` steps, every figure a mean over the steps since the previous line) and `out/model.ckpt`
-/// every checkpoint_every steps and at the end; an empty `out` writes nothing (the model stays in memory,
-/// as the Python module's `train` without `out` has it). On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
+/// (started afresh when the model is at step 0, appended to on a resume: one line every `kLogEvery` steps,
+/// every figure a mean over the steps since the previous line) and `out/model.ckpt` every checkpoint_every
+/// steps and at the end; an empty `out` writes nothing (the model stays in memory, as the Python module's
+/// `train` without `out` has it). On a NaN/Inf loss, or a NaN/Inf parameter when a checkpoint
 /// is due, it stops with a message (RunResult::diverged) and leaves the last good checkpoint in place. A
 /// resumed run first drops the log's lines past the checkpoint's step (written before the process died),
 /// so the log reads as one run. `on_step`, when given, is called after every step and may return false to
@@ -153,9 +155,9 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   check(cfg);
   auto* tv_term = model.template term<loss::TvTerm>();
   // A weight for a term the variant does not have would be silently ignored: refuse it.
-  require(!cfg.tv || *cfg.tv == 0 || tv_term,
-          "train: a total-variation weight of " + short_number(cfg.tv.value_or(0)) + " for a variant without the term (use fast, or add "
-          "loss::TotalVariation to the variant's objective)");
+  require(!cfg.tv || *cfg.tv == 0 || tv_term, "train: a total-variation weight of " + short_number(cfg.tv.value_or(0)) +
+                                                  " for a variant without the term (use fast, or add "
+                                                  "loss::TotalVariation to the variant's objective)");
   require(cfg.collapse_check_every % kLogEvery == 0 && cfg.collapse_check_from % kLogEvery == 0,
           "train: collapse checks run at log steps: their period and first step must be multiples of " + std::to_string(kLogEvery));
   Group* group = cfg.processes();
@@ -163,7 +165,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
   const StepShards shards{shard_count, rank, group ? group->size() : 1};
   GradientExchange exchange(group, cfg.exchange);
   const bool files = !out.empty() && rank == 0;  // rank 0 writes; the others only train
-  io::CheckpointRun saved_run = described;  // what each checkpoint records of this run
+  io::CheckpointRun saved_run = described;       // what each checkpoint records of this run
   saved_run.shards = static_cast<std::uint64_t>(shard_count);
   if (files) {
     std::error_code ec;
@@ -187,8 +189,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     std::istringstream in(read_file(out / "log.jsonl"));
     while (std::getline(in, line)) {
       const auto j = nlohmann::json::parse(line, nullptr, false);
-      if (!j.is_discarded() && j.contains("step") && j["step"].is_number() && j["step"].get<long>() <= model.step())
-        kept += line + "\n";
+      if (!j.is_discarded() && j.contains("step") && j["step"].is_number() && j["step"].get<long>() <= model.step()) kept += line + "\n";
     }
     write_file_atomic(out / "log.jsonl", kept);
   }
@@ -230,7 +231,8 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     return true;
   };
   while (model.step() < cfg.iterations) {
-    const auto st = shard_count == 1 ? model.train_step(td, cfg.pixels, cfg.seed) : model.train_step(td, cfg.pixels, cfg.seed, 0, shards, exchange);
+    const auto st =
+        shard_count == 1 ? model.train_step(td, cfg.pixels, cfg.seed) : model.train_step(td, cfg.pixels, cfg.seed, 0, shards, exchange);
     if (!std::isfinite(st.loss)) {
       diverged("loss " + short_number(st.loss));
       break;
@@ -258,15 +260,15 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     if (s % kLogEvery == 0 || s == cfg.iterations) {
       rep.logged = true;
       nlohmann::ordered_json j = {{"step", s},
-                          {"loss", rep.mean_loss},
-                          {"event_loss", rep.mean_event_loss},
-                          {"threshold_loss", rep.mean_threshold_loss},
-                          {"steps_in_mean", window},
-                          {"samples_per_ray", sum_samples / window},
-                          {"backward_samples_per_ray", sum_backward / window},
-                          {"lr", model.optimizer().learning_rate()},
-                          {"rays_per_s", rays / std::max(el, 1e-9)},
-                          {"seconds", el}};
+                                  {"loss", rep.mean_loss},
+                                  {"event_loss", rep.mean_event_loss},
+                                  {"threshold_loss", rep.mean_threshold_loss},
+                                  {"steps_in_mean", window},
+                                  {"samples_per_ray", sum_samples / window},
+                                  {"backward_samples_per_ray", sum_backward / window},
+                                  {"lr", model.optimizer().learning_rate()},
+                                  {"rays_per_s", rays / std::max(el, 1e-9)},
+                                  {"seconds", el}};
       if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
       if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
       if (model.renderer().learns_backdrop()) {  // the learned backdrop's luminance per channel
@@ -316,7 +318,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
           r.collapsed = true;
           if (rank == 0)
             std::fprintf(stderr, "\ntraining has collapsed %s%s\n", c.describe().c_str(),
-                       cfg.allow_collapse ? "; going on (allow_collapse)" : "; stopping (pass --allow-collapse to go on)");
+                         cfg.allow_collapse ? "; going on (allow_collapse)" : "; stopping (pass --allow-collapse to go on)");
         }
       }
       if (files) {
@@ -363,8 +365,7 @@ template <class Model>
 class Trainer {
  public:
   Trainer(const TrainingData& td, Config cfg, fs::path out, std::string name, io::CheckpointRun run)
-      : td_(td), cfg_(cfg), out_(std::move(out)), name_(std::move(name)), run_(std::move(run)),
-        model_(make_model<Model>(td, cfg_)) {}
+      : td_(td), cfg_(cfg), out_(std::move(out)), name_(std::move(name)), run_(std::move(run)), model_(make_model<Model>(td, cfg_)) {}
 
   /// Continues from out/model.ckpt when there is one (same architecture and loss; the Config's learning
   /// rate applies from here on). Returns whether it did.

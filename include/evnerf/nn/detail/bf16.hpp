@@ -41,7 +41,9 @@ inline std::uint16_t round(float f) {
   return static_cast<std::uint16_t>((u + 0x7FFFu + ((u >> 16) & 1u)) >> 16);
 }
 inline float widen(std::uint16_t h) { return std::bit_cast<float>(static_cast<std::uint32_t>(h) << 16); }
-inline std::uint32_t pair(float lo, float hi) { return static_cast<std::uint32_t>(round(lo)) | (static_cast<std::uint32_t>(round(hi)) << 16); }
+inline std::uint32_t pair(float lo, float hi) {
+  return static_cast<std::uint32_t>(round(lo)) | (static_cast<std::uint32_t>(round(hi)) << 16);
+}
 
 /// Pairs along k from two columns: src element (m, k) at src[m + k·ld] (M rows contiguous); pair (m, p) goes
 /// to dst[m + p·ldd]. Used for A operands stored row-contiguous (weights; a tile's gradients for dW) and
@@ -55,8 +57,8 @@ inline void pack_across(const float* src, int M, int K, std::ptrdiff_t ld, std::
     int m = 0;
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
     // cvtne2ps gives [lo0..lo15, hi0..hi15]; the permutation interleaves them into 16 pairs.
-    const __m512i order = _mm512_set_epi16(31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21,
-                                           5, 20, 4, 19, 3, 18, 2, 17, 1, 16, 0);
+    const __m512i order = _mm512_set_epi16(31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3,
+                                           18, 2, 17, 1, 16, 0);
     for (; m < M; m += 16) {
       const __mmask16 k = M - m >= 16 ? __mmask16(0xFFFF) : static_cast<__mmask16>((1u << (M - m)) - 1);
       const __m512 l = _mm512_maskz_loadu_ps(k, lo + m);
@@ -72,8 +74,7 @@ inline void pack_across(const float* src, int M, int K, std::ptrdiff_t ld, std::
 /// Pairs along k within a column: src element (k, j) at src[k + j·ld] (K contiguous); pair (p, j) goes to
 /// dst[p·dp + j·dj]. Used for B operands stored K-contiguous (a layer's input, a tile's gradients for dX)
 /// and, with dp = rows and dj = 1, for the transposed weights of dX.
-inline void pack_along(const float* src, int K, int N, std::ptrdiff_t ld, std::uint32_t* dst, std::ptrdiff_t dp,
-                       std::ptrdiff_t dj) {
+inline void pack_along(const float* src, int K, int N, std::ptrdiff_t ld, std::uint32_t* dst, std::ptrdiff_t dp, std::ptrdiff_t dj) {
   const int P = (K + 1) / 2;
   for (int j = 0; j < N; ++j) {
     const float* s = src + j * ld;
@@ -82,8 +83,7 @@ inline void pack_along(const float* src, int K, int N, std::ptrdiff_t ld, std::u
 #if defined(__AVX512BF16__) && defined(__AVX512BW__)
     if (dp == 1) {  // contiguous output: 16 floats → 8 pairs per conversion
       for (; 2 * p + 16 <= K; p += 8)
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + p),
-                            reinterpret_cast<__m256i>(_mm512_cvtneps_pbh(_mm512_loadu_ps(s + 2 * p))));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + p), reinterpret_cast<__m256i>(_mm512_cvtneps_pbh(_mm512_loadu_ps(s + 2 * p))));
     } else if (dp <= INT32_MAX / 16) {  // strided output: 32 floats → 16 pairs, scattered
       const __m512i at = _mm512_mullo_epi32(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
                                             _mm512_set1_epi32(static_cast<int>(dp)));
@@ -133,9 +133,8 @@ namespace detail {
 /// One (16·V) × NR block of C, as gemm::detail::block but one vdpbf16ps (two k) per FMA slot; the
 /// blocking around it is gemm::detail's.
 template <int V, int NR, bool Accumulate, bool Full, class Epi>
-inline void block(int KP, const std::uint32_t* __restrict a, std::ptrdiff_t lda, const std::uint32_t* __restrict b,
-                  std::ptrdiff_t bk, std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2],
-                  const Epi& epi, int i0, int j0) {
+inline void block(int KP, const std::uint32_t* __restrict a, std::ptrdiff_t lda, const std::uint32_t* __restrict b, std::ptrdiff_t bk,
+                  std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi, int i0, int j0) {
   __m512 acc[V][NR];
   gemm::detail::load_block<V, NR, Accumulate, Full>(acc, c, ldc, mask);
   for (int p = 0; p < KP; ++p) {

@@ -1,7 +1,8 @@
-// nn/detail/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B read
-// in place through strides, so a layer's weights, their transpose or a tile's gradients go straight into the
-// kernel (the AVX2 kernel copies a row panel of A side by side first where many column blocks read it). On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double,
-// which the gradient checks use) Eigen does the work. Also the transpose in register blocks (16×16, or 8×8 on AVX2) that gives the
+// nn/detail/gemm.hpp — the matrix products of the fused MLP: C (+)= A·B on one tile of samples, with A and B
+// read in place through strides, so a layer's weights, their transpose or a tile's gradients go straight into
+// the kernel (the AVX2 kernel copies a row panel of A side by side first where many column blocks read it).
+// On AVX-512 an explicit register-blocked kernel runs; elsewhere (and for double, which the gradient checks
+// use) Eigen does the work. Also the transpose in register blocks (16×16, or 8×8 on AVX2) that gives the
 // backward pass Wᵀ. Depends on Eigen and nn/activation.hpp only.
 //
 // Why not Eigen everywhere: for these shapes (M, K ≤ ~320, N = one tile) Eigen packs both operands on every
@@ -138,14 +139,13 @@ inline void load_block(__m512 (&acc)[V][NR], const float* c, std::ptrdiff_t ldc,
     for (int v = 0; v < V; ++v) {
       if constexpr (Accumulate)
         acc[v][j] = Full ? _mm512_loadu_ps(c + j * ldc + 16 * v) : _mm512_maskz_loadu_ps(mask[v], c + j * ldc + 16 * v);
-      else
-        acc[v][j] = _mm512_setzero_ps();
+      else acc[v][j] = _mm512_setzero_ps();
     }
 }
 /// Stores a block through the epilogue; masked rows are left untouched.
 template <int V, int NR, bool Full, class Epi>
-inline void store_block(const __m512 (&acc)[V][NR], float* c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi,
-                        int i0, int j0) {
+inline void store_block(const __m512 (&acc)[V][NR], float* c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi, int i0,
+                        int j0) {
   for (int j = 0; j < NR; ++j)
     for (int v = 0; v < V; ++v) {
       __m512 r = acc[v][j];
@@ -159,9 +159,8 @@ inline void store_block(const __m512 (&acc)[V][NR], float* c, std::ptrdiff_t ldc
 /// and each B element broadcast once: V·NR FMAs per k against V vector loads and NR broadcasts. `i0` and
 /// `j0` are the block's position in C, for the epilogue.
 template <int V, int NR, bool Accumulate, bool Full, class Epi>
-inline void block(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
-                  std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi,
-                  int i0, int j0) {
+inline void block(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk, std::ptrdiff_t bn,
+                  float* __restrict c, std::ptrdiff_t ldc, const __mmask16 (&mask)[2], const Epi& epi, int i0, int j0) {
   __m512 acc[V][NR];
   load_block<V, NR, Accumulate, Full>(acc, c, ldc, mask);
   for (int k = 0; k < K; ++k) {
@@ -258,7 +257,8 @@ struct ActivationGrad {
   /// The same on 8 columns col.. of one row (one_row()); lanes past C's last column read y as zero.
   __m256 along_row(__m256 v, int row, int col, __m256i m) const {
     const __m256i at = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(ldy)));
-    return VectorActivation<Act>::grad(v, _mm256_mask_i32gather_ps(_mm256_setzero_ps(), y + row + col * ldy, at, _mm256_castsi256_ps(m), 4));
+    return VectorActivation<Act>::grad(v,
+                                       _mm256_mask_i32gather_ps(_mm256_setzero_ps(), y + row + col * ldy, at, _mm256_castsi256_ps(m), 4));
   }
 };
 
@@ -282,9 +282,7 @@ inline const float* pack_panel8(const float* a, std::ptrdiff_t lda, int K, const
 }
 
 /// Lanes 0..r-1 of a mask (r in 0..8).
-inline __m256i lanes_below(int r) {
-  return _mm256_cmpgt_epi32(_mm256_set1_epi32(r), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-}
+inline __m256i lanes_below(int r) { return _mm256_cmpgt_epi32(_mm256_set1_epi32(r), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)); }
 
 /// One (8·V) × NR block of C, as the AVX-512 block(): accumulators from C (or zero), one FMA per k in order,
 /// the epilogue, a (masked) store. Masked rows are neither read nor written. A masked panel of two vectors
@@ -292,9 +290,8 @@ inline __m256i lanes_below(int r) {
 /// with both masks held in registers, the 12 accumulators, A's two vectors and B's broadcast are 17 ymm
 /// registers, and GCC keeps one accumulator on the stack, stored and loaded again on every k.
 template <int V, int NR, bool Accumulate, bool Full, class Epi>
-inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk,
-                   std::ptrdiff_t bn, float* __restrict c, std::ptrdiff_t ldc, const __m256i (&mask)[2], const Epi& epi, int i0,
-                   int j0) {
+inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const float* __restrict b, std::ptrdiff_t bk, std::ptrdiff_t bn,
+                   float* __restrict c, std::ptrdiff_t ldc, const __m256i (&mask)[2], const Epi& epi, int i0, int j0) {
   // Every loop over the accumulators is unrolled, so that each is a register: a loop GCC leaves rolled
   // indexes the array, which then lives on the stack and is stored to on every k.
   auto whole = [](int v) { return Full || (V == 2 && v == 0); };
@@ -305,8 +302,7 @@ inline void block8(int K, const float* __restrict a, std::ptrdiff_t lda, const f
     for (int v = 0; v < V; ++v) {
       if constexpr (Accumulate)
         acc[v][j] = whole(v) ? _mm256_loadu_ps(c + j * ldc + 8 * v) : _mm256_maskload_ps(c + j * ldc + 8 * v, mask[v]);
-      else
-        acc[v][j] = _mm256_setzero_ps();
+      else acc[v][j] = _mm256_setzero_ps();
     }
   for (int k = 0; k < K; ++k) {
     const float* ak = a + k * lda;
@@ -437,12 +433,24 @@ template <class Block>
 inline void column_blocks8(int n, Block&& block) {
   auto run = [&](int j, int nr) {
     switch (nr) {
-      case 6: block(std::integral_constant<int, 6>{}, j); break;
-      case 5: block(std::integral_constant<int, 5>{}, j); break;
-      case 4: block(std::integral_constant<int, 4>{}, j); break;
-      case 3: block(std::integral_constant<int, 3>{}, j); break;
-      case 2: block(std::integral_constant<int, 2>{}, j); break;
-      default: block(std::integral_constant<int, 1>{}, j); break;
+      case 6:
+        block(std::integral_constant<int, 6>{}, j);
+        break;
+      case 5:
+        block(std::integral_constant<int, 5>{}, j);
+        break;
+      case 4:
+        block(std::integral_constant<int, 4>{}, j);
+        break;
+      case 3:
+        block(std::integral_constant<int, 3>{}, j);
+        break;
+      case 2:
+        block(std::integral_constant<int, 2>{}, j);
+        break;
+      default:
+        block(std::integral_constant<int, 1>{}, j);
+        break;
     }
   };
   int j = 0;
@@ -504,8 +512,7 @@ void transpose(const T* src, int rows, int cols, std::ptrdiff_t ld, T* dst, std:
         const int ni = rows - i0 < 16 ? rows - i0 : 16;
         const __mmask16 imask = static_cast<__mmask16>((1u << ni) - 1);
         __m512 r[16];  // r[c] = src column j0 + c, rows i0..i0+15
-        for (int c = 0; c < 16; ++c)
-          r[c] = c < nj ? _mm512_maskz_loadu_ps(imask, src + i0 + (j0 + c) * ld) : _mm512_setzero_ps();
+        for (int c = 0; c < 16; ++c) r[c] = c < nj ? _mm512_maskz_loadu_ps(imask, src + i0 + (j0 + c) * ld) : _mm512_setzero_ps();
         detail::transpose16(r);  // r[k] = src row i0 + k, columns j0..j0+15
         for (int k = 0; k < ni; ++k) _mm512_mask_storeu_ps(dst + j0 + (i0 + k) * ldd, jmask, r[k]);
       }
@@ -561,8 +568,7 @@ struct ChainMismatch {
 /// (`before`, leading dimension ldb; Accumulate only) or zero, one std::fma per k in order, then the
 /// epilogue's scalar form. Two NaNs count as equal. For the tests and EVNERF_CHECK_KERNELS builds.
 template <bool Accumulate, class Epi = NoEpilogue>
-std::optional<ChainMismatch> first_chain_mismatch(const Operands<float>& o, const float* before, std::ptrdiff_t ldb,
-                                                  const Epi& epi = {}) {
+std::optional<ChainMismatch> first_chain_mismatch(const Operands<float>& o, const float* before, std::ptrdiff_t ldb, const Epi& epi = {}) {
   for (int j = 0; j < o.n; ++j)
     for (int i = 0; i < o.m; ++i) {
       float want = Accumulate ? before[i + j * ldb] : 0.f;
@@ -647,8 +653,8 @@ inline void product_unchecked(const Operands<T>& o, [[maybe_unused]] const Epi& 
           lda = 8 * V;
         }
         detail::column_blocks8(o.n, [&](auto nr, int j) {
-          detail::block8<V, decltype(nr)::value, Accumulate, decltype(full)::value>(
-              kc, ap, lda, b + j * o.bn, o.bk, o.bn, o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
+          detail::block8<V, decltype(nr)::value, Accumulate, decltype(full)::value>(kc, ap, lda, b + j * o.bn, o.bk, o.bn,
+                                                                                    o.c + i0 + j * o.ldc, o.ldc, mask, epi, i0, j);
         });
       });
       k0 += chunk;

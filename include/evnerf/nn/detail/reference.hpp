@@ -19,20 +19,18 @@ struct ReferenceResult {
 /// products run on bf16 pairs (M::bf16_products<float>()), both factors of every product are rounded to
 /// bf16 first, as the fused kernel does, so the two agree to FP32 summation error.
 template <class M, class T>
-ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, const std::vector<T>& x, int n,
-                                                 const std::vector<T>& dy) {
+ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, const std::vector<T>& x, int n, const std::vector<T>& dy) {
   using Mat = Eigen::MatrixXd;
   const auto R = [](const Mat& m) -> Mat {
     if constexpr (M::template bf16_products<T>())
       return m.unaryExpr([](double v) { return double(bf16::widen(bf16::round(static_cast<float>(v)))); });
-    else
-      return m;
+    else return m;
   };
   std::vector<Mat> inputs(M::n_layers + 1);
   Mat X = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>>(x.data(), M::in_dims, n).template cast<double>();
   auto W = [&](int l) {
-    return Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>>(params.data() + M::weight_offset(l),
-                                                                              M::layer_out(l), M::layer_in(l))
+    return Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>>(params.data() + M::weight_offset(l), M::layer_out(l),
+                                                                              M::layer_in(l))
         .template cast<double>()
         .eval();
   };
@@ -46,9 +44,7 @@ ReferenceResult<T> reference_mlp_forward_backward(const std::vector<T>& params, 
     Mat z = R(W(l)) * R(inputs[l]);
     z.colwise() += B(l);
     const bool last = l == M::depth;
-    Mat y = z.unaryExpr([&](double v) {
-      return last ? M::output_activation::f(v) : M::hidden_activation::f(v);
-    });
+    Mat y = z.unaryExpr([&](double v) { return last ? M::output_activation::f(v) : M::hidden_activation::f(v); });
     if (l == M::skip && M::skip >= 0) {
       Mat cat(y.rows() + X.rows(), n);
       cat << y, X;
