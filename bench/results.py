@@ -137,7 +137,6 @@ NO_BACKDROP = ("These runs had no backdrop behind the samples (what `train --no-
 def mesh_section(rows):
     """The mesh suite's table: per asset and mode, the training path against both baselines and the held-out views,
     each of ours the mean over the training seeds with every seed's PSNR beside it."""
-    seeds = sorted({r["seed"] for r in rows}, key=int)
 
     def runs(asset, mode, view, al, method="ours"):
         return [r for r in rows if (r["asset"], r["mode"], r["view"], r["alignment"], r["method"]) == (asset, mode, view, al, method)]
@@ -158,7 +157,8 @@ def mesh_section(rows):
          "Real 3-D assets from Debian's `assimp-testmodels`, each normalised into the unit sphere and recorded by",
          "`evnerf simulate mesh` (346 × 260, one revolution of an orbit at 30° in one second, a grey background); grey",
          "with the default preset, colour (`--bayer`, an RGGB mosaic) with the `colour` preset; " + f"{first['steps']} steps, {first['threads']} threads, "
-         f"training seed{'s' if len(seeds) > 1 else ''} {' and '.join(seeds)}, " + given +
+         "training " + "; ".join(f"{seeds_text(sorted({int(r['seed']) for r in rows if r['mode'] == m}))} in {m}"
+                                 for m in dict.fromkeys(r["mode"] for r in rows)) + ", " + given +
          f"`--near {first.get('near', '0.3')} --far {first.get('far', '7.0')}`, an ideal sensor (the refractory period learned, as by default: it stays at or near 0). The held-out views lie on a second orbit at 50°, never trained on; only the model",
          "renders them, and beside it a flat frame (one brightness per channel, which the alignment fits) scores what",
          "rendering nothing of the object would. Ours is the mean over the seeds (each seed's PSNR in brackets); the",
@@ -177,7 +177,8 @@ def mesh_section(rows):
         held = [float(x["psnr"]) for x in runs(asset, mode, "novel", "global-log-affine")]
         if held:
             means.setdefault(mode, []).append(statistics.mean(held))
-            spreads.setdefault(mode, []).append(max(held) - min(held))
+            if len(held) > 1:
+                spreads.setdefault(mode, []).append(max(held) - min(held))
         if fr:
             flats.setdefault(mode, []).append(float(fr["psnr"]))
         timed = runs(asset, mode, "path", "global-log-affine")
@@ -188,7 +189,7 @@ def mesh_section(rows):
     p.append("")
     for mode, v in means.items():
         flat = f" (a flat frame: {statistics.mean(flats[mode]):.2f} dB)" if len(flats.get(mode, [])) == len(v) else ""
-        spread = f"; the seeds differ by {statistics.mean(spreads[mode]):.2f} dB per asset on average" if len(seeds) > 1 else ""
+        spread = f"; the seeds differ by {statistics.mean(spreads[mode]):.2f} dB per asset on average" if spreads.get(mode) else ""
         p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets{flat}{spread} (global-log-affine).")
     return p
 
