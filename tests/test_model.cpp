@@ -60,10 +60,11 @@ using CustomParts =
            mylab::InverseDepth<8>, loss::ProjectedThresholds, loss::DefaultNoise,
            loss::WindowInterval<4, mylab::ShotNoiseCounts, events::EventPixels<100>>, double>;
 
-// Model M with the total-variation term added to its objective, off until a test gives it a weight.
+// Model M with the total-variation and distortion terms added to its objective (terms 1 and 2), each off
+// until a test gives it a weight.
 template <class M>
 using TvOf = EvNerf<typename M::field_type, typename M::sampler_type, typename M::threshold_policy, typename M::noise_policy,
-                    loss::Plus<typename M::objective_type, loss::TotalVariation<0>>, double>;
+                    loss::Plus<typename M::objective_type, loss::TotalVariation<0>, loss::Distortion<0>>, double>;
 
 // The examples' objective and regulariser (examples/parts/): EventNeRF's normalised squared loss with the
 // paper's floor on its thresholds, and Window plus the total-variation and quiet-pixels terms.
@@ -148,7 +149,8 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
   }
   Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
   if (refractory > 0) m.set_refractory(refractory, true);
-  m.set_distortion(distortion);
+  if (auto* term = m.template term<loss::DistortionTerm>()) term->set_weight(distortion);
+  else REQUIRE(distortion == 0);
   if (auto* term = m.template term<loss::TvTerm>()) {
     term->set_weight(tv);
     term->neighbours = neighbours;
@@ -189,8 +191,8 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
     CAPTURE(seed);
     REQUIRE(std::isfinite(st.loss));
     REQUIRE(st.loss > 0);
-    if (distortion > 0) CHECK(st.distortion_loss > 0);
-    else CHECK(st.distortion_loss == 0);
+    if (distortion > 0) CHECK(st.term_loss[2] > 0);
+    else CHECK(st.term_loss[2] == 0);
     if (tv > 0) CHECK(st.term_loss[1] > 0);
     else CHECK(st.term_loss[1] == 0);
     // Two rays per pixel, one more for the TV neighbour (for some of the pixels at a share under 1).
@@ -308,16 +310,16 @@ TEST_CASE_TEMPLATE("whole training loss with the examples' objective and regular
   }
 }
 
-// The distortion regulariser joins the loss of every pass; one-network models, where the loss is one sum
-// (a two-network model's coarse gradient excludes the fine pass through its resampled depths, see above).
-TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite differences in double", Model, StratifiedModel<1>,
-                   OccupancyModel<1>, ExpRadianceModel<3>) {
+// The distortion regulariser (loss::Plus with loss::Distortion, a term on the samples) joins the loss of
+// every pass; one-network models, where the loss is one sum (a two-network model's coarse gradient excludes
+// the fine pass through its resampled depths, see above).
+TEST_CASE_TEMPLATE("whole training loss with the distortion regulariser: finite differences in double", Model, TvOf<StratifiedModel<1>>,
+                   TvOf<OccupancyModel<1>>, TvOf<ExpRadianceModel<3>>) {
   check_model<Model>(0.05);
 }
 
 // The total-variation regulariser (loss::Plus with loss::TotalVariation): a third ray per pixel (a neighbour
-// from the window's first pose), its term in every pass; with the distortion term too, whose mean then runs
-// over all three rays.
+// from the window's first pose), its term in every pass; with the distortion term too, on the end rays.
 TEST_CASE_TEMPLATE("whole training loss with the total-variation regulariser: finite differences in double", Model,
                    TvOf<StratifiedModel<1>>, TvOf<OccupancyModel<1>>, TvOf<ExpRadianceModel<3>>) {
   SUBCASE("alone") { check_model<Model>(0, 0.3); }
@@ -343,8 +345,8 @@ TEST_CASE("total-variation share: 1 is the default's step, a share draws pixels 
   TvModels t;
   const evtest::Fixture& f = t.f;
   auto &a = t.a, &b = t.b;
-  a.set_distortion(0.05);
-  b.set_distortion(0.05);
+  a.term<loss::DistortionTerm>()->set_weight(0.05);
+  b.term<loss::DistortionTerm>()->set_weight(0.05);
   CHECK(t.ta.share == 1.0);
   const auto sa = a.gradients(f.td, 16, 3, 4);
   const std::vector<double> ga = a.params().grads;
@@ -470,6 +472,29 @@ TEST_CASE("total-variation neighbours: across is vertical's step on a slider alo
   CHECK(b.params().grads == gh);
   t.ta.neighbours = loss::TvNeighbours::Vertical;
   CHECK(a.gradients(ty, 16, 3, 4).term_loss[1] != sh.term_loss[1]);  // the choice matters on this data
+}
+
+TEST_CASE("distortion regulariser: weight 0 leaves the step bit-identical, on it adds its term and renders nothing more") {
+  const evtest::Fixture f;
+  using M = OccupancyModel<1>;
+  M a(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  TvOf<M> b(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  CHECK(a.term<loss::DistortionTerm>() == nullptr);
+  loss::DistortionTerm& db = *b.term<loss::DistortionTerm>();
+  CHECK(std::string(TvOf<M>::term_name(2)) == "distortion");
+  const auto sa = a.gradients(f.td, 16, 3, 4);
+  const std::vector<double> ga = a.params().grads;
+  db.set_weight(0.05);
+  const auto sb = b.gradients(f.td, 16, 3, 4);
+  CHECK(sb.event_loss == sa.event_loss);
+  CHECK(sb.rays == sa.rays);
+  CHECK(sb.term_loss[2] > 0);
+  CHECK(sb.loss == doctest::Approx(sa.loss + sb.term_loss[2]).epsilon(1e-12));
+  CHECK(b.params().grads != ga);
+  db.set_weight(0);
+  b.gradients(f.td, 16, 3, 4);
+  CHECK(b.params().grads == ga);
+  CHECK_THROWS_WITH_AS(db.set_weight(std::nan("")), doctest::Contains("distortion weight"), Error);
 }
 
 TEST_CASE("total-variation regulariser: weight 0 leaves the step bit-identical, its draw ignores tiling and threads") {

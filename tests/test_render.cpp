@@ -3,6 +3,7 @@
 #include <vector>
 
 #include <evnerf/field/field.hpp>
+#include <evnerf/loss/distortion.hpp>
 #include <evnerf/loss/event_loss.hpp>
 #include <evnerf/render/compositing.hpp>
 #include <evnerf/render/occupancy.hpp>
@@ -125,35 +126,34 @@ TEST_CASE("distortion regulariser: equals the double sum, its weight gradient an
     return l;
   };
   std::vector<double> g(S);
-  const double l = render::distortion_loss<double>(S, w.data(), t.data(), g.data());
+  const double l = loss::distortion_loss<double>(S, w.data(), t.data(), g.data());
   CHECK(l == doctest::Approx(plain(w)).epsilon(1e-12));
   CHECK(l > 0);
   CHECK(evtest::max_fd_error(plain, w, g) < 1e-7);
   // One weight alone: only its own interval's third is left; a point (the open interval) costs nothing.
   std::vector<double> one(S, 0.0), go(S);
   one[3] = 0.8;
-  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) ==
-        doctest::Approx(0.64 * (t[4] - t[3]) / (t[S - 1] - t[0]) / 3));
+  CHECK(loss::distortion_loss<double>(S, one.data(), t.data(), go.data()) == doctest::Approx(0.64 * (t[4] - t[3]) / (t[S - 1] - t[0]) / 3));
   std::fill(one.begin(), one.end(), 0.0);
   one[S - 1] = 1;
-  CHECK(render::distortion_loss<double>(S, one.data(), t.data(), go.data()) == 0);
+  CHECK(loss::distortion_loss<double>(S, one.data(), t.data(), go.data()) == 0);
   // Weights spread over the ray cost more than the same weight on one sample.
   std::vector<double> spread(S, 1.0 / S), g2(S);
   one.assign(S, 0.0);
   one[S / 2] = 1;
-  CHECK(render::distortion_loss<double>(S, spread.data(), t.data(), g2.data()) >
-        render::distortion_loss<double>(S, one.data(), t.data(), go.data()));
+  CHECK(loss::distortion_loss<double>(S, spread.data(), t.data(), g2.data()) >
+        loss::distortion_loss<double>(S, one.data(), t.data(), go.data()));
   // Through compositing: dL/dw passed as composite_backward's dweight gives dL/dσ.
   auto loss_of_sigma = [&](const std::vector<double>& sg) {
     render::RayComposite<double> r;
     render::composite_forward<double, nn::ReLU>(S, 1, sg.data(), 1, raw.data(), t.data(), 1.3, noise.data(), r);
     std::vector<double> gw(S);
-    return render::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data()) + 0.7 * r.color[0];
+    return loss::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data()) + 0.7 * r.color[0];
   };
   render::RayComposite<double> r;
   render::composite_forward<double, nn::ReLU>(S, 1, sigma.data(), 1, raw.data(), t.data(), 1.3, noise.data(), r);
   std::vector<double> gw(S), ds(S), dr(S);
-  render::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data());
+  loss::distortion_loss<double>(S, r.weight.data(), t.data(), gw.data());
   const double dcolor = 0.7;
   render::composite_backward<double>(S, 1, r, &dcolor, ds.data(), 1, dr.data(), gw.data());
   CHECK(evtest::max_fd_error(loss_of_sigma, sigma, ds) < 1e-6);

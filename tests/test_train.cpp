@@ -408,7 +408,6 @@ TEST_CASE("training loop: without an output folder nothing is written and the mo
   refused([](train::Config& c) { c.pixels = 0; }, "pixels must be in [1, 4194304], got 0");
   refused([](train::Config& c) { c.lr = -1; }, "lr must be > 0, got -1");
   refused([](train::Config& c) { c.subslices = 65; }, "subslices must be in [1, 64], got 65");
-  refused([](train::Config& c) { c.distortion = std::nan(""); }, "distortion must be >= 0, got nan");
   refused([](train::Config& c) { c.tv = std::numeric_limits<double>::infinity(); }, "tv must be >= 0, got inf");
   refused([](train::Config& c) { c.average = 1.0; }, "average must be in [0, 1), got 1");
   Tiny m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 7);

@@ -35,6 +35,7 @@
 #include "ad/expr.hpp"
 #include "loss/event_loss.hpp"
 #include "loss/step.hpp"
+#include "loss/distortion.hpp"
 #include "loss/objective.hpp"
 #include "loss/total_variation.hpp"
 #include "nn/activation.hpp"

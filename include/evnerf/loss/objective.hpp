@@ -6,9 +6,9 @@
 //                                    interval its counts imply (spec §2).
 //   WindowInterval<W, Bound, Pixels> poses 1..W frame intervals apart, drawn uniformly per step: the counts
 //                                    of every slice in the window, each with its own learned thresholds.
-//   Plus<O, R...>                    objective O with regularisers R... (loss/total_variation.hpp's, or your
-//                                    own: a type with the members `Regulariser` names), each rendering the
-//                                    rays it needs after O's.
+//   Plus<O, R...>                    objective O with regularisers R... (loss/total_variation.hpp's,
+//                                    loss/distortion.hpp's, or your own: a type with the members
+//                                    `Regulariser` names), each rendering the rays it needs after O's.
 // A new objective or regulariser is one type in your own header (examples/parts/). Depends on ad/, events/
 // and geometry/ (through step.hpp).
 #pragma once
@@ -133,11 +133,10 @@ struct ProbeComposite {
 
 /// An objective: how a step draws (`pixels`, `max_window`), the rays of a tile (`rays`: the ends first, as
 /// add_end_rays lays them out), their score (`score` adds each term's loss to losses[term] and the gradients
-/// to the values and thresholds), the expected rays per pixel of a step (`rays_per_pixel`: the distortion
-/// regulariser's mean over rays divides by it), its terms' names (the first its event term; log.jsonl
-/// writes `<name>_loss` for the others), and the text checkpoints record (`bounds`, `description`).
-/// `scratch` is a thread's state between rays and score. EvNerf's fifth parameter takes one (a bare bound
-/// policy means SliceInterval<that bound>).
+/// to the values and thresholds), the expected rays per pixel of a step (`rays_per_pixel`), its terms'
+/// names (the first its event term; log.jsonl writes `<name>_loss` for the others), and the text
+/// checkpoints record (`bounds`, `description`). `scratch` is a thread's state between rays and score.
+/// EvNerf's fifth parameter takes one (a bare bound policy means SliceInterval<that bound>).
 template <class O>
 concept Objective = std::default_initializable<O> &&
     requires(const O& o, const TileView& t, RayList& rays, typename O::scratch& s, const RenderedValues<ProbeComposite, float>& v,
@@ -168,6 +167,14 @@ concept Regulariser = std::default_initializable<R> &&
   { r.rays_per_pixel() } -> std::convertible_to<double>;
   { r.active() } -> std::convertible_to<bool>;
 };
+
+/// Whether objective O would, as it is now, read the samples of a pass (a regulariser on them that is on:
+/// loss::Distortion); the model then hands them over (RenderedValues' depth and weight_grad).
+template <class O>
+bool needs_samples(const O& o) {
+  if constexpr (requires { o.needs_samples(); }) return o.needs_samples();
+  else return false;
+}
 
 /// The part every objective that renders a pixel at its window's two ends shares: the draw (`Pixels`, windows
 /// of up to W intervals) and the rays (add_end_rays). Derive from it and add `score` and the names.
@@ -277,6 +284,12 @@ struct Plus : O {
     O::score(t, v, th, s.objective, losses);
     each([&](const auto& r, auto& rs, int k) { losses[1 + k] += r.score(t, v, th, rs); }, s);
   }
+  /// Whether a regulariser that reads the samples (declares `reads_samples`) is on.
+  bool needs_samples() const {
+    bool on = false;
+    std::apply([&](const auto&... r) { ((on = on || (reads_samples_of(r) && r.active())), ...); }, regularisers);
+    return on;
+  }
   double rays_per_pixel() const {
     double n = O::rays_per_pixel();
     std::apply([&](const auto&... r) { ((n += r.active() ? r.rays_per_pixel() : 0.0), ...); }, regularisers);
@@ -302,6 +315,11 @@ struct Plus : O {
   }
 
  private:
+  template <class X>
+  static constexpr bool reads_samples_of(const X&) {
+    if constexpr (requires { X::reads_samples; }) return X::reads_samples;
+    else return false;
+  }
   template <class T, class X>
   static T* as(X& x) {
     if constexpr (std::is_base_of_v<T, X>) return &x;

@@ -221,11 +221,17 @@ inline void add_end_rays(const TileView& t, RayList& rays) {
 
 /// One pass's rendered luminance of a tile's rays (`Composite`: anything with color[c], as
 /// render::Composite) and the gradient buffer the objective adds dloss/dvalue to (zeroed by the forward).
+/// For a term on the samples themselves (one that declares `reads_samples`, as loss::Distortion), and only
+/// while such a term is on: the samples per ray, their depths along each ray (rays × samples, as the
+/// composites' weights) and the buffer the term adds dloss/dweight to (zeroed); otherwise 0 and null.
 template <class Composite, class Scalar>
 struct RenderedValues {
   const Composite* comp;
   Scalar* grad;
   int channels;
+  int samples = 0;
+  const Scalar* depth = nullptr;
+  Scalar* weight_grad = nullptr;
   double at(int ray, int c) const { return static_cast<double>(comp[ray].color[c]); }
   void add(int ray, int c, double g) const { grad[static_cast<std::size_t>(ray) * channels + c] += static_cast<Scalar>(g); }
 };

@@ -46,7 +46,6 @@ struct StepShards {
 /// dloss/dτ, the sums of its counts, and its window.
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
-  double distortion_loss = 0;  ///< the distortion regulariser's term (0 unless set_distortion() was given a weight)
   /// The objective's terms: term_loss[0] is event_loss, term_loss[k] the k-th regulariser's (loss::Plus;
   /// named by the model's term_name(k)).
   static constexpr int kMaxTerms = 4;
@@ -65,7 +64,7 @@ struct StepStats {
   /// gradient above but the window. A new statistic goes here, and shards and processes sum it.
   template <class S, class F>
   static constexpr void summed_fields(S& s, F&& f) {
-    f(s.loss), f(s.event_loss), f(s.threshold_loss), f(s.distortion_loss), f(s.refractory_grad);
+    f(s.loss), f(s.event_loss), f(s.threshold_loss), f(s.refractory_grad);
     f(s.rays), f(s.samples), f(s.backward_samples);
     for (auto& v : s.pass_event_loss) f(v);
     for (auto& v : s.term_loss) f(v);
@@ -141,6 +140,7 @@ class EvNerf {
   nn::ParameterBuffer<Scalar>& params() { return params_; }
   const nn::ParameterBuffer<Scalar>& params() const { return params_; }
   nn::Adam<Scalar>& optimizer() { return adam_; }
+  const nn::Adam<Scalar>& optimizer() const { return adam_; }
   long step() const { return adam_.step(); }
 
   /// Keeps a moving average of the parameters (nn::ParameterAverage with `decay`), updated after every
@@ -239,14 +239,6 @@ class EvNerf {
     refractory_.learned = learn && seconds >= 0;
   }
   const RefractoryState& refractory() const { return refractory_; }
-  /// The distortion regulariser (render::distortion_loss, Mip-NeRF 360's, against floaters and surfaces
-  /// smeared along rays): `weight` × its mean over a step's rays, in every pass, joins the loss. 0 (the
-  /// default) leaves the step bit-identical. A training setting like the learning rate: not checkpointed.
-  void set_distortion(double weight) {
-    require(std::isfinite(weight) && weight >= 0, "the distortion weight must be finite and non-negative");
-    distortion_ = weight;
-  }
-  double distortion() const { return distortion_; }
   /// Training rays stop where their transmittance falls below renderer_type::kMinTransmittance
   /// (Renderer::Workspace::training_termination), for samplers that skip (the occupancy grid). The samples
   /// behind carry no gradient either way; the forward's composite loses less than that fraction of a ray's
@@ -329,7 +321,6 @@ class EvNerf {
     typename objective_type::scratch scratch;
     std::array<double, 2> pass_loss{};                 ///< the thread's event loss by pass, this step
     std::array<double, StepStats::kMaxTerms> terms{};  ///< the thread's regulariser terms, this step
-    double distortion = 0;                             ///< the thread's distortion term, this step
     double refractory_grad = 0;                        ///< the thread's dloss/dτ, this step
     std::size_t rays = 0;                              ///< the thread's rays, this step
   };
@@ -353,7 +344,6 @@ class EvNerf {
   StepWindow window_;                     ///< the last gradients()'s window (train_step applies Adam to its thresholds)
   std::vector<std::size_t> touched_;      ///< the last step's threshold entries (lazy Adam)
   std::vector<Scalar> shard_sum_;         ///< train_step's sum of the shards before the current one
-  double distortion_ = 0;                 ///< the distortion regulariser's weight (set_distortion)
   bool ray_termination_ = false;          ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
   objective_type objective_;         ///< the objective and its regularisers' settings (objective(), term<T>())

@@ -110,7 +110,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   const int n_tiles = (P + tile - 1) / tile;
   const int threads = std::max(1, std::min(thread_count(), n_tiles));
   params_.size_accumulators(threads);  // each thread zeroes its own below
-  std::vector<double> loss_ev(threads, 0.0), loss_dist(threads, 0.0), grad_tau(threads, 0.0);
+  std::vector<double> loss_ev(threads, 0.0), grad_tau(threads, 0.0);
   std::vector<std::array<double, StepStats::kMaxTerms>> loss_terms(threads);
   std::vector<std::size_t> evaluated(threads, 0), backward(threads, 0), rays(threads, 0);
   std::vector<std::array<double, 2>> pass_loss(threads);
@@ -121,7 +121,6 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
     w.rw.evaluated = w.rw.backward_samples = 0;
     w.pass_loss = {};
-    w.distortion = 0;
     w.refractory_grad = 0;
     w.terms = {};
     w.rays = 0;
@@ -134,7 +133,6 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     }
     evaluated[th] = w.rw.evaluated;
     pass_loss[th] = w.pass_loss;
-    loss_dist[th] = w.distortion;
     grad_tau[th] = w.refractory_grad;
     loss_terms[th] = w.terms;
     rays[th] = w.rays;
@@ -154,7 +152,6 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   st.first_slice = first;
   st.window = L;
   for (double l : loss_ev) st.event_loss += l;
-  for (double l : loss_dist) st.distortion_loss += l;
   for (double g : grad_tau) st.refractory_grad += g;
   for (const auto& l : loss_terms)
     for (int k = 1; k < n_terms; ++k) st.term_loss[k] += l[k];
@@ -177,7 +174,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     }
   }
   st.term_loss[0] = st.event_loss;
-  st.loss = st.event_loss + st.threshold_loss + st.distortion_loss;
+  st.loss = st.event_loss + st.threshold_loss;
   for (int k = 1; k < n_terms; ++k) st.loss += st.term_loss[k];
   for (std::size_t r : rays) st.rays += r;
   touched_.clear();
@@ -186,7 +183,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
 }
 
 /// train_tile: one tile's rays as the objective lists them, each with its random stream, forward through
-/// every pass, the objective's score of each pass, the distortion term, backward.
+/// every pass, the objective's score of each pass (with the samples where a term reads them), backward.
 template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
 double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_tile(const TrainingData& data, const StepWindow& sw, int p0,
                                                                                     int P, int batch, std::uint64_t ray_key, Scalar* grads,
@@ -233,17 +230,20 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
   double loss = 0;
   for (int net = 0; net < n_fields; ++net) {
-    const loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(),
-                                                                       w.rw.pass[net].dcolor.data(), channels};
+    loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(), w.rw.pass[net].dcolor.data(),
+                                                                 channels};
+    if (loss::needs_samples(objective_)) {
+      const auto samples = renderer_type::samples(w.rw, net);
+      v.samples = samples.samples;
+      v.depth = samples.depth;
+      v.weight_grad = samples.weight_grad;
+    }
     std::array<double, StepStats::kMaxTerms> l{};
     objective_.score(t, v, th, w.scratch, l.data());
     w.pass_loss[net] += l[0];
     loss += l[0];
     for (int k = 1; k < n_terms; ++k) w.terms[k] += l[k];
   }
-  // The distortion regulariser: its weight times the mean over the step's rays, every pass (the expected
-  // rays per pixel, the same for every tile).
-  if (distortion_ > 0) w.distortion += renderer_type::add_distortion(w.rw, distortion_ / (objective_.rays_per_pixel() * batch));
   renderer_.backward(params, w.rw, grads);
   return loss;
 }

@@ -137,7 +137,7 @@ void composite_forward(int S, int C, const T* sigma, int sigma_stride, const T* 
 /// dL/draw (C per sample). Uses dout/dα_k = T_k c_k − (Σ_{j>k} w_j c_j + rest · b) / (1 − α_k + kTransmittanceEpsilon),
 /// with b = Σ_c dcolor_c · background_c (0 without a background).
 /// `dweight` (S values, or null) adds a loss's gradient w.r.t. the weights w_k themselves (a regulariser
-/// such as distortion_loss): colour is Σ w_k lum_k, so dL/dw_k enters exactly where dcolor · lum_k does.
+/// such as loss::distortion_loss): colour is Σ w_k lum_k, so dL/dw_k enters exactly where dcolor · lum_k does.
 template <class T>
 void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor, T* dsigma, int sigma_stride, T* draw,
                         const T* dweight = nullptr) {
@@ -155,41 +155,6 @@ void composite_backward(int S, int C, const RayComposite<T>& r, const T* dcolor,
     dsigma[static_cast<std::size_t>(k) * sigma_stride] = dalpha * r.dalpha_dsigma[k];
     suffix += r.weight[k] * ck;
   }
-}
-
-/// Distortion of one ray's weights (Mip-NeRF 360's regulariser against floaters and smeared surfaces):
-/// L = Σ_i Σ_j w_i w_j |m_i − m_j| + ⅓ Σ_i w_i² δ_i over the intervals between samples, with midpoints m and
-/// lengths δ measured in units of the ray's sampled span (t[S−1] − t[0]), so L does not depend on the
-/// scene's scale. Sample k < S−1 owns [t_k, t_{k+1}]; the last sample (the open interval) is a point at
-/// t[S−1]. Returns L and writes dL/dw_k to dweight (S values), in O(S) by prefix sums (t ascending).
-template <class T>
-double distortion_loss(int S, const T* weight, const T* t, T* dweight) {
-  if (S <= 0) return 0.0;
-  const double span = S > 1 ? double(t[S - 1]) - double(t[0]) : 0.0;
-  if (!(span > 0)) {
-    for (int k = 0; k < S; ++k) dweight[k] = T(0);
-    return 0.0;
-  }
-  const auto mid = [&](int k) { return k + 1 < S ? 0.5 * (double(t[k]) + double(t[k + 1])) / span : double(t[k]) / span; };
-  const auto len = [&](int k) { return k + 1 < S ? (double(t[k + 1]) - double(t[k])) / span : 0.0; };
-  double wsum = 0, wm = 0;  // over samples before k: Σ w_j, Σ w_j m_j
-  double total_w = 0, total_wm = 0;
-  for (int k = 0; k < S; ++k) {
-    total_w += double(weight[k]);
-    total_wm += double(weight[k]) * mid(k);
-  }
-  double cross = 0, self = 0;
-  for (int k = 0; k < S; ++k) {
-    const double w = weight[k], m = mid(k), d = len(k);
-    const double after_w = total_w - wsum - w, after_wm = total_wm - wm - w * m;
-    const double dist = (m * wsum - wm) + (after_wm - m * after_w);  // Σ_j w_j |m_k − m_j|
-    cross += w * dist;
-    self += w * w * d / 3.0;
-    dweight[k] = static_cast<T>(2.0 * dist + 2.0 * w * d / 3.0);
-    wsum += w;
-    wm += w * m;
-  }
-  return cross + self;
 }
 
 }  // namespace evnerf::render

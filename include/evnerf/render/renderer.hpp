@@ -134,23 +134,18 @@ class Renderer {
     backdrop_values(params, b, db);
     return b;
   }
-  /// Adds `scale` × the distortion of every ray's weights (distortion_loss) in every pass of the last
-  /// training forward to the loss that backward() differentiates; returns that addition. Call after the
-  /// forward, before backward(); scale 0 adds nothing.
-  static double add_distortion(Workspace& w, double scale) {
-    if (scale == 0) return 0.0;
-    double total = 0;
-    for (auto& p : w.pass) {
-      const int R = static_cast<int>(p.comp.size()), S = p.S;
-      p.dweight.assign(static_cast<std::size_t>(R) * S, T(0));
-      for (int r = 0; r < R; ++r) {
-        const std::size_t o = static_cast<std::size_t>(r) * S;
-        T* g = p.dweight.data() + o;
-        total += scale * distortion_loss<T>(S, p.comp[r].weight.data(), p.t.data() + o, g);
-        for (int k = 0; k < S; ++k) g[k] = static_cast<T>(scale * double(g[k]));
-      }
-    }
-    return total;
+  /// The samples of pass `net` of the last training forward, for a term on them (loss::RenderedValues): the
+  /// samples per ray, their depths (rays × samples) and a zeroed buffer for dloss/dweight of every ray's
+  /// weights, which backward() adds to the gradient. Call after the forward, before backward().
+  struct SampleView {
+    int samples;
+    const T* depth;
+    T* weight_grad;
+  };
+  static SampleView samples(Workspace& w, int net) {
+    auto& p = w.pass[net];
+    p.dweight.assign(p.comp.size() * static_cast<std::size_t>(p.S), T(0));
+    return {p.S, p.t.data(), p.dweight.data()};
   }
   /// Defers table gradients of every pass to flush() (bit-identical; see Field::Workspace::defer_encoding_grad).
   static void defer_encoding_grad(Workspace& w) {

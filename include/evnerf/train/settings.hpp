@@ -33,7 +33,6 @@ struct Config {
   int threads = 0;
   double near = 0.3, far = 7.0;
   double lr = nn::AdamConfig{}.lr, lr_decay = nn::AdamConfig{}.decay, lr_decay_steps = nn::AdamConfig{}.decay_steps;
-  double distortion = 0;
   std::optional<double> tv;  ///< unset: the variant's own weight
   double average = 0.998;
   long checkpoint_every = 500;
@@ -167,8 +166,6 @@ inline const std::vector<Setting>& settings() {
       {"lr", &Config::lr, 0, inf, true, false, "Adam's learning rate (the paper's model wants 5e-4)"},
       {"lr_decay", &Config::lr_decay, 0, 1, true, false, "the factor the learning rate decays by over lr_decay_steps"},
       {"lr_decay_steps", &Config::lr_decay_steps, 0, inf, true, false, "steps over which the learning rate decays by lr_decay"},
-      {"distortion", &Config::distortion, 0, inf, false, false,
-       "weight of the distortion regulariser on each ray's weights (Mip-NeRF 360's, against floaters; 0 = off)"},
       {"tv", &Config::tv, 0, inf, false, false,
        "weight of the variant's total-variation term on neighbouring pixels' log-luminance (0 = off; unset: the variant's, fast 0.1)"},
       {"average", &Config::average, 0, 1, false, true,

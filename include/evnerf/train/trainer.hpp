@@ -139,6 +139,105 @@ inline constexpr long kLogEvery = 50;
 /// cut of 1e-4, at the same quality.
 inline constexpr double kRayCut = 1e-2;
 
+namespace detail {
+
+/// The sums over the steps since the last log line, whose means the line reports.
+struct LogPeriod {
+  double loss = 0, event = 0, threshold = 0, samples = 0, backward = 0;
+  std::array<double, StepStats::kMaxTerms> terms{};
+  long steps = 0;
+  void add(const StepStats& st, int n_terms) {
+    loss += st.loss;
+    event += st.event_loss;
+    threshold += st.threshold_loss;
+    for (int k = 1; k < n_terms; ++k) terms[k] += st.term_loss[k];
+    samples += static_cast<double>(st.samples) / std::max<std::size_t>(1, st.rays);
+    backward += static_cast<double>(st.backward_samples) / std::max<std::size_t>(1, st.rays);
+    ++steps;
+  }
+};
+
+/// out/log.jsonl opened for a run at `step`: started afresh at step 0; on a resume, first rid of the lines
+/// past the checkpoint's step (written before the process died), then appended to.
+inline std::ofstream open_log(const fs::path& out, long step) {
+  const fs::path file = out / "log.jsonl";
+  if (step > 0 && fs::exists(file)) {
+    std::string kept, line;
+    std::istringstream in(read_file(file));
+    while (std::getline(in, line)) {
+      const auto j = nlohmann::json::parse(line, nullptr, false);
+      if (!j.is_discarded() && j.contains("step") && j["step"].is_number() && j["step"].get<long>() <= step) kept += line + "\n";
+    }
+    write_file_atomic(file, kept);
+  }
+  std::ofstream log(file, step == 0 ? std::ios::trunc : std::ios::app);
+  if (!log) throw Error(file.string(), 0, "cannot open the training log for writing");
+  return log;
+}
+
+/// A log line: the period's means, the learning rate, the speed, the model's learned refractory period and
+/// backdrop, and each regulariser that is on (as <name>_loss).
+template <class Model>
+nlohmann::ordered_json log_line(const Model& model, const LogPeriod& p, long step, std::size_t rays, double seconds) {
+  const double n = static_cast<double>(p.steps);
+  nlohmann::ordered_json j = {{"step", step},
+                              {"loss", p.loss / n},
+                              {"event_loss", p.event / n},
+                              {"threshold_loss", p.threshold / n},
+                              {"steps_in_mean", p.steps},
+                              {"samples_per_ray", p.samples / n},
+                              {"backward_samples_per_ray", p.backward / n},
+                              {"lr", model.optimizer().learning_rate()},
+                              {"rays_per_s", rays / std::max(seconds, 1e-9)},
+                              {"seconds", seconds}};
+  if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
+  if (model.renderer().learns_backdrop()) {  // the learned backdrop's luminance per channel
+    const auto b = *model.renderer().backdrop(model.params().values.data());
+    j["background"] = std::vector<double>(b.begin(), b.end());
+  }
+  for (int k = 1; k < Model::n_terms; ++k)
+    if (model.objective().active(k)) j[std::string(Model::term_name(k)) + "_loss"] = p.terms[k] / n;
+  return j;
+}
+
+/// A log line's figures of a sharded step: the shards, and with processes their exchange since the last
+/// line. The processes hold the same parameters (each applies the same summed gradients); a difference would
+/// mean the sums differ between them, and the runs would drift apart silently: an Error.
+template <class Model>
+void log_shards(nlohmann::ordered_json& j, const Model& model, int shard_count, Group* group, GradientExchange& exchange, Exchange mode,
+                long step) {
+  j["shards"] = shard_count;
+  if (!group) return;
+  j["ranks"] = group->size();
+  j["exchange_bytes_per_step"] = exchange.bytes() / std::max(1L, exchange.steps());
+  j["exchange_seconds_per_step"] = exchange.seconds() / std::max(1L, exchange.steps());
+  j["sparse_steps"] = exchange.sparse_steps();
+  if (mode != Exchange::Dense) j["touched_blocks"] = exchange.last_fraction();  // dense never looks
+  exchange.reset();
+  const auto& v = model.params().values;
+  if (!group->same(fnv1a64(std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0])))))
+    throw Error("train: at step " + std::to_string(step) + " the processes' parameters differ (rank " + std::to_string(group->rank()) +
+                " sees another checksum); the group's sums are not the same on every process");
+}
+
+}  // namespace detail
+
+/// A collapse check of `model` at `step`: its renders' log spread, and (where `start_steps` > 0) the event
+/// loss of the last log period against the mean of the run's first steps (`start_sum` over `start_steps`).
+template <class Model>
+CollapseCheck collapse_check(const Model& model, const TrainingData& td, long step, double start_sum, long start_steps, double recent) {
+  CollapseCheck c;
+  c.step = step;
+  c.log_spread = render_log_spread(model, td);
+  c.flat_renders = c.log_spread < CollapseCheck::kMinLogSpread;
+  if (start_steps > 0) {  // a resumed run has no start of its own to compare with
+    c.start_loss = start_sum / static_cast<double>(start_steps);
+    c.recent_loss = recent;
+    c.loss_stuck = c.recent_loss > CollapseCheck::kMinLossImprovement * c.start_loss;
+  }
+  return c;
+}
+
 /// Trains `model` for cfg.iterations steps in total (a resumed model continues from its step). Writes
 /// `out/settings.json` (record_settings: the settings of every call that trained the run), `out/log.jsonl`
 /// (started afresh when the model is at step 0, appended to on a resume: one line every `kLogEvery` steps,
@@ -173,7 +272,6 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     if (ec) throw Error(out.string(), 0, "cannot create the output folder: " + ec.message());
   }
   const ScopedThreadCount threads(cfg.threads);
-  model.set_distortion(cfg.distortion);
   model.set_ray_termination(true, kRayCut);
   if (cfg.tv && tv_term) tv_term->set_weight(*cfg.tv);
   model.set_average(cfg.average);  // a resumed model keeps the average its checkpoint holds
@@ -184,28 +282,14 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     if (tv_term) used.tv = tv_term->weight;
     record_settings(out, used, name, model.step());
   }
-  if (files && model.step() > 0 && fs::exists(out / "log.jsonl")) {
-    std::string kept, line;
-    std::istringstream in(read_file(out / "log.jsonl"));
-    while (std::getline(in, line)) {
-      const auto j = nlohmann::json::parse(line, nullptr, false);
-      if (!j.is_discarded() && j.contains("step") && j["step"].is_number() && j["step"].get<long>() <= model.step()) kept += line + "\n";
-    }
-    write_file_atomic(out / "log.jsonl", kept);
-  }
   std::ofstream log;
-  if (files) {
-    log.open(out / "log.jsonl", model.step() == 0 ? std::ios::trunc : std::ios::app);
-    if (!log) throw Error((out / "log.jsonl").string(), 0, "cannot open the training log for writing");
-  }
+  if (files) log = detail::open_log(out, model.step());
   Progress bar(cfg.iterations, "train", cfg.progress && rank == 0);
   RunResult r;
   const double t_start = bar.elapsed();
-  double sum_loss = 0, sum_event = 0, sum_threshold = 0, sum_distortion = 0, sum_samples = 0, sum_backward = 0;
-  std::array<double, StepStats::kMaxTerms> sum_terms{};
-  double start_event = 0, recent_event = 0;  // event loss: mean of the first kLogEvery steps, and of the last period
+  detail::LogPeriod period;
+  double start_event = 0;  // the event loss summed over the first kLogEvery steps
   long start_steps = 0;
-  long window = 0;
   std::size_t rays = 0;
   const fs::path ckpt = out / "model.ckpt";
   auto diverged = [&](const std::string& what) {
@@ -238,14 +322,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       break;
     }
     rays += st.rays;
-    sum_loss += st.loss;
-    sum_event += st.event_loss;
-    sum_threshold += st.threshold_loss;
-    sum_distortion += st.distortion_loss;
-    for (int k = 1; k < Model::n_terms; ++k) sum_terms[k] += st.term_loss[k];
-    sum_samples += static_cast<double>(st.samples) / std::max<std::size_t>(1, st.rays);
-    sum_backward += static_cast<double>(st.backward_samples) / std::max<std::size_t>(1, st.rays);
-    ++window;
+    period.add(st, Model::n_terms);
     r.final_loss = st.loss;
     const long s = model.step();
     if (s <= kLogEvery) {
@@ -254,64 +331,23 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
     }
     const double el = bar.elapsed() - t_start;
     char extra[160];
-    std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", sum_loss / window, rays / std::max(el, 1e-9));
+    const double n = static_cast<double>(period.steps);
+    std::snprintf(extra, sizeof extra, "loss %.4f  rays/s %.0f", period.loss / n, rays / std::max(el, 1e-9));
     bar.update(s, extra);
-    StepReport rep{s, st, false, sum_loss / window, sum_event / window, sum_threshold / window, el};
+    StepReport rep{s, st, false, period.loss / n, period.event / n, period.threshold / n, el};
     if (s % kLogEvery == 0 || s == cfg.iterations) {
       rep.logged = true;
-      nlohmann::ordered_json j = {{"step", s},
-                                  {"loss", rep.mean_loss},
-                                  {"event_loss", rep.mean_event_loss},
-                                  {"threshold_loss", rep.mean_threshold_loss},
-                                  {"steps_in_mean", window},
-                                  {"samples_per_ray", sum_samples / window},
-                                  {"backward_samples_per_ray", sum_backward / window},
-                                  {"lr", model.optimizer().learning_rate()},
-                                  {"rays_per_s", rays / std::max(el, 1e-9)},
-                                  {"seconds", el}};
-      if (cfg.distortion > 0) j["distortion_loss"] = sum_distortion / window;  // part of loss, like threshold_loss
-      if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
-      if (model.renderer().learns_backdrop()) {  // the learned backdrop's luminance per channel
-        const auto b = *model.renderer().backdrop(model.params().values.data());
-        j["background"] = std::vector<double>(b.begin(), b.end());
-      }
-      for (int k = 1; k < Model::n_terms; ++k)  // each regulariser that is on, as <name>_loss
-        if (model.objective().active(k)) j[std::string(Model::term_name(k)) + "_loss"] = sum_terms[k] / window;
-      if (shard_count > 1) {
-        j["shards"] = shard_count;
-        if (group) {
-          j["ranks"] = group->size();
-          j["exchange_bytes_per_step"] = exchange.bytes() / std::max(1L, exchange.steps());
-          j["exchange_seconds_per_step"] = exchange.seconds() / std::max(1L, exchange.steps());
-          j["sparse_steps"] = exchange.sparse_steps();
-          if (cfg.exchange != Exchange::Dense) j["touched_blocks"] = exchange.last_fraction();  // dense never looks
-          exchange.reset();
-          // The processes hold the same parameters (each applies the same summed gradients); a difference
-          // would mean the sums differ between them, and the runs would drift apart silently.
-          const auto& v = model.params().values;
-          if (!group->same(fnv1a64(std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0])))))
-            throw Error("train: at step " + std::to_string(s) + " the processes' parameters differ (rank " + std::to_string(rank) +
-                        " sees another checksum); the group's sums are not the same on every process");
-        }
-      }
+      auto j = detail::log_line(model, period, s, rays, el);
+      if (shard_count > 1) detail::log_shards(j, model, shard_count, group, exchange, cfg.exchange, s);
       if constexpr (Model::sampler_type::skips_samples) {
         j["occupied"] = model.sampler().occupied_fraction();
         if constexpr (requires { model.sampler().grid().seen_fraction(); })
           j["occupied_of_seen"] = model.sampler().occupied_fraction() / std::max(1e-12, model.sampler().grid().seen_fraction());
       }
-      recent_event = rep.mean_event_loss;
       const bool check = cfg.collapse_check_every > 0 && cfg.collapse_check_from > 0 && s >= cfg.collapse_check_from &&
                          (s - cfg.collapse_check_from) % cfg.collapse_check_every == 0;
       if (check) {
-        CollapseCheck c;
-        c.step = s;
-        c.log_spread = render_log_spread(model, td);
-        c.flat_renders = c.log_spread < CollapseCheck::kMinLogSpread;
-        if (start_steps > 0) {  // a resumed run has no start of its own to compare with
-          c.start_loss = start_event / static_cast<double>(start_steps);
-          c.recent_loss = recent_event;
-          c.loss_stuck = c.recent_loss > CollapseCheck::kMinLossImprovement * c.start_loss;
-        }
+        const CollapseCheck c = collapse_check(model, td, s, start_event, start_steps, rep.mean_event_loss);
         j["collapse_check"] = {{"log_spread", c.log_spread}, {"collapsed", c.collapsed()}};
         r.checks.push_back(c);
         if (c.collapsed()) {
@@ -325,9 +361,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
         log << j.dump() << "\n";
         log.flush();
       }
-      sum_loss = sum_event = sum_threshold = sum_distortion = sum_samples = sum_backward = 0;
-      sum_terms = {};
-      window = 0;
+      period = {};
       if (r.collapsed && !cfg.allow_collapse) {
         ++r.steps;
         save();
