@@ -18,7 +18,7 @@
 // small tables are read here with every offset checked, so that a corrupt file is an Error naming its byte
 // offset. LZ4 and Zstd frames go through Debian's liblz4 and libzstd. Compiled where CMake found both
 // (EVNERF_HAVE_AEDAT4). A file cut short inside its packets (no data table written) is read to its last whole
-// packet, with a warning. Depends on io/recording.hpp, io/prophesee.hpp and core/.
+// packet, with a warning. Depends on io/recording.hpp, io/ijrr.hpp (Frames) and core/.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -37,7 +37,8 @@
 #include <zstd.h>
 
 #include "../core/warn.hpp"
-#include "prophesee.hpp"
+#include "../core/fileio.hpp"
+#include "ijrr.hpp"
 #include "recording.hpp"
 
 namespace evnerf::io {
@@ -322,7 +323,7 @@ struct Aedat4Entry {
   std::int64_t elements = 0;
 };
 
-/// One event packet of a batch (read_aedat4): its compressed body, its decompressed body and what checking
+/// One event packet of a batch (Aedat4Events): its compressed body, its decompressed body and what checking
 /// its events found; kept from one batch to the next.
 struct Aedat4Slot {
   std::uint64_t pos = 0;  ///< the packet header's byte offset
@@ -340,7 +341,369 @@ struct Aedat4Slot {
   std::string where(const std::string& file) const {
     return file + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(stream) + ")";
   }
+  /// Decompresses the body (up to `limit` bytes; false, and `oversized`, when it needs more, an error at
+  /// kAedat4MaxPacket) and finds its events; an error is kept in `error` for the caller to raise in file order.
+  bool decode(int compression, const std::string& file, std::size_t limit) {
+    try {
+      const std::string at = where(file);
+      if (!body.inflate(compression, raw.data(), raw.size(), limit, at)) {
+        if (limit >= kAedat4MaxPacket) throw Error(at + ": decompresses to more than " + std::to_string(kAedat4MaxPacket >> 20) + " MiB");
+        return oversized = true, false;
+      }
+      const auto fb = size_prefixed(body.data(), body.size(), at);
+      const auto [first, count] = flat_root(fb, "an EventPacket").vector(0, 16);
+      events = fb.data() + first, n = count;
+    } catch (...) {
+      error = std::current_exception();
+    }
+    return true;
+  }
 };
+
+/// The file an AEDAT4 reader reads, at byte offsets: a read that would run past its end is an Error naming
+/// the offset, what was read and the file's size.
+class Aedat4File {
+ public:
+  explicit Aedat4File(const std::filesystem::path& path) : name_(path.string()), f_(std::fopen(path.c_str(), "rb")) {
+    if (!f_) throw Error(name_, 0, "cannot open file (missing or unreadable)");
+    std::error_code ec;
+    size_ = std::filesystem::file_size(path, ec);
+    if (ec) throw Error(name_, 0, "cannot read its size");
+  }
+  const std::string& name() const { return name_; }
+  std::uint64_t size() const { return size_; }
+  void read_at(std::uint64_t pos, std::size_t n, std::vector<unsigned char>& buf, const char* what) const {
+    if (pos > size_ || n > size_ - pos)
+      throw Error(name_, 0,
+                  "byte " + std::to_string(pos) + ": " + what + " of " + std::to_string(n) + " bytes runs past the end of the file (" +
+                      std::to_string(size_) + " bytes)");
+    buf.resize(n);
+    if (std::fseek(f_.get(), static_cast<long>(pos), SEEK_SET) != 0 || std::fread(buf.data(), 1, n, f_.get()) != n)
+      throw Error(name_, 0, "byte " + std::to_string(pos) + ": read error");
+  }
+
+ private:
+  std::string name_;
+  std::unique_ptr<std::FILE, FileCloser> f_;
+  std::uint64_t size_ = 0;
+};
+
+/// The magic line and the IOHeader into `info` (compression, the data table's position, the streams);
+/// returns the byte offset where the packets start.
+inline std::uint64_t aedat4_header(const Aedat4File& in, Aedat4Info& info) {
+  const std::string& file = in.name();
+  std::vector<unsigned char> buf;
+  in.read_at(0, std::min<std::uint64_t>(in.size(), kAedat4MagicLen + 4), buf, "the header");
+  if (buf.size() < kAedat4MagicLen || std::memcmp(buf.data(), kAedat4Magic, kAedat4MagicLen) != 0)
+    throw Error(file, 0, "byte 0: not an AEDAT 4.0 file (it does not start with '#!AER-DAT4.0')");
+  if (buf.size() < kAedat4MagicLen + 4) throw Error(file, 0, "byte 14: the file ends before its IOHeader's size");
+  std::uint32_t header_size;
+  std::memcpy(&header_size, buf.data() + kAedat4MagicLen, 4);
+  in.read_at(kAedat4MagicLen + 4, header_size, buf, "the IOHeader");
+  const FlatBuf hb(buf.data(), buf.size(), file + ": byte 18 (the IOHeader)");
+  const auto h = flat_root(hb, "the IOHeader");
+  info.compression = h.scalar<std::int32_t>(0, 0);
+  info.table_position = h.scalar<std::int64_t>(1, -1);
+  if (info.compression < 0 || info.compression > 4)
+    throw Error(file, 0,
+                "byte 18 (the IOHeader): unknown compression " + std::to_string(info.compression) + " (known: 0 none … 4 Zstd high)");
+  info.streams = aedat4_streams(h.string(2), file + ": the IOHeader's description");
+  return kAedat4MagicLen + 4 + std::uint64_t(header_size);
+}
+
+/// The packets the data table lists, where it is readable and agrees with the packets between data_start
+/// and data_end (info.table_used); otherwise none, and info.table_note says why.
+inline std::vector<Aedat4Entry> aedat4_table(const Aedat4File& in, Aedat4Info& info, std::uint64_t data_start, std::uint64_t data_end) {
+  std::vector<Aedat4Entry> entries;
+  const std::uint64_t file_size = in.size();
+  try {
+    if (static_cast<std::uint64_t>(info.table_position) < data_start || static_cast<std::uint64_t>(info.table_position) >= file_size)
+      throw Error("its position " + std::to_string(info.table_position) + " lies outside the file");
+    if (file_size - info.table_position > kAedat4MaxPacket) throw Error("larger than " + std::to_string(kAedat4MaxPacket >> 20) + " MiB");
+    std::vector<unsigned char> buf;
+    in.read_at(static_cast<std::uint64_t>(info.table_position), file_size - info.table_position, buf, "the data table");
+    const std::string where = "byte " + std::to_string(info.table_position) + " (the data table)";
+    Aedat4Inflater body;
+    body.inflate(info.compression, buf.data(), buf.size(), where);
+    const auto fb = size_prefixed(body.data(), body.size(), where);
+    const auto t = flat_root(fb, "the data table");
+    const auto [at, n] = t.vector(0, 4);
+    std::uint64_t prev_end = data_start;
+    for (std::uint64_t k = 0; k < n; ++k) {
+      const auto ent = FlatTable(fb, at + 4 * k + fb.get<std::uint32_t>(at + 4 * k, "an entry offset"), "an entry");
+      Aedat4Entry e;
+      e.offset = ent.scalar<std::int64_t>(0, 0);
+      if (const auto ph = ent.field(1, 8))
+        e.stream = fb.get<std::int32_t>(ph, "a packet header"), e.size = fb.get<std::int32_t>(ph + 4, "a packet header");
+      e.elements = ent.scalar<std::int64_t>(2, 0);
+      e.t_begin = ent.scalar<std::int64_t>(3, 0);
+      e.t_end = ent.scalar<std::int64_t>(4, 0);
+      if (e.offset < static_cast<std::int64_t>(prev_end) || e.size < 0 || static_cast<std::uint64_t>(e.offset) + 8 + e.size > data_end)
+        throw Error("entry " + std::to_string(k) + " names a packet at byte " + std::to_string(e.offset) +
+                    " that is not in the data section");
+      prev_end = static_cast<std::uint64_t>(e.offset) + 8 + e.size;
+      entries.push_back(e);
+    }
+    // Its packets' headers must be where it says.
+    for (const auto& e : entries) {
+      in.read_at(static_cast<std::uint64_t>(e.offset), 8, buf, "a packet header");
+      std::int32_t sid, size;
+      std::memcpy(&sid, buf.data(), 4), std::memcpy(&size, buf.data() + 4, 4);
+      if (sid != e.stream || size != e.size) throw Error("its packet at byte " + std::to_string(e.offset) + " has another header");
+    }
+    info.table_used = true;
+  } catch (const Error& e) {
+    entries.clear();
+    info.table_note = "data table not used (" + e.message() + "); the packets were walked";
+  }
+  return entries;
+}
+
+/// The packets between data_start and data_end, walked header by header (no usable data table). Packets run
+/// to the end of the file where no data table follows them: a recording cut short (the recorder stopped
+/// before it wrote the table) ends inside its last packet, which is dropped with a warning.
+inline std::vector<Aedat4Entry> aedat4_walk(const Aedat4File& in, std::uint64_t data_start, std::uint64_t data_end) {
+  const std::string& file = in.name();
+  const bool to_end = data_end == in.size();
+  auto cut_short = [&](std::uint64_t pos, const std::string& what) {
+    warn(file + ": byte " + std::to_string(pos) + ": " + what + " (a recording cut short); read to the last whole packet, " +
+         std::to_string(in.size() - pos) + " bytes dropped");
+  };
+  std::vector<Aedat4Entry> entries;
+  std::vector<unsigned char> buf;
+  for (std::uint64_t pos = data_start; pos < data_end;) {
+    if (data_end - pos < 8) {
+      if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": the data table starts inside a packet header");
+      cut_short(pos, "the file ends inside a packet header");
+      break;
+    }
+    in.read_at(pos, 8, buf, "a packet header");
+    Aedat4Entry e;
+    e.offset = static_cast<std::int64_t>(pos);
+    std::memcpy(&e.stream, buf.data(), 4), std::memcpy(&e.size, buf.data() + 4, 4);
+    if (e.size <= 0)
+      throw Error(
+          file, 0,
+          "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
+    if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size)) {
+      if (!to_end)
+        throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
+      cut_short(pos, "packet of " + std::to_string(e.size) + " bytes runs past the end of the file");
+      break;
+    }
+    e.t_begin = std::numeric_limits<std::int64_t>::min(), e.t_end = std::numeric_limits<std::int64_t>::max();
+    entries.push_back(e);
+    pos += 8 + static_cast<std::uint64_t>(e.size);
+  }
+  return entries;
+}
+
+/// The event packets of a file, read in file order and decoded in batches: each packet decompressed, parsed
+/// and its events checked on its own (on OpenMP's threads), then the batch's events of the window appended
+/// in order. Errors are raised in file order, so the result and every message are those of a
+/// packet-by-packet read. A batch holds up to kBatch packets of up to aedat4_slot_body bytes decompressed; a
+/// larger packet (up to kAedat4MaxPacket) is decompressed again alone. The origin is the whole second at or
+/// before the first event.
+class Aedat4Events {
+ public:
+  static constexpr std::size_t kBatch = 32;
+  Aedat4Events(const Aedat4File& in, Aedat4Info& info, int width, int height, const LoadOptions& opt, events::EventStream& ev)
+      : in_(in), info_(info), w_(width), h_(height), t0_(opt.t_begin), t1_(opt.t_end), progress_(opt.progress), ev_(ev), slots_(kBatch) {
+    ev_.width = width, ev_.height = height;
+  }
+  /// Whether event packet `e` is read: not once an event passed the window's end; the table's times let a
+  /// window skip the packets wholly before it, and those after it.
+  bool wanted(const Aedat4Entry& e) const {
+    return !(done_ || (have_origin_ && info_.table_used &&
+                       ((static_cast<double>(e.t_end) - static_cast<double>(origin_us_)) / 1e6 < t0_ ||
+                        (static_cast<double>(e.t_begin) - static_cast<double>(origin_us_)) / 1e6 >= t1_)));
+  }
+  /// Reads event packet `e` into the batch, decoding the batch when it is full.
+  void add(const Aedat4Entry& e) {
+    auto& s = slots_[m_++];
+    s.pos = static_cast<std::uint64_t>(e.offset), s.stream = e.stream;
+    in_.read_at(s.pos + 8, static_cast<std::size_t>(e.size), s.raw, "a packet");
+    read_to_ = s.pos + 8 + static_cast<std::uint64_t>(e.size);
+    batch_bytes_ += s.raw.size();
+    // The first packet alone: its first event sets the origin the table's times are compared with.
+    if (m_ == kBatch || batch_bytes_ >= aedat4_slot_body || !have_origin_) flush();
+  }
+  /// Decodes the packets of the batch and appends their events.
+  void flush() {
+    batch_bytes_ = 0;
+    if (!m_) return;
+    decompress();
+    check();
+    const std::size_t used = place();
+    copy(used);
+    m_ = 0;
+    if (progress_) progress_(read_to_, in_.size());
+  }
+  bool have_origin() const { return have_origin_; }
+  std::int64_t origin_us() const { return origin_us_; }
+
+ private:
+  /// Every packet decompressed and parsed (an oversized one again alone, in order); the origin from the
+  /// first event.
+  void decompress() {
+    const std::string& file = in_.name();
+#pragma omp parallel for schedule(dynamic, 1) if (m_ > 1)
+    for (std::size_t k = 0; k < m_; ++k) {
+      auto& s = slots_[k];
+      s.error = nullptr, s.bad_event = nullptr, s.oversized = false, s.events = nullptr, s.n = 0;
+      s.decode(info_.compression, file, aedat4_slot_body);
+    }
+    for (std::size_t k = 0; k < m_; ++k) {
+      auto& s = slots_[k];
+      if (s.oversized) s.decode(info_.compression, file, kAedat4MaxPacket);  // alone, with the whole limit
+      if (s.error) break;
+      if (!have_origin_ && s.n) {
+        std::int64_t t;
+        std::memcpy(&t, s.events, 8);
+        const std::int64_t sec = t / 1000000 - (t % 1000000 < 0 ? 1 : 0);  // the whole second at or before it
+        if (sec < std::numeric_limits<std::int64_t>::min() / 1000000)
+          throw Error(s.where(file) + ": event 0: time " + std::to_string(t) + " µs is out of range");
+        origin_us_ = sec * 1000000;
+        have_origin_ = true;
+      }
+    }
+  }
+  /// Each packet's events checked, and its share of the window found (times are checked to run forwards
+  /// within it, so the window is one range); its last packet the first with an event at or after the end.
+  void check() {
+    const std::string& file = in_.name();
+#pragma omp parallel for schedule(dynamic, 1) if (m_ > 1)
+    for (std::size_t k = 0; k < m_; ++k) {
+      auto& s = slots_[k];
+      s.examined = s.lo = s.hi = 0, s.done = false;
+      if (s.error) continue;
+      std::int64_t prev = std::numeric_limits<std::int64_t>::min();
+      for (std::uint64_t i = 0; i < s.n; ++i) {
+        const unsigned char* p = s.events + 16 * i;
+        std::int64_t us;
+        std::int16_t x, y;
+        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
+        if (us < prev || x < 0 || y < 0 || x >= w_ || y >= h_) [[unlikely]] {
+          const std::string at = s.where(file) + ": event " + std::to_string(i);
+          s.bad_event = std::make_exception_ptr(
+              us < prev ? Error(at + ": time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(prev) + " µs)")
+                        : Error(at + " at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w_) +
+                                "x" + std::to_string(h_) + " sensor"));
+          break;
+        }
+        std::int64_t rel;
+        if (__builtin_sub_overflow(us, origin_us_, &rel)) [[unlikely]] {
+          s.bad_event =
+              std::make_exception_ptr(Error(s.where(file) + ": event " + std::to_string(i) + ": time " + std::to_string(us) +
+                                            " µs is out of range from the first event's second (" + std::to_string(origin_us_) + " µs)"));
+          break;
+        }
+        prev = us;
+        s.examined = i + 1;
+        const double t = static_cast<double>(rel) / 1e6;
+        if (t >= t1_) {
+          s.done = true;
+          break;
+        }
+        if (t < t0_) s.lo = i + 1;
+        s.hi = i + 1;
+      }
+    }
+  }
+  /// In file order: the first error, the times across packets, each packet's place in the stream, which
+  /// grows to hold them. Returns the packets used (those up to the window's end).
+  std::size_t place() {
+    const std::string& file = in_.name();
+    std::size_t used = 0, need = out_;
+    for (; used < m_ && !done_; ++used) {
+      auto& s = slots_[used];
+      if (s.error) std::rethrow_exception(s.error);
+      ++info_.packets;
+      if (s.n) {
+        std::int64_t first;
+        std::memcpy(&first, s.events, 8);
+        if (first < last_us_)
+          throw Error(s.where(file) + ": event 0: time runs backwards (" + std::to_string(first) + " µs after " + std::to_string(last_us_) +
+                      " µs)");
+      }
+      if (s.bad_event) std::rethrow_exception(s.bad_event);
+      if (s.examined) std::memcpy(&last_us_, s.events + 16 * (s.examined - 1), 8);
+      info_.events += s.examined;
+      s.out = need, need += s.hi - s.lo;
+      done_ = s.done;
+    }
+    info_.packets_skipped += m_ - used;
+    if (need > ev_.t.capacity()) {  // growing by half at least (huge pages, as RawSink's)
+      ev_.reserve(std::max(need, ev_.t.capacity() + ev_.t.capacity() / 2));
+      huge_pages(ev_.t), huge_pages(ev_.x), huge_pages(ev_.y), huge_pages(ev_.polarity);
+    }
+    ev_.t.resize(need), ev_.x.resize(need), ev_.y.resize(need), ev_.polarity.resize(need);
+    out_ = need;
+    return used;
+  }
+  /// The window's events of the first `used` packets, each packet to its place.
+  void copy(std::size_t used) {
+#pragma omp parallel for schedule(dynamic, 1) if (used > 1)
+    for (std::size_t k = 0; k < used; ++k) {
+      const auto& s = slots_[k];
+      for (std::uint64_t i = s.lo, o = s.out; i < s.hi; ++i, ++o) {
+        const unsigned char* p = s.events + 16 * i;
+        std::int64_t us;
+        std::uint16_t x, y;
+        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
+        ev_.t[o] = static_cast<double>(us - origin_us_) / 1e6;
+        ev_.x[o] = x, ev_.y[o] = y;
+        ev_.polarity[o] = static_cast<std::int8_t>(p[12] != 0 ? 1 : -1);
+      }
+    }
+  }
+
+  const Aedat4File& in_;
+  Aedat4Info& info_;
+  const int w_, h_;
+  const double t0_, t1_;
+  const ReadProgress progress_;
+  events::EventStream& ev_;
+  std::vector<Aedat4Slot> slots_;
+  std::size_t m_ = 0, out_ = 0, batch_bytes_ = 0;
+  bool have_origin_ = false, done_ = false;
+  std::int64_t origin_us_ = 0, last_us_ = std::numeric_limits<std::int64_t>::min();
+  std::uint64_t read_to_ = 0;
+};
+
+/// Frame packet `e`: appended to `frames` (its time in µs, BGR turned RGB) where it covers the whole
+/// width × height sensor, counted in info.frames_skipped where it is a region of interest.
+inline void aedat4_frame(const Aedat4File& in, const Aedat4Entry& e, int w, int h, Aedat4Info& info, Frames& frames,
+                         std::vector<unsigned char>& raw, Aedat4Inflater& body) {
+  const std::uint64_t pos = static_cast<std::uint64_t>(e.offset);
+  const std::string where = in.name() + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(e.stream) + ")";
+  in.read_at(pos + 8, static_cast<std::size_t>(e.size), raw, "a packet");
+  body.inflate(info.compression, raw.data(), raw.size(), where);
+  const auto fb = size_prefixed(body.data(), body.size(), where);
+  const auto t = flat_root(fb, "a Frame");
+  ++info.packets;
+  const auto ts = t.scalar<std::int64_t>(0, 0);
+  const auto format = t.scalar<std::int8_t>(5, 0);
+  const int fw = t.scalar<std::int16_t>(6, 0), fh = t.scalar<std::int16_t>(7, 0);
+  const int px = t.scalar<std::int16_t>(8, 0), py = t.scalar<std::int16_t>(9, 0);
+  const int ch = format == 0 ? 1 : format == 16 ? 3 : format == 24 ? 4 : 0;
+  if (!ch) throw Error(where + ": frame format " + std::to_string(format) + " (known: 0 grey, 16 BGR, 24 BGRA)");
+  const auto [at, n] = t.vector(10, 1);
+  if (fw <= 0 || fh <= 0 || n != static_cast<std::uint64_t>(fw) * fh * ch)
+    throw Error(where + ": a " + std::to_string(fw) + "x" + std::to_string(fh) + " frame of " + std::to_string(ch) + " channels holds " +
+                std::to_string(n) + " bytes");
+  if (fw != w || fh != h || px || py) {  // a region of interest, not the sensor: no evaluation frame
+    ++info.frames_skipped;
+    return;
+  }
+  Image im(fw, fh, ch == 1 ? 1 : 3);
+  const unsigned char* p = fb.data() + at;
+  for (std::size_t q = 0; q < im.pixels(); ++q)
+    for (int c = 0; c < im.channels; ++c) im.data[q * im.channels + c] = p[q * ch + (ch == 1 ? 0 : 2 - c)] / 255.f;  // BGR → RGB
+  frames.t.push_back(static_cast<double>(ts));
+  frames.images.push_back(std::move(im));
+  ++info.frames;
+}
 
 }  // namespace detail
 
@@ -349,41 +712,10 @@ struct Aedat4Slot {
 /// counted), the origin in `origin_sec`, and what the header said in `info`.
 inline events::EventStream read_aedat4(const std::filesystem::path& path, const LoadOptions& opt, Aedat4Info& info, Frames& frames,
                                        std::int64_t& origin_sec) {
-  const std::string file = path.string();
   info = {};
-  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
-  if (!f) throw Error(file, 0, "cannot open file (missing or unreadable)");
-  std::error_code ec;
-  const std::uint64_t file_size = std::filesystem::file_size(path, ec);
-  if (ec) throw Error(file, 0, "cannot read its size");
-  auto read_at = [&](std::uint64_t pos, std::size_t n, std::vector<unsigned char>& buf, const char* what) {
-    if (pos > file_size || n > file_size - pos)
-      throw Error(file, 0,
-                  "byte " + std::to_string(pos) + ": " + what + " of " + std::to_string(n) + " bytes runs past the end of the file (" +
-                      std::to_string(file_size) + " bytes)");
-    buf.resize(n);
-    if (std::fseek(f.get(), static_cast<long>(pos), SEEK_SET) != 0 || std::fread(buf.data(), 1, n, f.get()) != n)
-      throw Error(file, 0, "byte " + std::to_string(pos) + ": read error");
-  };
-  std::vector<unsigned char> buf;
-  read_at(0, std::min<std::uint64_t>(file_size, detail::kAedat4MagicLen + 4), buf, "the header");
-  if (buf.size() < detail::kAedat4MagicLen || std::memcmp(buf.data(), detail::kAedat4Magic, detail::kAedat4MagicLen) != 0)
-    throw Error(file, 0, "byte 0: not an AEDAT 4.0 file (it does not start with '#!AER-DAT4.0')");
-  if (buf.size() < detail::kAedat4MagicLen + 4) throw Error(file, 0, "byte 14: the file ends before its IOHeader's size");
-  std::uint32_t header_size;
-  std::memcpy(&header_size, buf.data() + detail::kAedat4MagicLen, 4);
-  const std::uint64_t data_start = detail::kAedat4MagicLen + 4 + std::uint64_t(header_size);
-  read_at(detail::kAedat4MagicLen + 4, header_size, buf, "the IOHeader");
-  {
-    const detail::FlatBuf hb(buf.data(), buf.size(), file + ": byte 18 (the IOHeader)");
-    const auto h = detail::flat_root(hb, "the IOHeader");
-    info.compression = h.scalar<std::int32_t>(0, 0);
-    info.table_position = h.scalar<std::int64_t>(1, -1);
-    if (info.compression < 0 || info.compression > 4)
-      throw Error(file, 0,
-                  "byte 18 (the IOHeader): unknown compression " + std::to_string(info.compression) + " (known: 0 none … 4 Zstd high)");
-    info.streams = detail::aedat4_streams(h.string(2), file + ": the IOHeader's description");
-  }
+  const detail::Aedat4File in(path);
+  const std::string& file = in.name();
+  const std::uint64_t data_start = detail::aedat4_header(in, info);
   const Aedat4Stream* evs = nullptr;
   const Aedat4Stream* frs = nullptr;
   for (const auto& s : info.streams) {
@@ -398,230 +730,21 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   if (w <= 0 || h <= 0)
     throw Error(file, 0, "the event stream's description gives no sensor size (sizeX, sizeY): give it with --sensor-size WxH");
   check_sensor_size(w, h, file + " (the event stream's sizeX and sizeY)");
-  // The packets end where the data table starts (or at the end of the file).
+  // The packets end where the data table starts (or at the end of the file); the table lists them where it
+  // can, else they are walked.
   const std::uint64_t data_end =
-      info.table_position >= static_cast<std::int64_t>(data_start) && static_cast<std::uint64_t>(info.table_position) <= file_size
+      info.table_position >= static_cast<std::int64_t>(data_start) && static_cast<std::uint64_t>(info.table_position) <= in.size()
           ? static_cast<std::uint64_t>(info.table_position)
-          : file_size;
-  // The data table, where it is readable and agrees with the packets: the list of packets to read.
+          : in.size();
   std::vector<detail::Aedat4Entry> entries;
-  if (info.table_position >= 0) {
-    try {
-      if (static_cast<std::uint64_t>(info.table_position) < data_start || static_cast<std::uint64_t>(info.table_position) >= file_size)
-        throw Error("its position " + std::to_string(info.table_position) + " lies outside the file");
-      if (file_size - info.table_position > detail::kAedat4MaxPacket)
-        throw Error("larger than " + std::to_string(detail::kAedat4MaxPacket >> 20) + " MiB");
-      read_at(static_cast<std::uint64_t>(info.table_position), file_size - info.table_position, buf, "the data table");
-      const std::string where = "byte " + std::to_string(info.table_position) + " (the data table)";
-      detail::Aedat4Inflater body;
-      body.inflate(info.compression, buf.data(), buf.size(), where);
-      const auto fb = detail::size_prefixed(body.data(), body.size(), where);
-      const auto t = detail::flat_root(fb, "the data table");
-      const auto [at, n] = t.vector(0, 4);
-      std::uint64_t prev_end = data_start;
-      for (std::uint64_t k = 0; k < n; ++k) {
-        const auto ent = detail::FlatTable(fb, at + 4 * k + fb.get<std::uint32_t>(at + 4 * k, "an entry offset"), "an entry");
-        detail::Aedat4Entry e;
-        e.offset = ent.scalar<std::int64_t>(0, 0);
-        if (const auto ph = ent.field(1, 8))
-          e.stream = fb.get<std::int32_t>(ph, "a packet header"), e.size = fb.get<std::int32_t>(ph + 4, "a packet header");
-        e.elements = ent.scalar<std::int64_t>(2, 0);
-        e.t_begin = ent.scalar<std::int64_t>(3, 0);
-        e.t_end = ent.scalar<std::int64_t>(4, 0);
-        if (e.offset < static_cast<std::int64_t>(prev_end) || e.size < 0 || static_cast<std::uint64_t>(e.offset) + 8 + e.size > data_end)
-          throw Error("entry " + std::to_string(k) + " names a packet at byte " + std::to_string(e.offset) +
-                      " that is not in the data section");
-        prev_end = static_cast<std::uint64_t>(e.offset) + 8 + e.size;
-        entries.push_back(e);
-      }
-      // Its packets' headers must be where it says.
-      for (const auto& e : entries) {
-        read_at(static_cast<std::uint64_t>(e.offset), 8, buf, "a packet header");
-        std::int32_t sid, size;
-        std::memcpy(&sid, buf.data(), 4), std::memcpy(&size, buf.data() + 4, 4);
-        if (sid != e.stream || size != e.size) throw Error("its packet at byte " + std::to_string(e.offset) + " has another header");
-      }
-      info.table_used = true;
-    } catch (const Error& e) {
-      entries.clear();
-      info.table_note = "data table not used (" + e.message() + "); the packets were walked";
-    }
-  }
-  if (!info.table_used) {
-    // Packets run to the end of the file where no data table follows them: a recording cut short (the
-    // recorder stopped before it wrote the table) ends inside its last packet, which is dropped with a warning.
-    const bool to_end = data_end == file_size;
-    auto cut_short = [&](std::uint64_t pos, const std::string& what) {
-      warn(file + ": byte " + std::to_string(pos) + ": " + what + " (a recording cut short); read to the last whole packet, " +
-           std::to_string(file_size - pos) + " bytes dropped");
-    };
-    for (std::uint64_t pos = data_start; pos < data_end;) {
-      if (data_end - pos < 8) {
-        if (!to_end) throw Error(file, 0, "byte " + std::to_string(pos) + ": the data table starts inside a packet header");
-        cut_short(pos, "the file ends inside a packet header");
-        break;
-      }
-      read_at(pos, 8, buf, "a packet header");
-      detail::Aedat4Entry e;
-      e.offset = static_cast<std::int64_t>(pos);
-      std::memcpy(&e.stream, buf.data(), 4), std::memcpy(&e.size, buf.data() + 4, 4);
-      if (e.size <= 0)
-        throw Error(
-            file, 0,
-            "byte " + std::to_string(pos) + ": packet of stream " + std::to_string(e.stream) + " with size " + std::to_string(e.size));
-      if (data_end - pos - 8 < static_cast<std::uint64_t>(e.size)) {
-        if (!to_end)
-          throw Error(file, 0, "byte " + std::to_string(pos) + ": packet of " + std::to_string(e.size) + " bytes runs into the data table");
-        cut_short(pos, "packet of " + std::to_string(e.size) + " bytes runs past the end of the file");
-        break;
-      }
-      e.t_begin = std::numeric_limits<std::int64_t>::min(), e.t_end = std::numeric_limits<std::int64_t>::max();
-      entries.push_back(e);
-      pos += 8 + static_cast<std::uint64_t>(e.size);
-    }
-  }
+  if (info.table_position >= 0) entries = detail::aedat4_table(in, info, data_start, data_end);
+  if (!info.table_used) entries = detail::aedat4_walk(in, data_start, data_end);
   events::EventStream ev;
-  ev.width = w, ev.height = h;
-  // Event packets are read in file order and decoded in batches: each packet decompressed, parsed and its
-  // events checked on its own (on OpenMP's threads), then the batch's events of the window appended in order.
-  // Errors are raised in file order, so the result and every message are those of a packet-by-packet read.
-  // A batch holds up to kBatch packets of up to aedat4_slot_body bytes decompressed; a larger packet (up to
-  // kAedat4MaxPacket) is decompressed again alone.
-  constexpr std::size_t kBatch = 32;
-  const std::size_t slot_body = detail::aedat4_slot_body;
-  std::vector<detail::Aedat4Slot> slots(kBatch);
-  std::size_t m = 0, out = 0;
-  bool have_origin = false, done = false;
-  std::int64_t origin_us = 0, last_us = std::numeric_limits<std::int64_t>::min();
-  std::uint64_t read_to = 0;
-  const double t0 = opt.t_begin, t1 = opt.t_end;
-  auto flush = [&] {
-    if (!m) return;
-#pragma omp parallel for schedule(dynamic, 1) if (m > 1)
-    for (std::size_t k = 0; k < m; ++k) {
-      auto& s = slots[k];
-      s.error = nullptr, s.bad_event = nullptr, s.oversized = false, s.events = nullptr, s.n = 0;
-      try {
-        const std::string where = s.where(file);
-        if (!s.body.inflate(info.compression, s.raw.data(), s.raw.size(), slot_body, where)) {
-          s.oversized = true;
-          continue;
-        }
-        const auto fb = detail::size_prefixed(s.body.data(), s.body.size(), where);
-        const auto [at, n] = detail::flat_root(fb, "an EventPacket").vector(0, 16);
-        s.events = fb.data() + at, s.n = n;
-      } catch (...) {
-        s.error = std::current_exception();
-      }
-    }
-    for (std::size_t k = 0; k < m; ++k) {
-      auto& s = slots[k];
-      if (s.oversized) try {  // alone, with the whole limit
-          const std::string where = s.where(file);
-          s.body.inflate(info.compression, s.raw.data(), s.raw.size(), where);
-          const auto fb = detail::size_prefixed(s.body.data(), s.body.size(), where);
-          const auto [at, n] = detail::flat_root(fb, "an EventPacket").vector(0, 16);
-          s.events = fb.data() + at, s.n = n;
-        } catch (...) {
-          s.error = std::current_exception();
-        }
-      if (s.error) break;
-      if (!have_origin && s.n) {
-        std::int64_t t;
-        std::memcpy(&t, s.events, 8);
-        const std::int64_t sec = t / 1000000 - (t % 1000000 < 0 ? 1 : 0);  // the whole second at or before it
-        if (sec < std::numeric_limits<std::int64_t>::min() / 1000000)
-          throw Error(s.where(file) + ": event 0: time " + std::to_string(t) + " µs is out of range");
-        origin_us = sec * 1000000;
-        origin_sec = origin_us / 1000000;
-        have_origin = true;
-      }
-    }
-    // Each packet's events checked, and its share of the window found (times are checked to run forwards
-    // within it, so the window is one range); its last packet the first with an event at or after the end.
-#pragma omp parallel for schedule(dynamic, 1) if (m > 1)
-    for (std::size_t k = 0; k < m; ++k) {
-      auto& s = slots[k];
-      s.examined = s.lo = s.hi = 0, s.done = false;
-      if (s.error) continue;
-      std::int64_t prev = std::numeric_limits<std::int64_t>::min();
-      for (std::uint64_t i = 0; i < s.n; ++i) {
-        const unsigned char* p = s.events + 16 * i;
-        std::int64_t us;
-        std::int16_t x, y;
-        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
-        if (us < prev || x < 0 || y < 0 || x >= w || y >= h) [[unlikely]] {
-          const std::string at = s.where(file) + ": event " + std::to_string(i);
-          s.bad_event = std::make_exception_ptr(
-              us < prev ? Error(at + ": time runs backwards (" + std::to_string(us) + " µs after " + std::to_string(prev) + " µs)")
-                        : Error(at + " at x " + std::to_string(x) + ", y " + std::to_string(y) + " outside the " + std::to_string(w) + "x" +
-                                std::to_string(h) + " sensor"));
-          break;
-        }
-        std::int64_t rel;
-        if (__builtin_sub_overflow(us, origin_us, &rel)) [[unlikely]] {
-          s.bad_event =
-              std::make_exception_ptr(Error(s.where(file) + ": event " + std::to_string(i) + ": time " + std::to_string(us) +
-                                            " µs is out of range from the first event's second (" + std::to_string(origin_us) + " µs)"));
-          break;
-        }
-        prev = us;
-        s.examined = i + 1;
-        const double t = static_cast<double>(rel) / 1e6;
-        if (t >= t1) {
-          s.done = true;
-          break;
-        }
-        if (t < t0) s.lo = i + 1;
-        s.hi = i + 1;
-      }
-    }
-    // In file order: the first error, the times across packets, the events' places.
-    std::size_t used = 0, need = out;
-    for (; used < m && !done; ++used) {
-      auto& s = slots[used];
-      if (s.error) std::rethrow_exception(s.error);
-      ++info.packets;
-      if (s.n) {
-        std::int64_t first;
-        std::memcpy(&first, s.events, 8);
-        if (first < last_us)
-          throw Error(s.where(file) + ": event 0: time runs backwards (" + std::to_string(first) + " µs after " + std::to_string(last_us) +
-                      " µs)");
-      }
-      if (s.bad_event) std::rethrow_exception(s.bad_event);
-      if (s.examined) std::memcpy(&last_us, s.events + 16 * (s.examined - 1), 8);
-      info.events += s.examined;
-      s.out = need, need += s.hi - s.lo;
-      done = s.done;
-    }
-    info.packets_skipped += m - used;
-    if (need > ev.t.capacity()) {  // growing by half at least (huge pages, as RawSink's)
-      ev.reserve(std::max(need, ev.t.capacity() + ev.t.capacity() / 2));
-      huge_pages(ev.t), huge_pages(ev.x), huge_pages(ev.y), huge_pages(ev.polarity);
-    }
-    ev.t.resize(need), ev.x.resize(need), ev.y.resize(need), ev.polarity.resize(need);
-#pragma omp parallel for schedule(dynamic, 1) if (used > 1)
-    for (std::size_t k = 0; k < used; ++k) {
-      const auto& s = slots[k];
-      for (std::uint64_t i = s.lo, o = s.out; i < s.hi; ++i, ++o) {
-        const unsigned char* p = s.events + 16 * i;
-        std::int64_t us;
-        std::uint16_t x, y;
-        std::memcpy(&us, p, 8), std::memcpy(&x, p + 8, 2), std::memcpy(&y, p + 10, 2);
-        ev.t[o] = static_cast<double>(us - origin_us) / 1e6;
-        ev.x[o] = x, ev.y[o] = y;
-        ev.polarity[o] = static_cast<std::int8_t>(p[12] != 0 ? 1 : -1);
-      }
-    }
-    out = need;
-    m = 0;
-    if (opt.progress) opt.progress(read_to, file_size);
-  };
+  detail::Aedat4Events reader(in, info, w, h, opt, ev);
   // A whole file whose table counts its events: reserved at once, so that the stream is not copied as it
   // grows; never more than an event a byte of its packets (16:1, more than recorded events compress), so that
   // a table's count bounds nothing but the file does.
-  if (info.table_used && !std::isfinite(t0) && !std::isfinite(t1)) {
+  if (info.table_used && !std::isfinite(opt.t_begin) && !std::isfinite(opt.t_end)) {
     std::uint64_t count = 0;
     for (const auto& e : entries)
       if (e.stream == evs->id)
@@ -631,70 +754,25 @@ inline events::EventStream read_aedat4(const std::filesystem::path& path, const 
   }
   std::vector<unsigned char> frame_raw;
   detail::Aedat4Inflater frame_body;
-  std::size_t batch_bytes = 0;
   for (const auto& e : entries) {
-    const bool is_ev = e.stream == evs->id, is_fr = frs && e.stream == frs->id;
-    if (!is_ev && !is_fr) {
+    if (e.stream == evs->id) {
+      if (reader.wanted(e)) reader.add(e);
+      else ++info.packets_skipped;
+    } else if (frs && e.stream == frs->id) {
+      reader.flush();  // the packets before it first: the frames stay in file order
+      detail::aedat4_frame(in, e, w, h, info, frames, frame_raw, frame_body);
+      if (opt.progress) opt.progress(static_cast<std::uint64_t>(e.offset) + 8 + static_cast<std::uint64_t>(e.size), in.size());
+    } else {
       ++info.packets_skipped;
-      continue;
-    }
-    const std::uint64_t pos = static_cast<std::uint64_t>(e.offset);
-    if (is_ev) {
-      // Once an event passed the window's end no event packet is read; the table's times let a window skip
-      // the packets wholly before it, and those after it.
-      if (done || (have_origin && info.table_used &&
-                   ((static_cast<double>(e.t_end) - static_cast<double>(origin_us)) / 1e6 < t0 ||
-                    (static_cast<double>(e.t_begin) - static_cast<double>(origin_us)) / 1e6 >= t1))) {
-        ++info.packets_skipped;
-        continue;
-      }
-      auto& s = slots[m++];
-      s.pos = pos, s.stream = e.stream;
-      read_at(pos + 8, static_cast<std::size_t>(e.size), s.raw, "a packet");
-      read_to = pos + 8 + static_cast<std::uint64_t>(e.size);
-      batch_bytes += s.raw.size();
-      // The first packet alone: its first event sets the origin the table's times are compared with.
-      if (m == kBatch || batch_bytes >= slot_body || !have_origin) flush(), batch_bytes = 0;
-      continue;
-    }
-    flush(), batch_bytes = 0;  // the packets before it first: the frames stay in file order
-    const std::string where = file + ": byte " + std::to_string(pos) + " (packet of stream " + std::to_string(e.stream) + ")";
-    read_at(pos + 8, static_cast<std::size_t>(e.size), frame_raw, "a packet");
-    frame_body.inflate(info.compression, frame_raw.data(), frame_raw.size(), where);
-    const auto fb = detail::size_prefixed(frame_body.data(), frame_body.size(), where);
-    const auto t = detail::flat_root(fb, "a Frame");
-    ++info.packets;
-    if (opt.progress) opt.progress(pos + 8 + static_cast<std::uint64_t>(e.size), file_size);
-    {
-      const auto ts = t.scalar<std::int64_t>(0, 0);
-      const auto format = t.scalar<std::int8_t>(5, 0);
-      const int fw = t.scalar<std::int16_t>(6, 0), fh = t.scalar<std::int16_t>(7, 0);
-      const int px = t.scalar<std::int16_t>(8, 0), py = t.scalar<std::int16_t>(9, 0);
-      const int ch = format == 0 ? 1 : format == 16 ? 3 : format == 24 ? 4 : 0;
-      if (!ch) throw Error(where + ": frame format " + std::to_string(format) + " (known: 0 grey, 16 BGR, 24 BGRA)");
-      const auto [at, n] = t.vector(10, 1);
-      if (fw <= 0 || fh <= 0 || n != static_cast<std::uint64_t>(fw) * fh * ch)
-        throw Error(where + ": a " + std::to_string(fw) + "x" + std::to_string(fh) + " frame of " + std::to_string(ch) +
-                    " channels holds " + std::to_string(n) + " bytes");
-      if (fw != w || fh != h || px || py) {  // a region of interest, not the sensor: no evaluation frame
-        ++info.frames_skipped;
-        continue;
-      }
-      Image im(fw, fh, ch == 1 ? 1 : 3);
-      const unsigned char* p = fb.data() + at;
-      for (std::size_t q = 0; q < im.pixels(); ++q)
-        for (int c = 0; c < im.channels; ++c) im.data[q * im.channels + c] = p[q * ch + (ch == 1 ? 0 : 2 - c)] / 255.f;  // BGR → RGB
-      frames.t.push_back(static_cast<double>(ts));
-      frames.images.push_back(std::move(im));
-      ++info.frames;
     }
   }
-  flush();
-  if (!have_origin) throw Error(file, 0, "no events in its event stream " + std::to_string(evs->id));
+  reader.flush();
+  if (!reader.have_origin()) throw Error(file, 0, "no events in its event stream " + std::to_string(evs->id));
+  origin_sec = reader.origin_us() / 1000000;
   if (ev.t.capacity() > 2 * ev.t.size() + 4096)
     ev.t.shrink_to_fit(), ev.x.shrink_to_fit(), ev.y.shrink_to_fit(), ev.polarity.shrink_to_fit();
   // Frame times in seconds from the origin, in time order.
-  for (double& t : frames.t) t = (t - static_cast<double>(origin_us)) / 1e6;
+  for (double& t : frames.t) t = (t - static_cast<double>(reader.origin_us())) / 1e6;
   for (std::size_t k = 1; k < frames.t.size(); ++k)
     if (frames.t[k] < frames.t[k - 1]) throw Error(file, 0, "frame " + std::to_string(k) + "'s time runs backwards");
   return ev;

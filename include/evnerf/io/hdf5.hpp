@@ -301,6 +301,198 @@ inline bool is_hdf5(const std::filesystem::path& path) {
   return ok;
 }
 
+namespace detail {
+
+/// The frames of an event_utils file (images/image*, each with a `timestamp` attribute), in name order,
+/// into rec.frames and rec.frame_times.
+inline void h5_frames(hid_t f, const std::string& file, Hdf5Recording& rec) {
+  const H5Id group(H5Gopen2(f, "images", H5P_DEFAULT), H5Gclose);
+  hsize_t count = 0;
+  if (!group.ok() || H5Gget_num_objs(group.get(), &count) < 0) throw Error(file, 0, "group 'images' cannot be read");
+  std::vector<std::pair<double, std::string>> named;
+  for (hsize_t i = 0; i < count; ++i) {
+    char name[256] = {};
+    if (H5Gget_objname_by_idx(group.get(), i, name, sizeof name) <= 0) continue;
+    if (std::strncmp(name, "image", 5) != 0) continue;
+    const std::string full = std::string("images/") + name;
+    const H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!set.ok()) throw Error(file, 0, "dataset '" + full + "' cannot be opened");
+    const auto ts = h5_attribute(set.get(), "timestamp", 1);
+    if (ts.size() != 1 || !std::isfinite(ts[0])) throw Error(file, 0, "dataset '" + full + "' has no numeric 'timestamp' attribute");
+    named.emplace_back(ts[0], full);
+  }
+  std::sort(named.begin(), named.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+  for (const auto& [t, full] : named) {
+    const H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
+    const H5Id space(H5Dget_space(set.get()), H5Sclose);
+    const int rank = H5Sget_simple_extent_ndims(space.get());
+    hsize_t dims[3] = {0, 0, 1};
+    if (rank < 2 || rank > 3 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
+      throw Error(file, 0, "dataset '" + full + "' is not an H×W or H×W×C image");
+    const H5Id type(H5Dget_type(set.get()), H5Tclose);
+    if (!type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) != 1)
+      throw Error(file, 0, "dataset '" + full + "' is not an 8-bit image");
+    if (dims[0] == 0 || dims[1] == 0 || dims[0] > 65535 || dims[1] > 65535 || dims[0] * dims[1] > std::uint64_t{1} << 26 ||
+        (dims[2] != 1 && dims[2] != 3))
+      throw Error(file, 0,
+                  "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                      std::to_string(dims[2]) + ")");
+    if (!rec.frame_times.empty() && t < rec.frame_times.back())
+      throw Error(file, 0, "dataset '" + full + "': frame timestamps go back in time");
+    std::vector<unsigned char> px8(dims[0] * dims[1] * dims[2]);
+    if (H5Dread(set.get(), H5T_NATIVE_UCHAR, H5S_ALL, H5S_ALL, H5P_DEFAULT, px8.data()) < 0)
+      throw Error(file, 0, "dataset '" + full + "': read error (an image must hold 8-bit values)");
+    Image img(static_cast<int>(dims[1]), static_cast<int>(dims[0]), static_cast<int>(dims[2]));
+    for (std::size_t i = 0; i < px8.size(); ++i) img.data[i] = px8[i] / 255.f;
+    rec.frame_times.push_back(t);
+    rec.frames.push_back(std::move(img));
+  }
+}
+
+/// The sensor's size into rec: the caller's (width, height > 0), else the file's `sensor_resolution`
+/// attribute, else its first frame's; left 0 where none gives it (the events then do).
+inline void h5_sensor_size(hid_t f, const std::string& file, int width, int height, Hdf5Recording& rec) {
+  if (const auto res = h5_attribute(f, "sensor_resolution", 2); res.size() == 2) {
+    for (double v : res)
+      if (!(v >= 1 && v <= 65535) || v != std::floor(v))
+        throw Error(file, 0,
+                    "attribute 'sensor_resolution' (" + short_number(res[0]) + ", " + short_number(res[1]) +
+                        ") is not a height and width of 1 to 65535 pixels");
+    rec.height = static_cast<int>(res[0]);
+    rec.width = static_cast<int>(res[1]);
+  } else if (!rec.frames.empty()) {
+    rec.width = rec.frames[0].width;
+    rec.height = rec.frames[0].height;
+  }
+  if (width > 0 && height > 0) rec.width = width, rec.height = height;
+}
+
+/// DSEC's `t_offset` (µs the event times count from), 0 where the file has none.
+inline double h5_t_offset(hid_t f, const std::string& file) {
+  if (!h5_exists(f, "t_offset")) return 0;
+  const H5Id set(H5Dopen2(f, "t_offset", H5P_DEFAULT), H5Dclose);
+  const H5Id type(set.ok() ? H5Dget_type(set.get()) : -1, H5Tclose);
+  const H5Id space(set.ok() ? H5Dget_space(set.get()) : -1, H5Sclose);
+  std::int64_t v = 0;
+  if (!set.ok() || !type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) > 8 || !space.ok() ||
+      H5Sget_simple_extent_npoints(space.get()) != 1 || H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
+    throw Error(file, 0, "dataset 't_offset' cannot be read as an integer (microseconds)");
+  return static_cast<double>(v);
+}
+
+/// DSEC's `ms_to_idx` (entry k: the first event at or after k ms of the raw times), checked to run forwards
+/// within the n events; empty where the file has none.
+inline std::vector<std::uint64_t> h5_ms_index(hid_t f, const std::string& file, std::size_t n, std::uint64_t bytes) {
+  std::vector<std::uint64_t> ms_index;
+  if (!h5_exists(f, "ms_to_idx")) return ms_index;
+  const H5Vector idx(f, "ms_to_idx", file);
+  if (idx.size() > 16 * static_cast<std::size_t>(bytes))
+    throw Error(file, 0,
+                "dataset 'ms_to_idx' claims " + std::to_string(idx.size()) + " entries in a file of " + std::to_string(bytes) + " bytes");
+  ms_index.resize(idx.size());
+  idx.read(0, ms_index.size(), ms_index.data());
+  for (std::size_t k = 0; k < ms_index.size(); ++k)
+    if (ms_index[k] > n || (k > 0 && ms_index[k] < ms_index[k - 1]))
+      throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
+  return ms_index;
+}
+
+/// The four event datasets of either layout and how their times read (seconds = (t + t_offset) · t_scale).
+struct H5EventSets {
+  H5Vector xs, ys, ts, ps;
+  std::string pt, pp;  ///< the times' and polarities' dataset names
+  double t_offset = 0, t_scale = 1;
+};
+
+/// Events [i0, i1) of the datasets into rec.events (in blocks of kHdf5Block, each event checked: finite
+/// times running forwards, pixels on the sensor, polarities 0/1 or ±1), rec's size from the events where
+/// it has none. `progress` hears of the elements read, in the file's bytes.
+inline void h5_read_events(const H5EventSets& d, const std::string& file, std::size_t i0, std::size_t i1, std::uint64_t bytes,
+                           const ReadProgress& progress, Hdf5Recording& rec) {
+  auto& ev = rec.events;
+  const std::size_t count = i1 - i0;
+  rec.events_read = count;
+  ev.t.resize(count);
+  ev.x.resize(count);
+  ev.y.resize(count);
+  ev.polarity.resize(count);
+  std::vector<std::int64_t> bx(std::min(count, kHdf5Block)), by(bx.size()), bp(bx.size());
+  std::vector<double> bt(bx.size());
+  std::int64_t max_x = -1, max_y = -1;
+  const std::int64_t lim_x = rec.width > 0 ? rec.width : 65535, lim_y = rec.height > 0 ? rec.height : 65535;
+  double last = -INFINITY;
+  // After `parts` of the block at b (four datasets each), the share of the elements read, in the file's bytes.
+  auto report = [&](std::size_t b, std::size_t m, int parts) {
+    if (!progress || count == 0) return;
+    const double share = (4.0 * static_cast<double>(b - i0) + parts * static_cast<double>(m)) / (4.0 * static_cast<double>(count));
+    progress(static_cast<std::uint64_t>(share * static_cast<double>(bytes)), bytes);
+  };
+  for (std::size_t b = i0; b < i1; b += kHdf5Block) {
+    const std::size_t m = std::min(kHdf5Block, i1 - b);
+    d.xs.read(b, m, bx.data());
+    report(b, m, 1);
+    d.ys.read(b, m, by.data());
+    report(b, m, 2);
+    d.ps.read(b, m, bp.data());
+    report(b, m, 3);
+    if (d.ts.floating()) {
+      d.ts.read(b, m, bt.data());
+    } else {  // integer timestamps (DSEC's µs): read exactly, then scale
+      std::vector<std::int64_t> ti(m);
+      d.ts.read(b, m, ti.data());
+      for (std::size_t i = 0; i < m; ++i) bt[i] = static_cast<double>(ti[i]);
+    }
+    report(b, m, 4);
+    for (std::size_t i = 0; i < m; ++i) {
+      const std::size_t k = b + i;
+      const double t = (bt[i] + d.t_offset) * d.t_scale;
+      if (!std::isfinite(t)) throw Error(file, 0, "dataset '" + d.pt + "', event " + std::to_string(k) + ": time is not finite");
+      if (t < last)
+        throw Error(file, 0,
+                    "dataset '" + d.pt + "', event " + std::to_string(k) + ": time " + short_number(t) + " s goes back (previous " +
+                        short_number(last) + " s)");
+      if (bx[i] < 0 || by[i] < 0 || bx[i] >= lim_x || by[i] >= lim_y)
+        throw Error(file, 0,
+                    "event " + std::to_string(k) + ": pixel (" + std::to_string(bx[i]) + ", " + std::to_string(by[i]) +
+                        ") lies outside the " + std::to_string(lim_x) + "x" + std::to_string(lim_y) + " sensor");
+      if (bp[i] != 0 && bp[i] != 1 && bp[i] != -1)
+        throw Error(file, 0,
+                    "dataset '" + d.pp + "', event " + std::to_string(k) + ": unknown polarity " + std::to_string(bp[i]) +
+                        " (expected 0/1 or -1/1)");
+      last = t;
+      max_x = std::max(max_x, bx[i]);
+      max_y = std::max(max_y, by[i]);
+      ev.t[k - i0] = t;
+      ev.x[k - i0] = static_cast<std::uint16_t>(bx[i]);
+      ev.y[k - i0] = static_cast<std::uint16_t>(by[i]);
+      ev.polarity[k - i0] = static_cast<std::int8_t>(bp[i] == 1 ? 1 : -1);
+    }
+  }
+  if (rec.width <= 0 || rec.height <= 0) {
+    rec.width = static_cast<int>(max_x + 1);
+    rec.height = static_cast<int>(max_y + 1);
+  }
+  ev.width = rec.width;
+  ev.height = rec.height;
+}
+
+/// Refuses a ms_to_idx that disagrees with events [i0, i1) of n as read (entries pointing at events this
+/// read skipped are checked only for order, which h5_ms_index did).
+inline void h5_check_ms_index(const std::vector<std::uint64_t>& ms_index, const events::EventStream& ev, double t_offset, std::size_t i0,
+                              std::size_t i1, std::size_t n, const std::string& file) {
+  if (ms_index.empty()) return;
+  if (i0 == 0 && i1 == n && ms_index.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
+    throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(ms_index.size()) + " entries, more than the events' milliseconds");
+  auto raw_ms = [&](std::size_t j) { return (ev.t[j - i0] - t_offset * 1e-6) * 1e3; };
+  for (std::size_t k = 0; k < ms_index.size(); ++k) {
+    const std::size_t v = ms_index[k];
+    const bool bad = (v >= i0 && v < i1 && raw_ms(v) < double(k) - 1e-6) || (v > i0 && v <= i1 && raw_ms(v - 1) >= double(k) + 1e-6);
+    if (bad) throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
+  }
+}
+
+}  // namespace detail
+
 /// Reads an event HDF5 file of either layout. `width`/`height` (when > 0) bound the pixel coordinates;
 /// otherwise the file's `sensor_resolution` or first frame does, else the largest coordinate + 1.
 /// `progress` (where set) hears of the events read, in bytes of the file (see the header's comment).
@@ -325,195 +517,46 @@ inline Hdf5Recording read_hdf5(const std::filesystem::path& path, int width = 0,
                     pp = eu ? "events/ps" : "events/p";
   for (const auto& name : {py, pt, pp})
     if (!detail::h5_exists(f, name)) throw Error(file, 0, "dataset '" + name + "' is missing (" + rec.layout + " layout)");
+  if (eu && detail::h5_exists(f, "images")) detail::h5_frames(f, file, rec);
+  detail::h5_sensor_size(f, file, width, height, rec);
 
-  // Frames (event_utils): images/image*, each with a timestamp.
-  if (eu && detail::h5_exists(f, "images")) {
-    const detail::H5Id group(H5Gopen2(f, "images", H5P_DEFAULT), H5Gclose);
-    hsize_t count = 0;
-    if (!group.ok() || H5Gget_num_objs(group.get(), &count) < 0) throw Error(file, 0, "group 'images' cannot be read");
-    std::vector<std::pair<double, std::string>> named;
-    for (hsize_t i = 0; i < count; ++i) {
-      char name[256] = {};
-      if (H5Gget_objname_by_idx(group.get(), i, name, sizeof name) <= 0) continue;
-      if (std::strncmp(name, "image", 5) != 0) continue;
-      const std::string full = std::string("images/") + name;
-      const detail::H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
-      if (!set.ok()) throw Error(file, 0, "dataset '" + full + "' cannot be opened");
-      const auto ts = detail::h5_attribute(set.get(), "timestamp", 1);
-      if (ts.size() != 1 || !std::isfinite(ts[0])) throw Error(file, 0, "dataset '" + full + "' has no numeric 'timestamp' attribute");
-      named.emplace_back(ts[0], full);
-    }
-    std::sort(named.begin(), named.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
-    for (const auto& [t, full] : named) {
-      const detail::H5Id set(H5Dopen2(f, full.c_str(), H5P_DEFAULT), H5Dclose);
-      const detail::H5Id space(H5Dget_space(set.get()), H5Sclose);
-      const int rank = H5Sget_simple_extent_ndims(space.get());
-      hsize_t dims[3] = {0, 0, 1};
-      if (rank < 2 || rank > 3 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
-        throw Error(file, 0, "dataset '" + full + "' is not an H×W or H×W×C image");
-      const detail::H5Id type(H5Dget_type(set.get()), H5Tclose);
-      if (!type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) != 1)
-        throw Error(file, 0, "dataset '" + full + "' is not an 8-bit image");
-      if (dims[0] == 0 || dims[1] == 0 || dims[0] > 65535 || dims[1] > 65535 || dims[0] * dims[1] > std::uint64_t{1} << 26 ||
-          (dims[2] != 1 && dims[2] != 3))
-        throw Error(file, 0,
-                    "dataset '" + full + "' has an unusable image shape (" + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
-                        std::to_string(dims[2]) + ")");
-      if (!rec.frame_times.empty() && t < rec.frame_times.back())
-        throw Error(file, 0, "dataset '" + full + "': frame timestamps go back in time");
-      std::vector<unsigned char> px8(dims[0] * dims[1] * dims[2]);
-      if (H5Dread(set.get(), H5T_NATIVE_UCHAR, H5S_ALL, H5S_ALL, H5P_DEFAULT, px8.data()) < 0)
-        throw Error(file, 0, "dataset '" + full + "': read error (an image must hold 8-bit values)");
-      Image img(static_cast<int>(dims[1]), static_cast<int>(dims[0]), static_cast<int>(dims[2]));
-      for (std::size_t i = 0; i < px8.size(); ++i) img.data[i] = px8[i] / 255.f;
-      rec.frame_times.push_back(t);
-      rec.frames.push_back(std::move(img));
-    }
-  }
-  if (const auto res = detail::h5_attribute(f, "sensor_resolution", 2); res.size() == 2) {
-    for (double v : res)
-      if (!(v >= 1 && v <= 65535) || v != std::floor(v))
-        throw Error(file, 0,
-                    "attribute 'sensor_resolution' (" + short_number(res[0]) + ", " + short_number(res[1]) +
-                        ") is not a height and width of 1 to 65535 pixels");
-    rec.height = static_cast<int>(res[0]);
-    rec.width = static_cast<int>(res[1]);
-  } else if (!rec.frames.empty()) {
-    rec.width = rec.frames[0].width;
-    rec.height = rec.frames[0].height;
-  }
-  if (width > 0 && height > 0) rec.width = width, rec.height = height;
-
-  const detail::H5Vector xs(f, px, file), ys(f, py, file), ts(f, pt, file), ps(f, pp, file);
-  for (const auto* v : {&xs, &ys, &ps})
+  const detail::H5EventSets d{detail::H5Vector(f, px, file),
+                              detail::H5Vector(f, py, file),
+                              detail::H5Vector(f, pt, file),
+                              detail::H5Vector(f, pp, file),
+                              pt,
+                              pp,
+                              dsec ? detail::h5_t_offset(f, file) : 0.0,
+                              eu ? 1.0 : 1e-6};
+  for (const auto* v : {&d.xs, &d.ys, &d.ps})
     if (v->floating()) throw Error(v->where() + " holds floating-point values (pixel coordinates and polarities are integers)");
-  const std::size_t n = xs.size();
-  if (ys.size() != n || ts.size() != n || ps.size() != n)
+  const std::size_t n = d.xs.size();
+  if (d.ys.size() != n || d.ts.size() != n || d.ps.size() != n)
     throw Error(file, 0,
-                "the event datasets differ in length (" + px + " " + std::to_string(n) + ", " + py + " " + std::to_string(ys.size()) +
-                    ", " + pt + " " + std::to_string(ts.size()) + ", " + pp + " " + std::to_string(ps.size()) + ")");
+                "the event datasets differ in length (" + px + " " + std::to_string(n) + ", " + py + " " + std::to_string(d.ys.size()) +
+                    ", " + pt + " " + std::to_string(d.ts.size()) + ", " + pp + " " + std::to_string(d.ps.size()) + ")");
   if (n == 0) throw Error(file, 0, "no events (the event datasets are empty)");
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(path, ec);
   if (ec || n > 16 * static_cast<std::size_t>(bytes))  // refuse an absurd extent before allocating for it
     throw Error(file, 0, "dataset '" + px + "' claims " + std::to_string(n) + " events in a file of " + std::to_string(bytes) + " bytes");
-  double t_offset = 0;  // DSEC: microseconds since t_offset
-  if (dsec && detail::h5_exists(f, "t_offset")) {
-    const detail::H5Id set(H5Dopen2(f, "t_offset", H5P_DEFAULT), H5Dclose);
-    const detail::H5Id type(set.ok() ? H5Dget_type(set.get()) : -1, H5Tclose);
-    const detail::H5Id space(set.ok() ? H5Dget_space(set.get()) : -1, H5Sclose);
-    std::int64_t v = 0;
-    if (!set.ok() || !type.ok() || H5Tget_class(type.get()) != H5T_INTEGER || H5Tget_size(type.get()) > 8 || !space.ok() ||
-        H5Sget_simple_extent_npoints(space.get()) != 1 || H5Dread(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0)
-      throw Error(file, 0, "dataset 't_offset' cannot be read as an integer (microseconds)");
-    t_offset = static_cast<double>(v);
-  }
-  const double t_scale = eu ? 1.0 : 1e-6;
 
-  // DSEC: ms_to_idx[k] is the first event at or after k ms (of the raw times, before t_offset). With a time
-  // window it bounds the events to read: those from ms_to_idx[floor] to ms_to_idx[ceil] of the window's
-  // ends, one more on each side so that the entries used are checked against the events like the others.
-  std::vector<std::uint64_t> ms_index;
-  if (dsec && detail::h5_exists(f, "ms_to_idx")) {
-    const detail::H5Vector idx(f, "ms_to_idx", file);
-    if (idx.size() > 16 * static_cast<std::size_t>(bytes))
-      throw Error(file, 0,
-                  "dataset 'ms_to_idx' claims " + std::to_string(idx.size()) + " entries in a file of " + std::to_string(bytes) + " bytes");
-    ms_index.resize(idx.size());
-    idx.read(0, ms_index.size(), ms_index.data());
-    for (std::size_t k = 0; k < ms_index.size(); ++k)
-      if (ms_index[k] > n || (k > 0 && ms_index[k] < ms_index[k - 1]))
-        throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
-  }
+  // DSEC: with a time window, ms_to_idx bounds the events to read: those from ms_to_idx[floor] to
+  // ms_to_idx[ceil] of the window's ends, one more on each side so that the entries used are checked
+  // against the events like the others.
+  const std::vector<std::uint64_t> ms_index = dsec ? detail::h5_ms_index(f, file, n, bytes) : std::vector<std::uint64_t>{};
   std::size_t i0 = 0, i1 = n;
   if (!ms_index.empty() && (std::isfinite(t_begin) || std::isfinite(t_end))) {
-    const double ms0 = t_begin * 1e3 - t_offset * 1e-3, ms1 = t_end * 1e3 - t_offset * 1e-3;
+    const double ms0 = t_begin * 1e3 - d.t_offset * 1e-3, ms1 = t_end * 1e3 - d.t_offset * 1e-3;
     const double last_k = static_cast<double>(ms_index.size() - 1);
     if (std::isfinite(t_begin) && ms0 > 0) i0 = ms_index[static_cast<std::size_t>(std::min(std::floor(ms0), last_k))];
     if (std::isfinite(t_end) && std::ceil(ms1) <= last_k) i1 = ms_index[static_cast<std::size_t>(std::max(0.0, std::ceil(ms1)))];
     i0 = i0 > 0 ? i0 - 1 : 0;
     i1 = std::min(n, std::max(i1, i0) + 1);
   }
-
-  auto& ev = rec.events;
-  const std::size_t count = i1 - i0;
-  rec.events_read = count;
-  ev.t.resize(count);
-  ev.x.resize(count);
-  ev.y.resize(count);
-  ev.polarity.resize(count);
-  std::vector<std::int64_t> bx(std::min(count, kHdf5Block)), by(bx.size()), bp(bx.size());
-  std::vector<double> bt(bx.size());
-  std::int64_t max_x = -1, max_y = -1;
-  const std::int64_t lim_x = rec.width > 0 ? rec.width : 65535, lim_y = rec.height > 0 ? rec.height : 65535;
-  double last = -INFINITY;
-  // After `parts` of the block at b (four datasets each), the share of the elements read, in the file's bytes.
-  auto report = [&](std::size_t b, std::size_t m, int parts) {
-    if (!progress || count == 0) return;
-    const double share = (4.0 * static_cast<double>(b - i0) + parts * static_cast<double>(m)) / (4.0 * static_cast<double>(count));
-    progress(static_cast<std::uint64_t>(share * static_cast<double>(bytes)), bytes);
-  };
-  for (std::size_t b = i0; b < i1; b += kHdf5Block) {
-    const std::size_t m = std::min(kHdf5Block, i1 - b);
-    xs.read(b, m, bx.data());
-    report(b, m, 1);
-    ys.read(b, m, by.data());
-    report(b, m, 2);
-    ps.read(b, m, bp.data());
-    report(b, m, 3);
-    if (ts.floating()) {
-      ts.read(b, m, bt.data());
-    } else {  // integer timestamps (DSEC's µs): read exactly, then scale
-      std::vector<std::int64_t> ti(m);
-      ts.read(b, m, ti.data());
-      for (std::size_t i = 0; i < m; ++i) bt[i] = static_cast<double>(ti[i]);
-    }
-    report(b, m, 4);
-    for (std::size_t i = 0; i < m; ++i) {
-      const std::size_t k = b + i;
-      const double t = (bt[i] + t_offset) * t_scale;
-      if (!std::isfinite(t)) throw Error(file, 0, "dataset '" + pt + "', event " + std::to_string(k) + ": time is not finite");
-      if (t < last)
-        throw Error(file, 0,
-                    "dataset '" + pt + "', event " + std::to_string(k) + ": time " + short_number(t) + " s goes back (previous " +
-                        short_number(last) + " s)");
-      if (bx[i] < 0 || by[i] < 0 || bx[i] >= lim_x || by[i] >= lim_y)
-        throw Error(file, 0,
-                    "event " + std::to_string(k) + ": pixel (" + std::to_string(bx[i]) + ", " + std::to_string(by[i]) +
-                        ") lies outside the " + std::to_string(lim_x) + "x" + std::to_string(lim_y) + " sensor");
-      if (bp[i] != 0 && bp[i] != 1 && bp[i] != -1)
-        throw Error(
-            file, 0,
-            "dataset '" + pp + "', event " + std::to_string(k) + ": unknown polarity " + std::to_string(bp[i]) + " (expected 0/1 or -1/1)");
-      last = t;
-      max_x = std::max(max_x, bx[i]);
-      max_y = std::max(max_y, by[i]);
-      ev.t[k - i0] = t;
-      ev.x[k - i0] = static_cast<std::uint16_t>(bx[i]);
-      ev.y[k - i0] = static_cast<std::uint16_t>(by[i]);
-      ev.polarity[k - i0] = static_cast<std::int8_t>(bp[i] == 1 ? 1 : -1);
-    }
-  }
-  if (rec.width <= 0 || rec.height <= 0) {
-    rec.width = static_cast<int>(max_x + 1);
-    rec.height = static_cast<int>(max_y + 1);
-  }
-  ev.width = rec.width;
-  ev.height = rec.height;
-
-  // A file whose ms_to_idx disagrees with the events read is refused (entries pointing at events this read
-  // skipped are checked only for order).
-  if (!ms_index.empty()) {
-    if (i0 == 0 && i1 == n && ms_index.size() > n + 1 + static_cast<std::size_t>(std::max(0.0, (ev.t.back() - t_offset * 1e-6) * 1e3)) + 1)
-      throw Error(file, 0, "dataset 'ms_to_idx' has " + std::to_string(ms_index.size()) + " entries, more than the events' milliseconds");
-    auto raw_ms = [&](std::size_t j) { return (ev.t[j - i0] - t_offset * 1e-6) * 1e3; };
-    for (std::size_t k = 0; k < ms_index.size(); ++k) {
-      const std::size_t v = ms_index[k];
-      const bool bad = (v >= i0 && v < i1 && raw_ms(v) < double(k) - 1e-6) || (v > i0 && v <= i1 && raw_ms(v - 1) >= double(k) + 1e-6);
-      if (bad) throw Error(file, 0, "dataset 'ms_to_idx' disagrees with the events at millisecond " + std::to_string(k));
-    }
-  }
-  if (std::isfinite(t_begin) || std::isfinite(t_end)) ev.keep_time_window(t_begin, t_end);
+  detail::h5_read_events(d, file, i0, i1, bytes, progress, rec);
+  detail::h5_check_ms_index(ms_index, rec.events, d.t_offset, i0, i1, n, file);
+  if (std::isfinite(t_begin) || std::isfinite(t_end)) rec.events.keep_time_window(t_begin, t_end);
   return rec;
 }
 
