@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "../core/warn.hpp"
 #include "recording.hpp"
 #include "rosbag/read.hpp"
 #include "rosbag/write.hpp"
@@ -104,10 +105,16 @@ inline void write_rosbag_recording(const std::filesystem::path& path, const Data
   write_rosbag(path, d.events, d.camera, d.trajectory, d.frames.t, frames, o);
 }
 
-/// inspect's lines for a bag: its topics with their message counts and types.
+/// inspect's lines for a bag: its topics with their message counts and types. inspect reads the bag itself
+/// too, and that read warns of a bag cut short, so the listing keeps its own warnings to itself.
 inline std::string rosbag_summary(const std::filesystem::path& path) {
   std::string out = "ROS bag topics (messages, type):\n";
-  for (const auto& t : rosbag_topics(path)) {
+  std::vector<BagTopic> topics;
+  {
+    const WarningCollector once;
+    topics = rosbag_topics(path);
+  }
+  for (const auto& t : topics) {
     char line[512];
     std::snprintf(line, sizeof line, "  %-32s %9llu  %s\n", t.topic.c_str(), static_cast<unsigned long long>(t.messages), t.type.c_str());
     out += line;
