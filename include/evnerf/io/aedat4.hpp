@@ -893,10 +893,10 @@ class FlatWriter {
     const auto r = static_cast<std::uint32_t>(root);
     std::memcpy(&buf_[0], &r, 4);
     std::memcpy(&buf_[4], ident, 4);
-    std::vector<unsigned char> out(4);
+    std::vector<unsigned char> out(4 + buf_.size());
     const auto n = static_cast<std::uint32_t>(buf_.size());
     std::memcpy(out.data(), &n, 4);
-    out.insert(out.end(), buf_.begin(), buf_.end());
+    std::copy(buf_.begin(), buf_.end(), out.begin() + 4);
     return out;
   }
 
