@@ -153,7 +153,15 @@ struct Field {
 
   template <class T>
   struct Workspace {
-    std::vector<T> points, enc, col_in, dcol_in, denc, dout;
+    std::vector<T> points, enc, col_in, dcol_in, denc, dout, dirs;
+    /// When set, backward() also gives the loss's gradient for each sample's point (in the normalised box
+    /// [−1, 1]³, as forward() took it) and unit direction: dpts and ddirs, 3×n each, in the order of the
+    /// samples the workspace holds (after keep_only, the kept ones). Pose refinement reads them.
+    bool input_grad = false;
+    std::vector<T> dpts, ddirs;
+    /// With input_grad: the levels of a multiresolution position encoding (one that has input_backward,
+    /// nn::HashGrid) the points' gradient goes through, coarsest first; all of them by default.
+    int input_levels = 1 << 30;
     typename DensityNet::template Workspace<T> dens;
     typename ColorNet::template Workspace<T> col;
     int n = 0;
@@ -190,6 +198,8 @@ struct Field {
     grow(ws.points, 3 * static_cast<std::size_t>(total));
     grow(ws.enc, static_cast<std::size_t>(pos_in) * total);
     grow(ws.col_in, static_cast<std::size_t>(col_in) * total);
+    grow(ws.dirs, 3 * static_cast<std::size_t>(total));
+    std::copy(dirs, dirs + 3 * static_cast<std::size_t>(n), ws.dirs.begin() + 3 * static_cast<std::ptrdiff_t>(at));
     for (int j = 0; j < n; ++j) {
       T* q = &ws.points[3 * static_cast<std::size_t>(at + j)];
       for (int d = 0; d < 3; ++d) q[d] = wants_unit_cube<PosEnc>() ? (pts[3 * j + d] + T(1)) * T(0.5) : pts[3 * j + d];
@@ -221,6 +231,7 @@ struct Field {
     for (int j = 0; j < m; ++j) {
       const auto src = static_cast<std::size_t>(keep[j]), dst = static_cast<std::size_t>(j);  // keep[j] ≥ j
       std::copy_n(&ws.points[3 * src], 3, &ws.points[3 * dst]);
+      std::copy_n(&ws.dirs[3 * src], 3, &ws.dirs[3 * dst]);
       std::copy_n(&ws.enc[src * pos_in], pos_in, &ws.enc[dst * pos_in]);
       std::copy_n(&ws.col_in[src * col_in], col_in, &ws.col_in[dst * col_in]);
     }
@@ -287,31 +298,65 @@ struct Field {
   static void backward(const T* params, Workspace<T>& ws, const T* dsigma, const T* dlum, T* dparams) {
     const int n = ws.n;
     ws.dcol_in.assign(static_cast<std::size_t>(col_in) * n, T(0));
-    // Only the features' rows of the colour network's input gradient are used (the view encoding is data).
-    ColorNet::backward(params + color_offset, ws.col, dlum, dparams + color_offset, ws.dcol_in.data(), features);
+    // Only the features' rows of the colour network's input gradient are used (the view encoding is data),
+    // unless the directions' gradient is asked for (input_grad).
+    ColorNet::backward(params + color_offset, ws.col, dlum, dparams + color_offset, ws.dcol_in.data(), ws.input_grad ? col_in : features);
     ws.dout.resize(static_cast<std::size_t>(DensityNet::out_dims) * n);
     for (int j = 0; j < n; ++j) {
       T* o = &ws.dout[static_cast<std::size_t>(j) * DensityNet::out_dims];
       o[0] = dsigma[j];
       std::copy(&ws.dcol_in[static_cast<std::size_t>(j) * col_in], &ws.dcol_in[static_cast<std::size_t>(j) * col_in] + features, o + 1);
     }
+    if (ws.input_grad) {
+      ws.denc.assign(static_cast<std::size_t>(pos_in) * n, T(0));
+      DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, ws.denc.data());
+      input_backward(params, ws);
+      if constexpr (PosEnc::n_params > 0) table_backward(params, ws, dparams);
+      return;
+    }
     if constexpr (PosEnc::n_params > 0) {
       ws.denc.assign(static_cast<std::size_t>(pos_in) * n, T(0));
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, ws.denc.data());
-      if (!ws.defer_encoding_grad) {
-        encode_backward_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.denc.data(), dparams + pos_offset);
-        return;
-      }
-      if (ws.deferred_to && (ws.deferred_to != dparams + pos_offset || ws.deferred_params != params + pos_offset))
-        flush_encoding_grad(ws);  // another network's tables: theirs first
-      ws.deferred_params = params + pos_offset;
-      ws.deferred_to = dparams + pos_offset;
-      ws.deferred_points.insert(ws.deferred_points.end(), ws.points.begin(), ws.points.begin() + 3 * static_cast<std::ptrdiff_t>(n));
-      ws.deferred_denc.insert(ws.deferred_denc.end(), ws.denc.begin(), ws.denc.begin() + static_cast<std::ptrdiff_t>(pos_in) * n);
-      if (ws.deferred_points.size() / 3 >= max_deferred_points) flush_encoding_grad(ws);
+      table_backward(params, ws, dparams);
     } else {
       DensityNet::backward(params + density_offset, ws.dens, ws.dout.data(), dparams + density_offset, static_cast<T*>(nullptr));
     }
+  }
+  /// The gradients for the samples' points and directions (Workspace::input_grad) from ws.denc and the
+  /// colour network's full input gradient: through the encodings' input gradients, and (p + 1) / 2 for an
+  /// encoding that takes the unit cube.
+  template <class T>
+  static void input_backward(const T* params, Workspace<T>& ws) {
+    const int n = ws.n;
+    ws.dpts.assign(3 * static_cast<std::size_t>(n), T(0));
+    ws.ddirs.assign(3 * static_cast<std::size_t>(n), T(0));
+    for (int j = 0; j < n; ++j) {
+      const std::size_t o = 3 * static_cast<std::size_t>(j);
+      T dx[3] = {};
+      const T* dy = &ws.denc[static_cast<std::size_t>(j) * pos_in];
+      if constexpr (requires { PosEnc::input_backward(params, ws.points.data(), dy, dx, 1); })
+        PosEnc::input_backward(params + pos_offset, &ws.points[o], dy, dx, ws.input_levels);
+      else PosEnc::backward(params + pos_offset, &ws.points[o], dy, static_cast<T*>(nullptr), dx);
+      for (int d = 0; d < 3; ++d) ws.dpts[o + d] = wants_unit_cube<PosEnc>() ? dx[d] * T(0.5) : dx[d];
+      DirEnc::backward(static_cast<const T*>(nullptr), &ws.dirs[o], &ws.dcol_in[static_cast<std::size_t>(j) * col_in + features],
+                       static_cast<T*>(nullptr), &ws.ddirs[o]);
+    }
+  }
+  /// The position encoding's table gradients from ws.denc: at once, or held back in a deferring workspace.
+  template <class T>
+  static void table_backward(const T* params, Workspace<T>& ws, T* dparams) {
+    const int n = ws.n;
+    if (!ws.defer_encoding_grad) {
+      encode_backward_batch<PosEnc>(params + pos_offset, ws.points.data(), n, ws.denc.data(), dparams + pos_offset);
+      return;
+    }
+    if (ws.deferred_to && (ws.deferred_to != dparams + pos_offset || ws.deferred_params != params + pos_offset))
+      flush_encoding_grad(ws);  // another network's tables: theirs first
+    ws.deferred_params = params + pos_offset;
+    ws.deferred_to = dparams + pos_offset;
+    ws.deferred_points.insert(ws.deferred_points.end(), ws.points.begin(), ws.points.begin() + 3 * static_cast<std::ptrdiff_t>(n));
+    ws.deferred_denc.insert(ws.deferred_denc.end(), ws.denc.begin(), ws.denc.begin() + static_cast<std::ptrdiff_t>(pos_in) * n);
+    if (ws.deferred_points.size() / 3 >= max_deferred_points) flush_encoding_grad(ws);
   }
 };
 

@@ -331,6 +331,23 @@ struct HashGrid {
   }
   /// Scatters dy into the tables' gradients; dx (may be null) gets the gradient w.r.t. the point
   /// (zero outside the unit cube, where the encoding is clamped).
+  /// The input gradient alone, through levels [0, levels) only (all of them for levels ≥ Levels): what the
+  /// coarse levels say of where the point is, without the fine levels' tables (larger, hashed, and sharper
+  /// in the point than a pose gradient wants). Adds to dx.
+  template <class T>
+  static void input_backward(const T* params, const T* p, const T* dy, T* dx, int levels) {
+    const int l1 = std::min(levels, Levels);
+    for (int l = 0; l < l1; ++l) {
+      const std::size_t off = static_cast<std::size_t>(l) * table_size * F;
+      corners<T>(l, p, [&](std::uint32_t idx, T, const T* dw) {
+        const std::size_t at = off + static_cast<std::size_t>(idx) * F;
+        T dot = 0;
+        for (int f = 0; f < F; ++f) dot += params[at + f] * dy[l * F + f];
+        for (int d = 0; d < 3; ++d)
+          if (p[d] > T(0) && p[d] < T(1)) dx[d] += dot * dw[d];
+      });
+    }
+  }
   template <class T>
   static void backward(const T* params, const T* p, const T* dy, T* dparams, T* dx) {
     if (!dx && !dparams) return;

@@ -81,6 +81,16 @@ class Renderer {
     /// The backdrop of the last forward (known or learned): its luminance per channel and that luminance's
     /// derivative by its raw value (0 for a known one).
     std::array<T, channels> backdrop{}, dbackdrop_draw{};
+    /// When set before a training forward, backward() also gives each ray's gradient for its origin and
+    /// direction (world frame) in dorigin and ddir, summed over the passes: through the samples' points and
+    /// unit directions, with the depths held (a two-network sampler's fine depths too, as in the parameters'
+    /// backward) and the direction's length held (the intervals' lengths depend on it: the gradient is
+    /// exact for motions that keep it, a camera's rigid ones). Pose refinement reads it.
+    bool ray_grad = false;
+    /// The levels of a multiresolution position encoding the rays' gradient goes through (Field's
+    /// input_levels): all by default.
+    int ray_grad_levels = 1 << 30;
+    std::vector<Vec3> origin, dir, dorigin, ddir;
   };
 
   Renderer() = default;
@@ -120,7 +130,15 @@ class Renderer {
         }
       for (int c = 0; c < channels; ++c) grads[backdrop_offset + c] += static_cast<T>(d[c] * double(w.dbackdrop_draw[c]));
     }
-    for (int net = 0; net < networks; ++net) backward_pass(params + net * field_params, w.pass[net], w, grads + net * field_params);
+    if (w.ray_grad) {
+      w.dorigin.assign(w.origin.size(), Vec3::Zero());
+      w.ddir.assign(w.origin.size(), Vec3::Zero());
+    }
+    for (int net = 0; net < networks; ++net) {
+      w.pass[net].ws.input_grad = w.ray_grad;
+      w.pass[net].ws.input_levels = w.ray_grad_levels;
+      backward_pass(params + net * field_params, w.pass[net], w, grads + net * field_params);
+    }
   }
   /// Whether a backdrop lies behind the samples (known or learned): the last interval is then closed.
   bool has_backdrop() const { return box_.background.has_value() || box_.background_learned; }
@@ -261,6 +279,10 @@ class Renderer {
   }
   void forward(const T* params, const Vec3* origin, const Vec3* dir, Rng* rng, int R, Workspace& w) const {
     backdrop_values(params, w.backdrop, w.dbackdrop_draw);
+    if (w.ray_grad) {
+      w.origin.assign(origin, origin + R);
+      w.dir.assign(dir, dir + R);
+    }
     Pass& c = w.pass[0];
     c.S = n_coarse;
     c.t.resize(static_cast<std::size_t>(R) * n_coarse);
@@ -560,10 +582,35 @@ class Renderer {
         FieldT::keep_only(p.ws, p.keep.data(), m, &sg, &rw);
       }
       FieldT::backward(params, p.ws, p.cdsigma.data(), p.cdraw.data(), grads);
+      if (w.ray_grad)
+        add_ray_grad(
+            p, w, [&p](int j) { return p.active[p.keep[j]]; }, m);
       return;
     }
     w.backward_samples += static_cast<std::size_t>(R) * S;
     FieldT::backward(params, p.ws, p.dsigma.data(), p.draw.data(), grads);
+    if (w.ray_grad)
+      add_ray_grad(
+          p, w, [](int j) { return j; }, R * S);
+  }
+  /// Adds the gradients the field gave for the points and unit directions of its m samples (sample j of its
+  /// workspace is sample at(j) of the pass) to their rays' origins and directions (Workspace::ray_grad): a
+  /// point (o + t·d − centre) / scale, a unit direction d / |d|.
+  template <class At>
+  void add_ray_grad(const Pass& p, Workspace& w, At&& at, int m) const {
+    const double inv = 1.0 / box_.scale;
+    for (int j = 0; j < m; ++j) {
+      const int i = at(j);
+      const int r = i / p.S;
+      const std::size_t o = 3 * static_cast<std::size_t>(j);
+      const Vec3 gp(p.ws.dpts[o], p.ws.dpts[o + 1], p.ws.dpts[o + 2]), gu(p.ws.ddirs[o], p.ws.ddirs[o + 1], p.ws.ddirs[o + 2]);
+      const Vec3& d = w.dir[static_cast<std::size_t>(r)];
+      const double len = d.norm();
+      const Vec3 u = d / len;
+      w.dorigin[static_cast<std::size_t>(r)] += gp * inv;
+      w.ddir[static_cast<std::size_t>(r)] +=
+          gp * (inv * static_cast<double>(p.t[static_cast<std::size_t>(i)])) + (gu - u * u.dot(gu)) / len;
+    }
   }
 
   SceneBox box_;
