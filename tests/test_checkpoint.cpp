@@ -220,6 +220,70 @@ TEST_CASE("checkpoints: the run's record round-trips as typed fields, another fo
     CHECK(back_f.refractory().seconds == 2e-4);
     CHECK_FALSE(back_f.refractory().learned);
   }
+  // Pose refinement comes back with its corrections, offset, moments and refined poses, and a resumed step is
+  // the uninterrupted one's; a damaged record is refused, naming it.
+  CHECK_FALSE(t.pose_refinement().active());
+  {
+    Tiny learn(f.td.slices.size(), box, 7), back_p;
+    PoseRefinementSettings ps;
+    ps.poses = ps.offset = true;
+    ps.start = 0;
+    learn.set_pose_refinement(f.td, ps);
+    for (int s = 0; s < 3; ++s) learn.train_step(f.td, 128, 3);
+    REQUIRE(learn.pose_refinement().offset != 0);  // they moved
+    REQUIRE(learn.pose_refinement().correction[1].t != Vec3::Zero());
+    CHECK(learn.pose_refinement().correction[0].t == Vec3::Zero());  // the gauge
+    const std::string saved = learn.serialize("tiny", run);
+    back_p.deserialize(saved, "p.ckpt");
+    back_p.set_pose_rates(f.td, ps);  // step sizes and schedule are training settings, like the learning rate
+    const auto& a0 = learn.pose_refinement();
+    const auto& b0 = back_p.pose_refinement();
+    CHECK(b0.settings.poses);
+    CHECK(b0.settings.offset);
+    CHECK(b0.offset == a0.offset);
+    CHECK(b0.offset_v == a0.offset_v);
+    REQUIRE(b0.correction.size() == a0.correction.size());
+    for (std::size_t i = 0; i < a0.correction.size(); ++i) {
+      CHECK(b0.correction[i].t == a0.correction[i].t);
+      CHECK(b0.correction[i].q.coeffs() == a0.correction[i].q.coeffs());
+      CHECK(b0.m[i] == a0.m[i]);
+      CHECK(b0.v[i] == a0.v[i]);
+      CHECK(back_p.refined_poses()[i].t == learn.refined_poses()[i].t);
+    }
+    learn.train_step(f.td, 128, 3);
+    back_p.train_step(f.td, 128, 3);
+    CHECK(back_p.params().values == learn.params().values);
+    CHECK(back_p.pose_refinement().offset == learn.pose_refinement().offset);
+    CHECK(back_p.refined_poses()[2].t == learn.refined_poses()[2].t);
+    // The record sits before the run: its knot count (after what it learns and the offset's three values) is
+    // that of the boundaries, and a rotation of norm 0 is refused.
+    const std::size_t run_bytes = 8 + run.recording.size() + 8 + 16 + 72 + 8 + 64 * run.times.size() + 8;
+    const std::size_t knots = f.td.slices.size() + 1, record = 8 + 24 + 8 + 26 * 8 * knots;
+    const std::size_t at = saved.size() - run_bytes - record;
+    std::uint64_t what = 0, count = 0;
+    std::memcpy(&what, saved.data() + at, 8);
+    std::memcpy(&count, saved.data() + at + 32, 8);
+    REQUIRE(what == 3);
+    REQUIRE(count == knots);
+    auto damaged = [&](std::size_t offset, const void* bytes, std::size_t n) {
+      std::string b = saved.substr(0, saved.size() - 8);
+      std::memcpy(b.data() + offset, bytes, n);
+      const std::uint64_t sum = fnv1a64(b);
+      b.append(reinterpret_cast<const char*>(&sum), 8);
+      return b;
+    };
+    const std::uint64_t bad_what = 4, bad_count = knots + 1;
+    CHECK_THROWS_WITH(back_p.deserialize(damaged(at, &bad_what, 8), "p.ckpt"),
+                      doctest::Contains("pose refinement's record says it learns 4"));
+    CHECK_THROWS_WITH(back_p.deserialize(damaged(at + 32, &bad_count, 8), "p.ckpt"), doctest::Contains("pose refinement has"));
+    const double zero_q[4] = {0, 0, 0, 0};
+    CHECK_THROWS_WITH(back_p.deserialize(damaged(at + 40 + 26 * 8 + 3 * 8, zero_q, sizeof zero_q), "p.ckpt"),
+                      doctest::Contains("pose refinement's correction at knot 1 has a rotation quaternion of norm 0"));
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_WITH(back_p.deserialize(damaged(at + 8, &nan, 8), "p.ckpt"), doctest::Contains("pose refinement's clock offset"));
+    // The model refused every one and kept what it had.
+    CHECK(back_p.pose_refinement().offset == learn.pose_refinement().offset);
+  }
   CHECK(Tiny::loss_description() == "bounds split 1, thresholds joint, noise 50 per mille");
   // A model saved outside a run records none; it loads, and render and eval refuse it (evaluation::load_model).
   CHECK(t.deserialize(a.serialize("tiny", {}), "m.ckpt").times.empty());

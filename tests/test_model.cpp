@@ -272,6 +272,82 @@ void check_model(double distortion = 0, double tv = 0, bool terminate = false, l
 }
 }  // namespace
 
+/// Pose refinement (model/poses.hpp): the whole training loss's gradient for each knot's correction (a twist
+/// at 0 in its camera's frame) and for the clock offset, against central differences, on the fixture with
+/// every knot corrected and an offset of 3 ms. The first knot's gradient is 0 (the gauge).
+template <class Model>
+void check_pose_gradients() {
+  evtest::Fixture f;
+  Model m(f.td.slices.size(), train::scene_box(f.td, f.cfg), 5);
+  Rng rng(11);
+  for (int net = 0; net < Model::n_fields; ++net)
+    for (std::size_t i = 0; i < Model::field_type::pos_encoding::n_params; ++i)
+      m.params().values[net * Model::field_params + i] = rng.uniform() - 0.5;
+  PoseRefinementSettings s;
+  s.poses = s.offset = true;
+  m.set_pose_refinement(f.td, s);
+  for (std::size_t i = 1; i <= m.n_slices(); ++i)
+    m.set_pose_correction(f.td, i,
+                          twist_exp(Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5) * 0.02,
+                                    Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5) * 0.02));
+  m.set_time_offset(f.td, 0.003);
+  if constexpr (Model::sampler_type::skips_samples) m.update_sampler(f.td, 0, 3);
+  const double h = 1e-6;
+  std::size_t compared = 0, kinks = 0, nonzero = 0;
+  for (const std::uint64_t seed : {1u, 2u}) {
+    CAPTURE(seed);
+    const auto st = m.gradients(f.td, 16, seed, 4);
+    const auto g = m.pose_gradient();
+    const double go = m.offset_gradient();
+    REQUIRE(g.size() == m.n_slices() + 1);
+    CHECK(g[0] == std::array<double, 6>{});
+    auto compare = [&](double analytic, double lp, double l0, double lm, double step) {
+      const double fwd = (lp - l0) / step, bwd = (l0 - lm) / step, num = (lp - lm) / (2 * step);
+      if (std::abs(fwd - bwd) > 1e-3 * std::max(1.0, std::abs(num))) {
+        ++kinks;
+        return;
+      }
+      ++compared;
+      nonzero += analytic != 0;
+      CHECK(analytic == doctest::Approx(num).epsilon(1e-5).scale(1.0));
+    };
+    // The knots of the step's window (the others have no ray) and one beyond it.
+    for (std::size_t i = std::max<std::size_t>(1, st.first_slice); i <= std::min(m.n_slices(), st.first_slice + st.window + 1); ++i) {
+      CAPTURE(i);
+      const geometry::Pose c = m.pose_refinement().correction[i];
+      for (int k = 0; k < 6; ++k) {
+        CAPTURE(k);
+        auto at = [&](double e) {
+          Vec3 phi = Vec3::Zero(), rho = Vec3::Zero();
+          (k < 3 ? phi : rho)[k % 3] = e;
+          m.set_pose_correction(f.td, i, c * twist_exp(phi, rho));
+          const double l = m.gradients(f.td, 16, seed, 4).loss;
+          m.set_pose_correction(f.td, i, c);
+          return l;
+        };
+        compare(g[i][k], at(h), at(0), at(-h), h);
+      }
+    }
+    auto at_offset = [&](double e) {
+      m.set_time_offset(f.td, 0.003 + e);
+      const double l = m.gradients(f.td, 16, seed, 4).loss;
+      m.set_time_offset(f.td, 0.003);
+      return l;
+    };
+    compare(go, at_offset(h), at_offset(0), at_offset(-h), h);
+    CHECK(go != 0);
+  }
+  CAPTURE(kinks);
+  CHECK(compared >= 20);
+  CHECK(kinks * 10 <= compared);
+  CHECK(nonzero * 2 >= compared);
+}
+
+TEST_CASE_TEMPLATE("pose refinement: finite differences in double of the whole training loss for the corrections and the offset", Model,
+                   StratifiedModel<1>, StratifiedModel<3>, OccupancyModel<1>, CustomParts) {
+  check_pose_gradients<Model>();
+}
+
 TEST_CASE_TEMPLATE("whole training loss: finite differences in double for every parameter and threshold", Model, StratifiedModel<1>,
                    StratifiedModel<3>, HierarchicalModel<1>, HierarchicalModel<3>, OccupancyModel<1>, OccupancyModel<3>,
                    LogOccupancyModel<1>, WindowHierarchicalModel<1>, ExpRadianceModel<1>, ExpRadianceModel<3>, CustomParts) {

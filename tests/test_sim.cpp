@@ -801,3 +801,50 @@ TEST_CASE("mesh: the suite's assets from assimp-testmodels load, textured, insid
   }
 }
 #endif
+
+TEST_CASE("simulate: poses only roughly known, the true ones kept beside, written and read back; bad values refused") {
+  sim::SimulateOptions o;
+  o.width = 32;
+  o.height = 24;
+  o.progress = false;
+  const auto clean = sim::simulate("planes", o);
+  CHECK(clean.true_trajectory.empty());
+  o.pose_noise_translation = 0.02;
+  o.pose_noise_rotation = 1;
+  o.time_offset = 0.01;
+  auto rec = sim::simulate("planes", o);
+  REQUIRE(rec.true_trajectory.size() == clean.trajectory.size());
+  REQUIRE(rec.trajectory.size() == clean.trajectory.size());
+  CHECK(rec.events.t == clean.events.t);  // the events are those of the true path
+  double t2 = 0, r2 = 0;
+  const auto& tr = rec.trajectory;
+  for (std::size_t i = 0; i < tr.size(); ++i) {
+    CHECK(tr.times()[i] == doctest::Approx(clean.trajectory.times()[i] + 0.01));
+    CHECK(rec.true_trajectory.poses()[i].t == clean.trajectory.poses()[i].t);
+    const auto e = geometry::pose_error({tr.poses()[i]}, {clean.trajectory.poses()[i]});
+    t2 += e.translation_mean * e.translation_mean / tr.size();
+    r2 += e.rotation_mean_deg * e.rotation_mean_deg / tr.size();
+    if (i == 0) {
+      CHECK(e.translation_mean == 0);  // the first pose is exact
+      CHECK(e.rotation_mean_deg == 0);
+    }
+  }
+  CAPTURE(t2);
+  CAPTURE(r2);
+  CHECK(std::sqrt(t2) == doctest::Approx(0.02).epsilon(0.3));
+  CHECK(std::sqrt(r2) == doctest::Approx(1.0).epsilon(0.3));
+  // Deterministic in the seed; another seed, other errors.
+  CHECK(sim::simulate("planes", o).trajectory.poses()[5].t == tr.poses()[5].t);
+  o.seed = 2;
+  CHECK(sim::simulate("planes", o).trajectory.poses()[5].t != tr.poses()[5].t);
+  // Written, the true poses go to groundtruth_true.txt and come back as the recording's true trajectory.
+  const auto dir = std::filesystem::temp_directory_path() / ("evnerf_pose_noise_" + std::to_string(::getpid()));
+  sim::write_recording(dir, rec);
+  const auto d = io::load(dir);
+  REQUIRE(d.true_trajectory.size() == rec.true_trajectory.size());
+  CHECK((d.true_trajectory.poses()[7].t - rec.true_trajectory.poses()[7].t).norm() < 1e-8);
+  CHECK((d.trajectory.poses()[7].t - tr.poses()[7].t).norm() < 1e-8);
+  std::filesystem::remove_all(dir);
+  o.pose_noise_rotation = 90;
+  CHECK_THROWS_WITH(sim::simulate("planes", o), doctest::Contains("--pose-noise's rotation must be in [0, 45] degrees"));
+}

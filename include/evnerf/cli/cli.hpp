@@ -112,6 +112,13 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
     const auto b = *m.renderer().backdrop(m.render_params().data());
     fmt::print("backdrop luminance {:.4g} (learned{})\n", fmt::join(b, " "), b.size() > 1 ? ", per channel" : "");
   }
+  if (const auto& m = trainer.model(); lead && m.pose_refinement().active()) {
+    const auto& pr = m.pose_refinement();
+    const auto moved = geometry::pose_error(m.refined_poses(), td.boundary_poses);
+    fmt::print("poses refined: {:.3g} world units and {:.3g} degrees from the recording's on average{}\n", moved.translation_mean,
+               moved.rotation_mean_deg,
+               pr.settings.offset ? fmt::format(", clock offset {:.2f} ms learned", pr.offset * 1e3) : std::string());
+  }
   if (r.diverged) return 3;
   if (r.stopped) {
     // In a group the signal may have reached another process only: its stop is shared (train::run).

@@ -276,7 +276,8 @@ struct ConvertVerb {
 struct SimulateVerb {
   std::vector<std::string> scene_args;
   fs::path out;
-  sim::SimulateOptions so;  // the flags fill it in
+  sim::SimulateOptions so;         // the flags fill it in
+  std::vector<double> pose_noise;  ///< --pose-noise T,R
   CLI::App* sub = nullptr;
 
   CLI::App* add(CLI::App& app) {
@@ -307,6 +308,15 @@ struct SimulateVerb {
     sub->add_option("--noise-ratio", so.noise_ratio, "uniform random events added, as a fraction of the signal events")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
+    sub->add_option("--pose-noise", pose_noise,
+                    "poses only roughly known: the recorded poses' RMS error in translation (world units) and rotation "
+                    "(degrees), as T,R; half independent per pose, half a slow drift (the first pose exact); the true poses "
+                    "go to groundtruth_true.txt, where eval measures the pose error")
+        ->expected(2)
+        ->delimiter(',');
+    sub->add_option("--time-offset", so.time_offset,
+                    "seconds the poses' clock runs ahead of the events' (kept beside as with --pose-noise)")
+        ->capture_default_str();
     sub->add_option("--width", so.width, "sensor width (pixels; 240, or 346 for a mesh)")->check(CLI::Range(8, 8192));
     sub->add_option("--height", so.height, "sensor height (pixels; 180, or 260 for a mesh)")->check(CLI::Range(8, 8192));
     sub->add_option("--focal", so.focal, "focal length in pixels (default: scaled with the width, 200 at 240)")->check(CLI::PositiveNumber);
@@ -349,6 +359,10 @@ struct SimulateVerb {
       so.mesh.file = scene_args[1];
     } else if (scene_args.size() != 1) {
       throw Error("simulate: one scene expected, got '" + scene_args[0] + "' and '" + scene_args[1] + "' (a mesh file goes after 'mesh')");
+    }
+    if (!pose_noise.empty()) {
+      so.pose_noise_translation = pose_noise[0];
+      so.pose_noise_rotation = pose_noise[1];
     }
     auto rec = sim::simulate(scene, so, &scene_text);
     sim::write_recording(out, rec);
@@ -500,6 +514,8 @@ struct RenderVerb {
     const auto model = load_renderable(checkpoint, parse_channel_upsampling(channel_up), programme.open);
     const auto& desc = model.desc;
     const float dlo = float(model.near), dhi = float(model.far * 0.6);
+    if (model.poses_refined)
+      fmt::print("the boundary views are rendered at the model's refined poses (clock offset {:.2f} ms)\n", model.time_offset * 1e3);
     for (std::size_t i = 0; i < desc.poses.size(); ++i)
       write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
     for (int k = 0; k < novel; ++k)
@@ -588,6 +604,20 @@ struct EvalVerb {
         write_rendering(out / "renders_novel", fmt::format("view_{:08d}", k), e.novel_renders[k], dlo, dhi);
       const std::size_t m = e.novel_renders.size() / 2;
       io::write_png(out / "montage_novel.png", io::montage({e.novel_truth.shown(m), e.novel->primary.aligned[0][m]}, e.colour ? 3 : 1));
+    }
+    if (const auto& p = e.json.at("poses"); model.poses_refined || p.contains("error_given")) {
+      if (model.poses_refined)
+        fmt::print("the training path is rendered at the model's refined poses (clock offset {:.2f} ms)\n",
+                   p.at("time_offset_s").template get<double>() * 1e3);
+      auto show = [&](const char* key, const char* what) {
+        if (!p.contains(key)) return;
+        const auto& q = p.at(key);
+        fmt::print("pose error of the {} against the true poses: {:.4g} (max {:.4g}) world units, {:.3g} (max {:.3g}) degrees\n", what,
+                   q.at("translation_mean").template get<double>(), q.at("translation_max").template get<double>(),
+                   q.at("rotation_mean_deg").template get<double>(), q.at("rotation_max_deg").template get<double>());
+      };
+      show("error_given", "recording's poses");
+      show("error_refined", "refined poses");
     }
     fmt::print(
         "{:.2f} s per {}x{} render; wrote {}/metrics.json (every alignment, the error by scale and by depth: --verbose "

@@ -191,6 +191,16 @@ struct Renderable {
   std::function<Rendering(const geometry::Pose&)> render;
   /// The same model seen by another camera (a single model.ckpt; empty for channels.json).
   std::function<Rendering(const geometry::Camera&, const geometry::Pose&)> render_with;
+  /// Whether desc.poses are the model's refined poses (train --refine-poses, --learn-time-offset), and the
+  /// clock offset it learned (seconds).
+  bool poses_refined = false;
+  double time_offset = 0;
+  /// The pose the model saw at time t on its training path: the refined knots' (interpolated between
+  /// boundaries, the nearest outside them) when it refined its poses, else the recording's.
+  geometry::Pose training_pose(const io::Dataset& d, double t) const {
+    if (poses_refined) return geometry::Trajectory(desc.times, desc.poses, "refined poses").pose_at(t, geometry::OutOfRange::Clamp);
+    return d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
+  }
 };
 
 /// How the paper's colour model (train --per-channel) reaches the full sensor from its three channels' models,
@@ -260,6 +270,8 @@ inline Renderable load_renderable(const fs::path& ckpt, ChannelUpsampling up, Mo
   r.far = ch[1].far;
   r.desc = ch[1].desc;
   r.desc.camera = cam;
+  r.poses_refined = ch[1].poses_refined;  // each channel refines its own poses: green's (the most sites) stand for all
+  r.time_offset = ch[1].time_offset;
   r.desc.times.clear();
   r.desc.poses.clear();
   for (std::size_t i = 0; i < ch[1].desc.times.size(); ++i)
@@ -312,6 +324,30 @@ struct Evaluation {
   nlohmann::json json;  ///< metrics.json
 };
 
+/// What eval says of the poses: whether the training path's renders use refined poses and the clock offset
+/// learned; where the recording keeps its true poses (Dataset::true_trajectory), the error at the slice
+/// boundaries of the recording's poses and, when refined, of the refined ones (translation in world units,
+/// rotation in degrees; mean and largest).
+inline nlohmann::json pose_report(const Renderable& model, const io::Dataset& d) {
+  nlohmann::json j = {{"refined", model.poses_refined}};
+  if (model.poses_refined) j["time_offset_s"] = model.time_offset;
+  if (d.true_trajectory.empty() || d.trajectory.empty() || model.desc.times.empty()) return j;
+  std::vector<geometry::Pose> truth, given;
+  for (const double t : model.desc.times) {
+    truth.push_back(d.true_trajectory.pose_at(t, geometry::OutOfRange::Clamp));
+    given.push_back(d.trajectory.pose_at(t, geometry::OutOfRange::Clamp));
+  }
+  auto as_json = [](const geometry::PoseError& e) {
+    return nlohmann::json{{"translation_mean", e.translation_mean},
+                          {"translation_max", e.translation_max},
+                          {"rotation_mean_deg", e.rotation_mean_deg},
+                          {"rotation_max_deg", e.rotation_max_deg}};
+  };
+  j["error_given"] = as_json(geometry::pose_error(given, truth));
+  if (model.poses_refined) j["error_refined"] = as_json(geometry::pose_error(model.desc.poses, truth));
+  return j;
+}
+
 /// Renders `model` at every frame of `d` inside its trained time (the first boundary has no events before
 /// it: skipped) and scores it and both baselines under `als` (the first is the primary). With `holdout` K
 /// (as given to train), the frames at every K-th boundary were never trained on; their scores are also
@@ -327,9 +363,7 @@ inline Evaluation evaluate(const Renderable& model, const io::Dataset& d, const 
   std::vector<Image> depths;
   const auto t0 = std::chrono::steady_clock::now();
   for (auto i : e.ids) {
-    const double t = d.frames.t[i];
-    const auto pose = d.trajectory.covers(t) ? d.trajectory.pose_at(t) : d.trajectory.pose_at(t, geometry::OutOfRange::Clamp);
-    e.renders.push_back(model.render(pose));
+    e.renders.push_back(model.render(model.training_pose(d, d.frames.t[i])));
     ours.images.push_back(e.renders.back().luminance);
     depths.push_back(e.renders.back().depth);
   }
@@ -344,6 +378,7 @@ inline Evaluation evaluate(const Renderable& model, const io::Dataset& d, const 
   e.scored = score_all(e.methods, e.truth, als, e.ids);
   e.json = e.scored.json;
   e.json["seconds_per_render"] = e.seconds_per_render;
+  e.json["poses"] = pose_report(model, d);
   // Depth against simulated ground truth, where the recording has it (median scale alignment).
   if (d.depth.size() == d.frames.size()) {
     std::vector<std::vector<float>> gtd;

@@ -27,6 +27,11 @@ Renderable load_model(const fs::path& ckpt) {
                   "the checkpoint records no training run (no camera, no slice boundaries): render and eval need one "
                   "that train wrote");
     r.name = name;
+    if (model->pose_refinement().active()) {  // the training path as the model saw it
+      r.desc.poses = model->refined_poses();
+      r.poses_refined = true;
+      r.time_offset = model->pose_refinement().offset;
+    }
     r.near = model->box().near;
     r.far = model->box().far;
     auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));

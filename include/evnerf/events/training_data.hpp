@@ -9,6 +9,7 @@
 #include "../geometry/bayer.hpp"
 #include "../geometry/camera.hpp"
 #include "../geometry/pose.hpp"
+#include "../geometry/trajectory.hpp"
 #include "hot_pixels.hpp"
 #include "pixels.hpp"
 #include "slicing.hpp"
@@ -20,6 +21,8 @@ struct TrainingData {
   geometry::Camera camera;
   events::SliceSet slices;
   std::vector<geometry::Pose> boundary_poses;  ///< pose at each slice boundary
+  geometry::Trajectory trajectory;             ///< the recording's poses (a learned clock offset reads them
+                                               ///< between the boundaries); may be empty otherwise
   std::vector<Vec3f> pixel_dirs;               ///< render::pixel_directions(camera)
   std::vector<bool> slice_enabled;             ///< held-out slices are false (novel-view evaluation)
   events::CountPrefix prefix;                  ///< per-pixel running counts (objectives whose pixels look at the

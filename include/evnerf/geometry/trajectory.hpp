@@ -2,6 +2,7 @@
 // for times outside the covered range. Depends on core/ and geometry/pose.hpp only.
 #pragma once
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -53,5 +54,25 @@ class Trajectory {
   std::vector<Pose> poses_;
   std::string source_;
 };
+
+/// Pose errors of `poses` against `truth` (same knots): the mean and largest translation error (world units)
+/// and rotation error (degrees).
+struct PoseError {
+  double translation_mean = 0, translation_max = 0, rotation_mean_deg = 0, rotation_max_deg = 0;
+};
+inline PoseError pose_error(const std::vector<Pose>& poses, const std::vector<Pose>& truth) {
+  require(poses.size() == truth.size() && !poses.empty(), "pose_error: the poses and the true poses differ in count");
+  PoseError e;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const double dt = (poses[i].t - truth[i].t).norm();
+    const double dr = Eigen::AngleAxisd((truth[i].q.conjugate() * poses[i].q).normalized()).angle() * 180.0 / 3.14159265358979323846;
+    const double r = std::min(dr, 360.0 - dr);
+    e.translation_mean += dt / poses.size();
+    e.rotation_mean_deg += r / poses.size();
+    e.translation_max = std::max(e.translation_max, dt);
+    e.rotation_max_deg = std::max(e.rotation_max_deg, r);
+  }
+  return e;
+}
 
 }  // namespace evnerf::geometry

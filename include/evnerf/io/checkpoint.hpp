@@ -6,6 +6,9 @@
 //   f32 parameters | f32 Adam m | f32 Adam v |
 //   u64 average count (0 or the parameter count) + f64 its decay + f32 average |
 //   str sampler state (the occupancy grid) |
+//   pose refinement: u64 what is learned (bit 0 the corrections, bit 1 the clock offset) | f64 offset (seconds) + f64×2 its
+//            Adam moments | u64 knots (0, or one per slice boundary) + per knot f64×7 correction (px py pz qx qy qz qw),
+//            f64×12 its Adam moments, f64×7 the refined pose |
 //   the run: str recording | u64 shards per step | i64 width, height + f64 fx, fy, cx, cy, k1, k2, p1, p2, k3 |
 //            u64 boundaries + per boundary f64 t, px, py, pz, qx, qy, qz, qw |
 //   u64 FNV-1a of everything before it
@@ -33,7 +36,7 @@
 
 namespace evnerf::io {
 
-inline constexpr std::uint64_t kCheckpointVersion = 10;
+inline constexpr std::uint64_t kCheckpointVersion = 11;
 
 /// Bounds-checked reading of a checkpoint's bytes; every error names the file.
 class CheckpointReader {
@@ -188,6 +191,15 @@ inline CheckpointRun read_checkpoint_run(CheckpointReader& r) {
   return run;
 }
 
+/// Pose refinement's record (model/poses.hpp): what is learned, the clock offset, and per knot the
+/// correction, its Adam moments and the refined pose that render and eval use for the training path.
+struct CheckpointPoses {
+  bool poses = false, offset = false;
+  double time_offset = 0, offset_m = 0, offset_v = 0;
+  std::vector<geometry::Pose> correction, refined;
+  std::vector<std::array<double, 6>> m, v;
+};
+
 /// What a checkpoint holds besides its header and run: the parameters with Adam's two moments (n floats
 /// each), the parameter average (n floats, or null for none) and its decay, and the sampler's state.
 struct CheckpointBody {
@@ -196,7 +208,59 @@ struct CheckpointBody {
   const float* average = nullptr;
   double average_decay = 0;
   std::string sampler_state;
+  CheckpointPoses poses;
 };
+
+/// Reads pose refinement's record for a model of `n_slices` slices.
+inline CheckpointPoses read_checkpoint_poses(CheckpointReader& r, std::uint64_t n_slices) {
+  CheckpointPoses p;
+  const std::uint64_t what = r.u64();
+  if (what > 3) r.fail("pose refinement's record says it learns " + std::to_string(what) + " (0 to 3: corrections, offset)");
+  p.poses = (what & 1) != 0;
+  p.offset = (what & 2) != 0;
+  double o[3];
+  r.get(o, sizeof o);
+  if (!std::isfinite(o[0]) || !std::isfinite(o[1]) || !(o[2] >= 0) || !std::isfinite(o[2]) || std::abs(o[0]) > 1e6)
+    r.fail("pose refinement's clock offset (" + short_number(o[0]) + " s, moments " + short_number(o[1]) + ", " + short_number(o[2]) +
+           ") is not one training writes");
+  p.time_offset = o[0];
+  p.offset_m = o[1];
+  p.offset_v = o[2];
+  const std::uint64_t n = r.u64();
+  if (n != 0 && n != n_slices + 1)
+    r.fail("pose refinement has " + std::to_string(n) + " knots for " + std::to_string(n_slices) + " slices (one per boundary)");
+  if ((n != 0) != (what != 0)) r.fail("pose refinement's knots (" + std::to_string(n) + ") do not match what it learns");
+  if (n > r.remaining() / (26 * 8)) r.fail("pose refinement's " + std::to_string(n) + " knots need more bytes than remain");
+  auto pose_of = [&](const double* v, std::uint64_t i, const char* what_pose) {
+    for (int k = 0; k < 7; ++k)
+      if (!std::isfinite(v[k])) r.fail(std::string("pose refinement's ") + what_pose + " at knot " + std::to_string(i) + " is not finite");
+    const Quat q(v[6], v[3], v[4], v[5]);
+    const double norm = q.norm();
+    if (!(norm > 1e-12) || !std::isfinite(norm))
+      r.fail(std::string("pose refinement's ") + what_pose + " at knot " + std::to_string(i) + " has a rotation quaternion of norm " +
+             short_number(norm));
+    geometry::Pose pose;
+    pose.t = Vec3(v[0], v[1], v[2]);
+    pose.q = q.normalized();
+    return pose;
+  };
+  for (std::uint64_t i = 0; i < n; ++i) {
+    double v[26];
+    r.get(v, sizeof v);
+    p.correction.push_back(pose_of(v, i, "correction"));
+    std::array<double, 6> m{}, s{};
+    for (int k = 0; k < 6; ++k) {
+      m[k] = v[7 + k];
+      s[k] = v[13 + k];
+      if (!std::isfinite(m[k]) || !std::isfinite(s[k]) || s[k] < 0)
+        r.fail("pose refinement's Adam moments at knot " + std::to_string(i) + " are not ones training writes");
+    }
+    p.m.push_back(m);
+    p.v.push_back(s);
+    p.refined.push_back(pose_of(v + 19, i, "refined pose"));
+  }
+  return p;
+}
 
 /// The bytes of a checkpoint (header.version and n_params are set from here).
 inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointBody& body, const CheckpointRun& run) {
@@ -231,6 +295,21 @@ inline std::string write_checkpoint(const CheckpointHeader& h, const CheckpointB
   put_f64(body.average ? body.average_decay : 0.0);
   if (body.average) put(body.average, body.n * 4);
   put_str(body.sampler_state);
+  const auto& pr = body.poses;
+  put_u64((pr.poses ? 1u : 0u) | (pr.offset ? 2u : 0u));
+  for (double v : {pr.time_offset, pr.offset_m, pr.offset_v}) put_f64(v);
+  require(pr.correction.size() == pr.refined.size() && pr.m.size() == pr.correction.size() && pr.v.size() == pr.correction.size(),
+          "write_checkpoint: pose refinement's knots differ in count");
+  put_u64(pr.correction.size());
+  auto put_pose = [&](const geometry::Pose& p) {
+    for (double v : {p.t.x(), p.t.y(), p.t.z(), p.q.x(), p.q.y(), p.q.z(), p.q.w()}) put_f64(v);
+  };
+  for (std::size_t i = 0; i < pr.correction.size(); ++i) {
+    put_pose(pr.correction[i]);
+    for (double v : pr.m[i]) put_f64(v);
+    for (double v : pr.v[i]) put_f64(v);
+    put_pose(pr.refined[i]);
+  }
   require(run.times.size() == run.poses.size(), "write_checkpoint: the run has " + std::to_string(run.times.size()) + " times and " +
                                                     std::to_string(run.poses.size()) + " poses");
   put_str(run.recording);

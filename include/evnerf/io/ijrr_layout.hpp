@@ -98,6 +98,7 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
     if (!(d.linear_log_offset > 0) || !std::isfinite(d.linear_log_offset)) sc.fail("the log offset must be positive and finite");
   }
   if (fs::is_directory(folder / "novel")) d.novel = read_views(folder / "novel");
+  if (fs::exists(folder / "groundtruth_true.txt")) d.true_trajectory = read_poses_txt(folder / "groundtruth_true.txt");
   return d;
 }
 
@@ -118,6 +119,7 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
   write_file_atomic(dir / "calib.txt", calib_text(d.camera));
   write_file_atomic(dir / "sensor.txt", std::to_string(d.camera.width()) + " " + std::to_string(d.camera.height()) + "\n");
   if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
+  if (!d.true_trajectory.empty()) write_poses_txt(dir / "groundtruth_true.txt", d.true_trajectory);
   if (d.frames.size() > 0) {
     std::string list;
     for (std::size_t f = 0; f < d.frames.size(); ++f) {

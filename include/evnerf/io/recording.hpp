@@ -56,7 +56,10 @@ struct Dataset {
   std::filesystem::path folder;
   geometry::Camera camera;
   events::EventStream events;
-  geometry::Trajectory trajectory;            ///< empty when the folder has no groundtruth.txt
+  geometry::Trajectory trajectory;  ///< empty when the folder has no groundtruth.txt
+  /// A simulated recording's true poses beside perturbed ones in `trajectory` (groundtruth_true.txt:
+  /// simulate --pose-noise, --time-offset); empty otherwise. eval measures the pose error against them.
+  geometry::Trajectory true_trajectory;
   Frames frames;                              ///< empty when the folder has no images.txt
   std::vector<std::filesystem::path> depth;   ///< per-frame ground-truth depth (.npy), simulator only
   std::vector<std::filesystem::path> linear;  ///< per-frame linear radiance (.npy, unclipped): HDR truth, simulator only
@@ -113,6 +116,7 @@ inline Dataset channel_dataset(const Dataset& d, const geometry::BayerPattern& p
   Dataset c;
   c.folder = d.folder;
   c.trajectory = d.trajectory;
+  c.true_trajectory = d.true_trajectory;
   c.frames = d.frames;
   c.time_origin = d.time_origin;
   if (channel == 1 && green == GreenSites::Both) {

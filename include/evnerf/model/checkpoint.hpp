@@ -1,6 +1,6 @@
 // model/checkpoint.hpp — EvNerf (model/model.hpp) as a checkpoint and back: the format is io/checkpoint.hpp;
 // here the model's part of it (box and backdrop, parameters, Adam's moments, the parameter average, the
-// sampler's state) and the checks a load makes (architecture, loss, counts, finite values) before the model
+// sampler's state, pose refinement's) and the checks a load makes (architecture, loss, counts, finite values) before the model
 // changes.
 // Included by model/model.hpp.
 #pragma once
@@ -38,10 +38,23 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
   h.refractory_learned = refractory_.learned;
   h.loss = loss_description();
   h.architecture = architecture();
-  return io::write_checkpoint(h,
-                              {params_.values.data(), adam_.m().data(), adam_.v().data(), params_.size(),
-                               average_.active() ? average_.values().data() : nullptr, average_.decay(), sampler().serialize()},
-                              run);
+  io::CheckpointPoses poses;
+  if (poses_.active()) {
+    poses.poses = poses_.settings.poses;
+    poses.offset = poses_.settings.offset;
+    poses.time_offset = poses_.offset;
+    poses.offset_m = poses_.offset_m;
+    poses.offset_v = poses_.offset_v;
+    poses.correction = poses_.correction;
+    poses.m = poses_.m;
+    poses.v = poses_.v;
+    poses.refined = refined_;
+  }
+  return io::write_checkpoint(
+      h,
+      {params_.values.data(), adam_.m().data(), adam_.v().data(), params_.size(), average_.active() ? average_.values().data() : nullptr,
+       average_.decay(), sampler().serialize(), std::move(poses)},
+      run);
 }
 
 /// Restores from serialize()'s bytes; errors name the file and what does not match. The file must have
@@ -97,6 +110,7 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   SamplerT sampler;
   if (!sampler.deserialize(r.str()))
     r.fail("the sampler's state (occupancy grid) does not match this model's sampler (" + SamplerT::name() + ")");
+  const io::CheckpointPoses poses = io::read_checkpoint_poses(r, h.n_slices);
   io::CheckpointRun run = io::read_checkpoint_run(r);
   if (!run.times.empty() && run.times.size() != h.n_slices + 1)
     r.fail("the run records " + std::to_string(run.times.size()) + " slice boundaries for " + std::to_string(h.n_slices) + " slices");
@@ -112,6 +126,17 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   n_slices_ = h.n_slices;
   refractory_ = {h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax), h.refractory_m, h.refractory_v,
                  h.refractory_learned && h.refractory >= 0};
+  poses_ = {};
+  poses_.settings.poses = poses.poses;
+  poses_.settings.offset = poses.offset;
+  poses_.offset = poses.time_offset;
+  poses_.offset_m = poses.offset_m;
+  poses_.offset_v = poses.offset_v;
+  poses_.correction = poses.correction;
+  poses_.m = poses.m;
+  poses_.v = poses.v;
+  refined_ = poses.refined;
+  pose_grad_.clear();
   params_ = std::move(params);
   adam_ = std::move(adam);
   average_ = std::move(average);

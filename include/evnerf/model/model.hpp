@@ -32,6 +32,7 @@
 #include "../render/renderer.hpp"
 #include "../render/sampler.hpp"
 #include "../render/scene.hpp"
+#include "poses.hpp"
 
 namespace evnerf {
 
@@ -239,6 +240,61 @@ class EvNerf {
     refractory_.learned = learn && seconds >= 0;
   }
   const RefractoryState& refractory() const { return refractory_; }
+  /// Pose refinement (model/poses.hpp): a correction per pose knot (slice boundary) and a clock offset,
+  /// learned with the field by their own Adam as `s` says, starting from the identity and no offset. Off
+  /// (the default) the rays start at data's boundary poses and a step is bit-identical to one without this
+  /// setting. Checkpoints keep the corrections, the offset and their moments.
+  void set_pose_refinement(const TrainingData& data, const PoseRefinementSettings& s) {
+    check_data(data);
+    require(!s.offset || data.trajectory.size() >= 2, "pose refinement: learning the clock offset needs the recording's trajectory");
+    require(std::isfinite(s.lr_rotation) && s.lr_rotation >= 0 && std::isfinite(s.lr_translation) && s.lr_translation >= 0 &&
+                std::isfinite(s.lr_offset) && s.lr_offset >= 0 && s.decay_steps > 0 && s.levels >= 0 && s.start >= 0,
+            "pose refinement: the learning rates must be finite and not negative, the decay's steps positive, the levels not negative");
+    poses_ = {};
+    poses_.settings = s;
+    if (s.active()) {
+      poses_.correction.assign(n_slices_ + 1, geometry::Pose{});
+      poses_.m.assign(n_slices_ + 1, {});
+      poses_.v.assign(n_slices_ + 1, {});
+    }
+    refresh_poses(data);
+  }
+  const PoseRefinement& pose_refinement() const { return poses_; }
+  /// The step sizes, their decay and the levels of pose refinement from `s` (what it learns stays as the model has it: a resumed run
+  /// goes on as its checkpoint did); the poses follow the data (a resumed run's trajectory).
+  void set_pose_rates(const TrainingData& data, const PoseRefinementSettings& s) {
+    poses_.settings.lr_rotation = s.lr_rotation;
+    poses_.settings.lr_translation = s.lr_translation;
+    poses_.settings.lr_offset = s.lr_offset;
+    poses_.settings.decay_steps = s.decay_steps;
+    poses_.settings.levels = s.levels;
+    poses_.settings.start = s.start;
+    if (poses_.active()) {
+      check_data(data);
+      refresh_poses(data);
+    }
+  }
+  /// Sets a correction or the offset (a test's perturbation; a resumed run's state); the poses follow.
+  void set_pose_correction(const TrainingData& data, std::size_t knot, const geometry::Pose& c) {
+    require(poses_.active() && knot < poses_.correction.size(), "set_pose_correction: no such knot, or pose refinement is off");
+    poses_.correction[knot] = c;
+    refresh_poses(data);
+  }
+  void set_time_offset(const TrainingData& data, double seconds) {
+    require(poses_.active() && std::isfinite(seconds), "set_time_offset: pose refinement is off, or the offset is not finite");
+    poses_.offset = seconds;
+    refresh_poses(data);
+  }
+  /// The poses the training rays start from: the refined ones, or data's boundary poses.
+  const std::vector<geometry::Pose>& training_poses(const TrainingData& data) const {
+    return poses_.active() ? refined_ : data.boundary_poses;
+  }
+  /// The refined poses of the knots (empty when pose refinement is off).
+  const std::vector<geometry::Pose>& refined_poses() const { return refined_; }
+  /// The last gradients()'s dloss/dε of every knot's correction (a twist: rotation x y z, translation x y z,
+  /// in its camera's frame; the first knot's is 0, the gauge) and dloss/d(offset), when pose refinement is on.
+  const std::vector<std::array<double, 6>>& pose_gradient() const { return pose_grad_; }
+  double offset_gradient() const { return offset_grad_; }
   /// Training rays stop where their transmittance falls below renderer_type::kMinTransmittance
   /// (Renderer::Workspace::training_termination), for samplers that skip (the occupancy grid). The samples
   /// behind carry no gradient either way; the forward's composite loses less than that fraction of a ray's
@@ -323,7 +379,23 @@ class EvNerf {
     std::array<double, StepStats::kMaxTerms> terms{};  ///< the thread's regulariser terms, this step
     double refractory_grad = 0;                        ///< the thread's dloss/dτ, this step
     std::size_t rays = 0;                              ///< the thread's rays, this step
+    std::vector<std::array<double, 6>> pose_grad;      ///< the thread's dloss/dε per knot (pose refinement)
   };
+  /// The refined poses from the corrections and the offset (or none, refinement off).
+  void refresh_poses(const TrainingData& data) {
+    refined_.clear();
+    if (poses_.active()) refined_ = evnerf::refined_poses(poses_, data.boundary_poses, data.slices.boundaries, data.trajectory);
+  }
+  /// dloss/d(offset) from the knots' twist gradients: each knot moves along the trajectory's velocity at its
+  /// shifted time, seen in its corrected camera's frame.
+  double offset_gradient_of(const TrainingData& data) const {
+    double g = 0;
+    for (std::size_t i = 0; i < pose_grad_.size(); ++i) {
+      const auto eta = twist_through(poses_.correction[i], trajectory_velocity(data.trajectory, data.slices.boundaries[i] + poses_.offset));
+      for (int k = 0; k < 6; ++k) g += pose_grad_[i][k] * eta[k];
+    }
+    return g;
+  }
 
   /// One tile of the step (pixels p0 .. p0 + P of the step's draw): the objective's rays, each with its random
   /// stream keyed by the objective (so that the result depends on neither the tiling nor the thread count),
@@ -333,7 +405,9 @@ class EvNerf {
                     TileWork& w) const;
   /// The optimiser step after gradients(): Adam on the field and on the thresholds the step touched (lazy),
   /// the projection of projected thresholds, the parameter average (model/optimiser.hpp).
-  void apply_update();
+  void apply_update(const TrainingData& data);
+  /// Pose refinement's optimiser step (model/optimiser.hpp), within apply_update.
+  void update_poses(const TrainingData& data);
 
   renderer_type renderer_;
   std::size_t n_slices_ = 0;
@@ -346,9 +420,13 @@ class EvNerf {
   std::vector<Scalar> shard_sum_;         ///< train_step's sum of the shards before the current one
   bool ray_termination_ = false;          ///< training rays stop behind ray_cut_ (set_ray_termination)
   double ray_cut_ = static_cast<double>(renderer_type::kMinTransmittance);
-  objective_type objective_;         ///< the objective and its regularisers' settings (objective(), term<T>())
-  RefractoryState refractory_;       ///< the period the counts are read with (set_refractory)
-  double last_refractory_grad_ = 0;  ///< the step's dloss/dτ, for apply_update
+  objective_type objective_;                      ///< the objective and its regularisers' settings (objective(), term<T>())
+  RefractoryState refractory_;                    ///< the period the counts are read with (set_refractory)
+  double last_refractory_grad_ = 0;               ///< the step's dloss/dτ, for apply_update
+  PoseRefinement poses_;                          ///< pose refinement's state (set_pose_refinement; inactive by default)
+  std::vector<geometry::Pose> refined_;           ///< the knots' refined poses (empty when inactive)
+  std::vector<std::array<double, 6>> pose_grad_;  ///< the last gradients()'s dloss/dε per knot
+  double offset_grad_ = 0;                        ///< and dloss/d(offset)
 };
 
 }  // namespace evnerf

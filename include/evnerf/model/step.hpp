@@ -18,10 +18,11 @@ void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sa
   render::SamplerUpdate u;
   u.step = step;
   u.seed = seed;
-  const std::size_t np = data.boundary_poses.size(), every = std::max<std::size_t>(1, np / 64);
+  const auto& knots = training_poses(data);
+  const std::size_t np = knots.size(), every = std::max<std::size_t>(1, np / 64);
   std::vector<const geometry::Pose*> poses;
-  for (std::size_t i = 0; i < np; i += every) poses.push_back(&data.boundary_poses[i]);
-  if (np > 0) poses.push_back(&data.boundary_poses.back());
+  for (std::size_t i = 0; i < np; i += every) poses.push_back(&knots[i]);
+  if (np > 0) poses.push_back(&knots.back());
   const auto& cam = data.camera;
   const double near = box().near, far = box().far;
   u.seen = [&cam, poses, near, far](const Vec3& world, double radius) {
@@ -56,6 +57,8 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
   } else {
     // This process's shards, their gradients summed in shard order, their statistics and touched slices.
     std::vector<double> totals(kTotals + n_slices_, 0.0);
+    const std::size_t pose_at = totals.size();  // then pose refinement's gradients (knots × 6, offset)
+    if (poses_.active()) totals.resize(pose_at + 6 * (n_slices_ + 1) + 1, 0.0);
     bool first = true;
     for (int k = shards.rank; k < shards.count; k += shards.ranks) {
       if (!first) {  // keep the sum so far; gradients() overwrites grads
@@ -73,8 +76,19 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
       first = false;
       add_totals(totals, one);
       for (std::size_t j = 0; j < one.window; ++j) totals[kTotals + one.first_slice + j] += 1;
+      if (poses_.active()) {
+        for (std::size_t i = 0; i < pose_grad_.size(); ++i)
+          for (int k = 0; k < 6; ++k) totals[pose_at + 6 * i + k] += pose_grad_[i][k];
+        totals.back() += offset_grad_;
+      }
     }
     exchange(params_.grads, totals);
+    if (poses_.active()) {
+      for (std::size_t i = 0; i < pose_grad_.size(); ++i)
+        for (int k = 0; k < 6; ++k) pose_grad_[i][k] = totals[pose_at + 6 * i + k] / shards.count;
+      offset_grad_ = totals.back() / shards.count;
+      totals.resize(pose_at);
+    }
     st = from_totals(totals, shards.count);
     touched_.clear();
     for (std::size_t j = 0; j < n_slices_; ++j)
@@ -88,7 +102,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
   }
   if (!std::isfinite(st.loss)) return st;
   last_refractory_grad_ = st.refractory_grad;
-  apply_update();
+  apply_update(data);
   return st;
 }
 
@@ -124,6 +138,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     w.refractory_grad = 0;
     w.terms = {};
     w.rays = 0;
+    if (poses_.active()) w.pose_grad.assign(n_slices_ + 1, {});
     w.rw.training_termination = ray_termination_;
     w.rw.training_cut = static_cast<scalar>(ray_cut_);
     renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
@@ -148,6 +163,16 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
       [&](std::size_t j) { renderer_type::flush_part(work_[j / parts].rw, static_cast<int>(j % parts)); });
   for (int th = 0; th < threads; ++th) renderer_type::clear_deferred(work_[static_cast<std::size_t>(th)].rw);
   params_.end_accumulate(threads);
+  if (poses_.active()) {  // the threads' pose gradients in thread order; the first knot held (the gauge)
+    pose_grad_.assign(n_slices_ + 1, {});
+    for (int th = 0; th < threads; ++th)
+      for (std::size_t i = 0; i < pose_grad_.size(); ++i)
+        for (int k = 0; k < 6; ++k) pose_grad_[i][k] += work_[static_cast<std::size_t>(th)].pose_grad[i][k];
+    offset_grad_ = poses_.settings.offset ? offset_gradient_of(data) : 0.0;
+    pose_grad_[0] = {};
+    if (!poses_.settings.poses)
+      for (auto& g : pose_grad_) g = {};
+  }
   StepStats st;
   st.first_slice = first;
   st.window = L;
@@ -196,7 +221,8 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   t.channels = channels;
   t.camera = &data.camera;
   t.bayer = &data.bayer;
-  t.poses = data.boundary_poses.data();
+  const auto& poses = training_poses(data);
+  t.poses = poses.data();
   t.pixel_dirs = data.pixel_dirs.data();
   t.near = box().near;
   t.far = box().far;
@@ -210,7 +236,7 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   w.rng.clear();
   for (int r = 0; r < R; ++r) {
     const std::size_t pose = w.list.pose[r], pixel = w.list.pixel[r];
-    const auto a = geometry::Camera::ray_along(data.boundary_poses[pose], data.pixel_dirs[pixel].cast<double>());
+    const auto a = geometry::Camera::ray_along(poses[pose], data.pixel_dirs[pixel].cast<double>());
     w.origin[r] = a.origin;
     w.dir[r] = a.dir;
     w.rng.push_back(Rng(ray_key).split(w.list.key[r]));
@@ -227,6 +253,8 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr,
                                           refractory_.learned ? &w.refractory_grad : nullptr};
   const Scalar* params = params_.values.data();
+  w.rw.ray_grad = poses_.active();  // the rays' gradients too, for their poses
+  w.rw.ray_grad_levels = poses_.settings.levels > 0 ? poses_.settings.levels : 1 << 30;
   renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
   double loss = 0;
   for (int net = 0; net < n_fields; ++net) {
@@ -245,6 +273,17 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
     for (int k = 1; k < n_terms; ++k) w.terms[k] += l[k];
   }
   renderer_.backward(params, w.rw, grads);
+  if (poses_.active())
+    for (int r = 0; r < R; ++r) {  // a ray's gradient as its pose's twist: do = R ρ, dd = R (φ × k)
+      const std::size_t pose = w.list.pose[r];
+      const Quat qi = poses[pose].q.conjugate();
+      const Vec3 k = data.pixel_dirs[w.list.pixel[r]].template cast<double>();
+      const Vec3 gphi = k.cross(qi * w.rw.ddir[static_cast<std::size_t>(r)]), grho = qi * w.rw.dorigin[static_cast<std::size_t>(r)];
+      for (int d = 0; d < 3; ++d) {
+        w.pose_grad[pose][d] += gphi[d];
+        w.pose_grad[pose][3 + d] += grho[d];
+      }
+    }
   return loss;
 }
 

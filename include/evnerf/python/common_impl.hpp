@@ -131,11 +131,13 @@ inline void define_recordings(py::module_& m) {
       "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of " +
       sim::sensor_param_names() +
       " as keywords (evnerf.sensor_model shows the result). "
+      "pose_noise=(T, R) and time_offset make the poses only roughly known (simulate's --pose-noise, --time-offset), the true ones kept. "
       "Without out it stays in memory (frames, no depth or linear truth); with out it is written there (IJRR layout) and loaded.";
   m.def(
       "simulate",
       [](const std::string& scene, std::optional<fs::path> out, const std::string& sensor, bool bayer, bool hdr, std::uint64_t seed,
-         int width, int height, double focal, double noise_ratio, std::optional<fs::path> mesh, const py::kwargs& sensor_parameters) {
+         int width, int height, double focal, double noise_ratio, std::optional<fs::path> mesh, std::pair<double, double> pose_noise,
+         double time_offset, const py::kwargs& sensor_parameters) {
         sim::SimulateOptions o;
         if (mesh) o.mesh.file = *mesh;
         if (mesh && scene != "mesh") throw Error("simulate: mesh= goes with the scene 'mesh'");
@@ -147,6 +149,9 @@ inline void define_recordings(py::module_& m) {
         o.height = height;
         o.focal = focal;
         o.noise_ratio = noise_ratio;
+        o.pose_noise_translation = pose_noise.first;
+        o.pose_noise_rotation = pose_noise.second;
+        o.time_offset = time_offset;
         o.progress = false;
         py::gil_scoped_release nogil;
         std::string text;
@@ -158,7 +163,8 @@ inline void define_recordings(py::module_& m) {
       },
       py::arg("scene") = "planes", py::kw_only(), py::arg("out") = py::none(), py::arg("sensor") = "ideal", py::arg("bayer") = false,
       py::arg("hdr") = false, py::arg("seed") = 1, py::arg("width") = 0, py::arg("height") = 0, py::arg("focal") = 0.0,
-      py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(), simulate_doc.c_str());
+      py::arg("noise_ratio") = 0.0, py::arg("mesh") = py::none(), py::arg("pose_noise") = std::pair<double, double>{0.0, 0.0},
+      py::arg("time_offset") = 0.0, simulate_doc.c_str());
   m.def(
       "sensor_model",
       [](const std::string& sensor, std::uint64_t seed, const py::kwargs& sensor_parameters) {

@@ -121,7 +121,52 @@ struct SimulateOptions {
   double focal = 0;           ///< pixels; 0 = scaled with the width (200 at 240)
   MeshCapture mesh;           ///< with the scene 'mesh': the file and its capture
   bool progress = true;       ///< a progress bar on stderr
+  /// Poses only roughly known (perturb_poses): the recorded trajectory's RMS error over its pose knots in
+  /// translation (world units) and rotation (degrees), and the pose clock's offset from the events' (seconds).
+  double pose_noise_translation = 0, pose_noise_rotation = 0, time_offset = 0;
 };
+
+/// The recording's trajectory made only roughly known, its true poses kept in true_trajectory. Every knot
+/// but the first (which fixes the scene's frame, as pose refinement's gauge holds it) moves by a rigid error
+/// in its camera's frame: an independent one per knot plus a drift that grows steadily from the first knot
+/// along a slowly turning direction, half the variance each, with RMS `translation` (world units) and
+/// `rotation` (degrees) over the knots. Then the pose times are shifted by `offset`: the poses' clock reads
+/// t + offset at the events' time t. Deterministic in `seed`.
+inline void perturb_poses(Recording& rec, double translation, double rotation_deg, double offset, std::uint64_t seed) {
+  require(std::isfinite(translation) && translation >= 0 && translation <= 10, "simulate: --pose-noise's translation must be in [0, 10]");
+  require(std::isfinite(rotation_deg) && rotation_deg >= 0 && rotation_deg <= 45,
+          "simulate: --pose-noise's rotation must be in [0, 45] degrees");
+  require(std::isfinite(offset) && std::abs(offset) <= 1, "simulate: --time-offset must be within ±1 s");
+  if (translation == 0 && rotation_deg == 0 && offset == 0) return;
+  const auto& tr = rec.trajectory;
+  require(tr.size() >= 2, "simulate: the recording has too few poses to perturb");
+  Rng rng = Rng(seed).split(0x504F5345ull);  // "POSE": independent of the scene and the sensor
+  const double rot = rotation_deg * 3.14159265358979323846 / 180.0;
+  auto gauss3 = [&](double sd) -> Vec3 { return Vec3(rng.normal(), rng.normal(), rng.normal()) * sd; };
+  auto unit = [&]() -> Vec3 { return gauss3(1).normalized(); };
+  const Vec3 dt0 = unit(), dt1 = unit(), dr0 = unit(), dr1 = unit();
+  const double span = tr.back() - tr.front(), quarter = 1.5707963267948966;
+  // The drift's size grows as s ∈ [0, 1] along the path (RMS 1/√3), scaled to an RMS of σ/√2; the
+  // independent part has σ/√6 per axis (RMS σ/√2 over three axes).
+  const double grow = std::sqrt(3.0 / 2.0);
+  std::vector<geometry::Pose> poses;
+  std::vector<double> times;
+  for (std::size_t i = 0; i < tr.size(); ++i) {
+    const double s = span > 0 ? (tr.times()[i] - tr.front()) / span : 0;
+    const Vec3 drift_t = (dt0 * std::cos(s * quarter) + dt1 * std::sin(s * quarter)).normalized() * (translation * grow * s);
+    const Vec3 drift_r = (dr0 * std::cos(s * quarter) + dr1 * std::sin(s * quarter)).normalized() * (rot * grow * s);
+    Vec3 et = drift_t + gauss3(translation / std::sqrt(6.0)), er = drift_r + gauss3(rot / std::sqrt(6.0));
+    if (i == 0) et = er = Vec3::Zero();
+    geometry::Pose e;
+    const double a = er.norm();
+    e.q = a > 0 ? Quat(Eigen::AngleAxisd(a, er / a)) : Quat::Identity();
+    e.t = et;
+    poses.push_back(tr.poses()[i] * e);
+    times.push_back(tr.times()[i] + offset);
+  }
+  rec.true_trajectory = tr;
+  rec.trajectory = geometry::Trajectory(std::move(times), std::move(poses), "perturbed trajectory");
+}
 
 /// Simulates a built-in scene, 'random' (a procedural scene from the seed), 'mesh' (o.mesh's capture of a
 /// mesh file) or a scene description file. The text of a generated scene goes to `scene_text`.
@@ -158,7 +203,9 @@ inline Recording simulate(const std::string& scene, SimulateOptions o, std::stri
   c.width = o.width;
   c.height = o.height;
   c.cx = c.cy = -1;
-  return Simulator(spec, c).run(o.progress);
+  Recording rec = Simulator(spec, c).run(o.progress);
+  perturb_poses(rec, o.pose_noise_translation, o.pose_noise_rotation, o.time_offset, o.seed);
+  return rec;
 }
 
 /// A simulated recording as a Dataset in memory: camera, events, poses and frames (the mosaic named when
@@ -169,6 +216,7 @@ inline io::Dataset to_dataset(Recording rec, const std::string& name = "simulate
   d.camera = rec.camera;
   d.events = std::move(rec.events);
   d.trajectory = std::move(rec.trajectory);
+  d.true_trajectory = std::move(rec.true_trajectory);
   d.frames.t = std::move(rec.frame_times);
   d.frames.images = std::move(rec.frames);
   if (!d.frames.images.empty() && d.frames.images.front().channels == 3) d.bayer_pattern = "rggb";

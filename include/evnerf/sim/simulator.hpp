@@ -73,6 +73,9 @@ struct Recording {
   bool clipped = false;       ///< some frame pixel exceeded 1 (frames lost highlights)
   double log_offset = 0;      ///< the sensor's, to score HDR renders in the space the events see
   geometry::Trajectory trajectory;
+  /// The true poses when `trajectory` was perturbed (simulate's --pose-noise, --time-offset), else empty:
+  /// write_recording keeps them as groundtruth_true.txt, and eval measures the pose error against them.
+  geometry::Trajectory true_trajectory;
   std::size_t renders = 0;
   std::string scene_name;  ///< the scene's own name
   double duration = 0;     ///< the camera path's length in time, seconds
@@ -382,6 +385,7 @@ inline void write_views(const std::filesystem::path& dir, const Recording::Views
 }
 
 /// Writes a recording in the IJRR layout (events.txt, images.txt, images/, groundtruth.txt, calib.txt) plus
+/// groundtruth_true.txt (the true poses of a perturbed trajectory),
 /// sensor.txt, sensor_model.txt (sensor_model_text) and depth/frame_XXXXXXXX.npy; with HDR truth also
 /// linear/frame_XXXXXXXX.npy (float32, H×W or H×W×3) and linear/log_offset.txt; with held-out views novel/
 /// (write_views). Every file is written atomically.
@@ -423,6 +427,7 @@ inline void write_recording(const std::filesystem::path& dir, const Recording& r
   }
   write_file_atomic(dir / "images.txt", images);
   io::write_poses_txt(dir / "groundtruth.txt", rec.trajectory);
+  if (!rec.true_trajectory.empty()) io::write_poses_txt(dir / "groundtruth_true.txt", rec.true_trajectory);
   const auto& c = rec.camera;
   std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f 0 0 0 0 0\n", c.fx(), c.fy(), c.cx(), c.cy());
   write_file_atomic(dir / "calib.txt", buf);

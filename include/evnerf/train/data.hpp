@@ -66,6 +66,7 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
   td.camera = d.camera;
   td.slices = events::slice_events(d.events, b, !cfg.refractory || *cfg.refractory > 0);  // a period reads the intervals
   for (double t : b) td.boundary_poses.push_back(d.trajectory.pose_at(t, policy));
+  td.trajectory = d.trajectory;
   td.pixel_dirs = render::pixel_directions(d.camera);
   td.slice_enabled.assign(td.slices.size(), true);
   td.prefix = events::CountPrefix(td.slices);

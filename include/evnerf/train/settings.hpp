@@ -44,6 +44,13 @@ struct Config {
   bool density_per_box = false;
   std::optional<double> background;  ///< unset: no background (the last sample stops every ray)
   bool learn_background = true;      ///< a backdrop of unknown brightness, learned with the field (unless `background` is given)
+  bool refine_poses = false;         ///< a correction per pose knot, learned with the field (model/poses.hpp)
+  double pose_lr_rotation = 5e-4, pose_lr_translation = 2e-4;
+  bool learn_time_offset = false;  ///< the clock offset between the events and the poses, learned
+  double time_offset_lr = 2e-4;
+  double pose_lr_decay_steps = 6000;
+  int pose_levels = 8;
+  long pose_start = 1000;
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
   int shards = 0;
@@ -190,6 +197,21 @@ inline const std::vector<Setting>& settings() {
        "a backdrop behind the scene whose brightness (one per channel) is learned with the field, where rays pass all samples "
        "unstopped (an object before a plain background of unknown brightness; on by default; --background gives a known one "
        "instead; off: the last sample stops every ray)"},
+      {"refine_poses", &Config::refine_poses, -inf, inf, false, false,
+       "learn a rigid correction of the pose at every slice boundary with the field (poses only roughly known); the first "
+       "boundary's is held, which fixes the scene's frame"},
+      {"pose_lr_rotation", &Config::pose_lr_rotation, 0, inf, false, false,
+       "Adam's step size for the pose corrections' rotations (radians)"},
+      {"pose_lr_translation", &Config::pose_lr_translation, 0, inf, false, false,
+       "Adam's step size for the pose corrections' translations (world units)"},
+      {"learn_time_offset", &Config::learn_time_offset, -inf, inf, false, false,
+       "learn the clock offset between the events and the poses (a boundary at time t takes the poses' pose at t + offset)"},
+      {"time_offset_lr", &Config::time_offset_lr, 0, inf, false, false, "Adam's step size for the clock offset (seconds)"},
+      {"pose_lr_decay_steps", &Config::pose_lr_decay_steps, 0, inf, true, false,
+       "steps over which the pose and offset step sizes fall to a hundredth (then they stay)"},
+      {"pose_start", &Config::pose_start, 0, inf, false, false, "steps the field trains on the given poses before they move"},
+      {"pose_levels", &Config::pose_levels, 0, 64, false, false,
+       "hash-grid levels the pose gradient goes through, the coarsest first (0 = all)"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
        "steps between collapse checks (renders almost constant, or the event loss not falling; a multiple of 50; 0 = never)"},
       {"collapse_check_from", &Config::collapse_check_from, 0, inf, false, false, "the first step of a collapse check (a multiple of 50)"},

@@ -73,12 +73,27 @@ double render_log_spread(const Model& model, const TrainingData& td) {
   return std::sqrt(std::max(0.0, ss / count - mean * mean));
 }
 
+/// Pose refinement's settings a Config gives.
+inline PoseRefinementSettings pose_settings(const Config& cfg) {
+  PoseRefinementSettings s;
+  s.poses = cfg.refine_poses;
+  s.offset = cfg.learn_time_offset;
+  s.lr_rotation = cfg.pose_lr_rotation;
+  s.lr_translation = cfg.pose_lr_translation;
+  s.lr_offset = cfg.time_offset_lr;
+  s.decay_steps = cfg.pose_lr_decay_steps;
+  s.levels = cfg.pose_levels;
+  s.start = cfg.pose_start;
+  return s;
+}
+
 /// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
   Model m(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
   // The refractory period: given, fixed (0 reads the counts as they are); unset, learned from 0.
   if (!cfg.refractory || *cfg.refractory > 0) m.set_refractory(cfg.refractory.value_or(0.0), !cfg.refractory);
+  if (cfg.refine_poses || cfg.learn_time_offset) m.set_pose_refinement(td, pose_settings(cfg));
   return m;
 }
 
@@ -175,8 +190,8 @@ inline std::ofstream open_log(const fs::path& out, long step) {
   return log;
 }
 
-/// A log line: the period's means, the learning rate, the speed, the model's learned refractory period and
-/// backdrop, and each regulariser that is on (as <name>_loss).
+/// A log line: the period's means, the learning rate, the speed, the model's learned refractory period,
+/// backdrop and pose corrections (their mean size, the clock offset), and each regulariser that is on (as <name>_loss).
 template <class Model>
 nlohmann::ordered_json log_line(const Model& model, const LogPeriod& p, long step, std::size_t rays, double seconds) {
   const double n = static_cast<double>(p.steps);
@@ -191,6 +206,16 @@ nlohmann::ordered_json log_line(const Model& model, const LogPeriod& p, long ste
                               {"rays_per_s", rays / std::max(seconds, 1e-9)},
                               {"seconds", seconds}};
   if (model.refractory().active()) j["refractory"] = model.refractory().seconds;
+  if (const auto& pr = model.pose_refinement(); pr.active()) {
+    double t = 0, r = 0;  // the corrections' mean size
+    for (const auto& c : pr.correction) {
+      t += c.t.norm() / pr.correction.size();
+      r += Eigen::AngleAxisd(c.q).angle() * (180.0 / 3.14159265358979323846) / pr.correction.size();
+    }
+    j["pose_correction_translation"] = t;
+    j["pose_correction_rotation_deg"] = r;
+    if (pr.settings.offset) j["time_offset"] = pr.offset;
+  }
   if (model.renderer().learns_backdrop()) {  // the learned backdrop's luminance per channel
     const auto b = *model.renderer().backdrop(model.params().values.data());
     j["background"] = std::vector<double>(b.begin(), b.end());
@@ -421,6 +446,7 @@ class Trainer {
                       " (any number of processes that divides it)");
     model_.optimizer().set_config(adam_config(cfg_));
     follow_box();
+    model_.set_pose_rates(td_, pose_settings(cfg_));
     return true;
   }
   /// Trains up to cfg.iterations steps in total (see train::run); `on_step` may stop early.
@@ -434,8 +460,8 @@ class Trainer {
   const fs::path& out() const { return out_; }
 
  private:
-  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and backdrop) and its
-  /// refractory period, whatever this call's Config says; the Config takes them over, so that settings.json
+  /// A resumed model keeps its checkpoint's scene box (near, far, its density unit and backdrop), its
+  /// refractory period and what it refines of the poses, whatever this call's Config says; the Config takes them over, so that settings.json
   /// records what the run uses.
   void follow_box() {
     const auto& b = model_.box();
@@ -447,6 +473,8 @@ class Trainer {
     const auto& r = model_.refractory();
     if (r.learned) cfg_.refractory.reset();
     else cfg_.refractory = r.active() ? r.seconds : 0.0;
+    cfg_.refine_poses = model_.pose_refinement().settings.poses;  // what the checkpoint learns, it goes on learning
+    cfg_.learn_time_offset = model_.pose_refinement().settings.offset;
   }
 
   const TrainingData& td_;
