@@ -271,13 +271,33 @@ def factors_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=()):
+def poses_section(rows):
+    """Poses only roughly known, from bench/poses.sh."""
+    p = ["", "## Poses only roughly known (`bench/poses.sh`)", "",
+         "Each scene simulated with the recorded poses perturbed (`simulate --pose-noise T,R --time-offset 0.01`: RMS",
+         "error T world units and R degrees over the pose knots, half independent per knot and half a slow drift, the",
+         "first pose exact; the pose clock 10 ms ahead), trained with the default preset and steps (training seed =",
+         "simulation seed, 2 threads) without and with `train --refine-poses --learn-time-offset`, scored against the",
+         "recording's frames (global-log-affine). The pose error is the mean at the slice boundaries against the true",
+         "poses, of the recording's poses without refinement and of the refined ones with it.", "",
+         "| scene | seed | pose noise | refinement | ours | pose error | clock offset learned |",
+         "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        noise = "none" if float(r["noise_translation"]) == 0 and float(r["noise_rotation_deg"]) == 0 and float(r["offset_s"]) == 0 else \
+            f"{float(r['noise_translation']) * 100:g} cm, {float(r['noise_rotation_deg']):g}°, {float(r['offset_s']) * 1e3:g} ms"
+        err = f"{float(r['error_translation']) * 100:.2f} cm, {float(r['error_rotation_deg']):.2f}°" if noise != "none" else ""
+        off = f"{float(r['learned_offset_s']) * 1e3:.2f} ms" if r["refine"] == "1" else ""
+        p.append(f"| {r['scene']} | {r['seed']} | {noise} | {'on' if r['refine'] == '1' else 'off'} | {r['psnr']} / {r['ssim']} | {err} | {off} |")
+    return p
+
+
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -341,6 +361,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         p += factors_section(factors)
     if mesh:
         p += mesh_section(mesh)
+    if poses:
+        p += poses_section(poses)
     if speed:
         p += ["", "## Network speed against PyTorch (`bench/pairs.sh`)", "",
               "The fused MLP's forward + backward (samples per second) right next to the PyTorch peer's same network in its",
@@ -400,7 +422,8 @@ def main():
     formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]
     factors = read(os.path.join(a.results, "sensor_factors.csv"))
     profile = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"step_profile_{isa}.csv"))]
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile)}
+    poses = read(os.path.join(a.results, "poses.csv"))
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile, poses)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []
