@@ -802,7 +802,7 @@ TEST_CASE("mesh: the suite's assets from assimp-testmodels load, textured, insid
 }
 #endif
 
-TEST_CASE("simulate: poses only roughly known, the true ones kept beside, written and read back; bad values refused") {
+TEST_CASE("simulate: poses only roughly known, the true ones kept beside, written and read back, bad values refused") {
   sim::SimulateOptions o;
   o.width = 32;
   o.height = 24;

@@ -679,7 +679,7 @@ TEST_CASE("training data: with subslices a window objective's windows span W fra
   CHECK_THROWS_WITH(m.train_step(td, 64, 3), doctest::Contains("slices per interval"));
 }
 
-TEST_CASE("pose refinement: off, a step is the one without it; a resumed run equals an uninterrupted one; a rolled pose comes back") {
+TEST_CASE("pose refinement: off, a step is the one without it, a resumed run equals an uninterrupted one, a rolled pose comes back") {
   Fixture f;
   const auto box = train::scene_box(f.td, f.cfg);
   // Off (the default settings) is the model without the setting, bit for bit.
