@@ -24,11 +24,11 @@ namespace evnerf {
 /// What pose refinement learns and how fast (EvNerf::set_pose_refinement; train::Config's refine_poses,
 /// pose_lr_rotation, pose_lr_translation, learn_time_offset, time_offset_lr).
 struct PoseRefinementSettings {
-  bool poses = false;             ///< learn a correction per knot
-  bool offset = false;            ///< learn the clock offset between the events and the poses
-  double lr_rotation = 5e-4;      ///< Adam's step size for a correction's rotation, radians
-  double lr_translation = 2e-4;   ///< Adam's step size for a correction's translation, world units
-  double lr_offset = 2e-4;        ///< Adam's step size for the offset, seconds
+  bool poses = false;            ///< learn a correction per knot
+  bool offset = false;           ///< learn the clock offset between the events and the poses
+  double lr_rotation = 5e-4;     ///< Adam's step size for a correction's rotation, radians
+  double lr_translation = 2e-4;  ///< Adam's step size for a correction's translation, world units
+  double lr_offset = 2e-4;       ///< Adam's step size for the offset, seconds
   /// The step sizes fall exponentially to a hundredth over this many steps, and stay there: a pose
   /// gradient is noisy (a step's few pixels), and what is left of the step size at the end is the
   /// corrections' jitter.
