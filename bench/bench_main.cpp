@@ -2,13 +2,15 @@
 //   MLP forward+backward (paper network W=256 and W=64): fused tiles vs the plain reference MLP;
 //   one tile's matrix products: the kernel (AVX-512 or AVX2) vs Eigen's product on the same operands;
 //   a pure-FMA loop (the machine's FP32 peak); events.txt parsing vs a naive ifstream reader; the .npy
-//   event cache; the Fast and Paper training steps; one Fast 240×180 render.
+//   event cache; the Fast and Paper training steps; one Fast 240×180 render; the Gaussian rasterizer's whole
+//   346×260 view (tiles) vs its plain reference (every Gaussian at every pixel), and its training pass.
 // bench/run.sh runs this and the PyTorch peer and prints the ratios.
 #include <benchmark/benchmark.h>
 #include <evnerf/evnerf.hpp>
 #include <evnerf/model/presets.hpp>
 #include <evnerf/nn/detail/reference.hpp>
 #include <evnerf/sim/simulator.hpp>
+#include <evnerf/splat/rasterizer.hpp>
 #include <evnerf/train/trainer.hpp>
 
 #include <fstream>
@@ -340,6 +342,87 @@ void BM_render_fast(benchmark::State& st) {
   for (auto _ : st) benchmark::DoNotOptimize(m.render(td.camera, td.pixel_dirs, td.boundary_poses[0]));
 }
 
+/// A random Gaussian scene in front of a 346 × 260 camera (grey, degree 1): `n` Gaussians in a slab 2–5
+/// units deep, sized so that about 20 overlap a pixel whatever n is (a trained scene's depth complexity).
+struct SplatBench {
+  using L = splat::Layout<1, 1>;
+  std::size_t n;
+  std::vector<float> params, px;
+  splat::View view;
+  explicit SplatBench(std::size_t count) : n(count) {
+    view.width = 346, view.height = 260, view.fx = view.fy = 300, view.cx = 173, view.cy = 130;
+    Rng rng(17);
+    params.resize(n * L::size);
+    const double scale = 0.05 * std::sqrt(50000.0 / static_cast<double>(n));
+    for (std::size_t i = 0; i < n; ++i) {
+      float* g = params.data() + i * L::size;
+      const double z = rng.uniform(2, 5);
+      g[L::mean] = static_cast<float>(rng.uniform(-0.6, 0.6) * z), g[L::mean + 1] = static_cast<float>(rng.uniform(-0.45, 0.45) * z);
+      g[L::mean + 2] = static_cast<float>(z);
+      for (int a = 0; a < 3; ++a) g[L::log_scale + a] = static_cast<float>(std::log(scale * rng.uniform(0.3, 1.0)));
+      for (int a = 0; a < 4; ++a) g[L::rotation + a] = static_cast<float>(rng.uniform(-1, 1));
+      g[L::opacity] = static_cast<float>(rng.uniform(-3, 0));
+      for (int k = 0; k < L::sh; ++k) g[L::colour + k] = static_cast<float>(k == 0 ? rng.uniform(0.5, 2) : rng.uniform(-0.3, 0.3));
+    }
+    for (int y = 0; y < 260; ++y)
+      for (int x = 0; x < 346; ++x) px.push_back(static_cast<float>(x + 0.5)), px.push_back(static_cast<float>(y + 0.5));
+  }
+};
+/// A whole view: projection, binning, compositing (Arg: Gaussians). Counters: Gaussian·pixel pairs
+/// tested per second, and the mean tested per pixel.
+void BM_splat_render(benchmark::State& st) {
+  SplatBench b(static_cast<std::size_t>(st.range(0)));
+  splat::Projection<float, 1> proj;
+  splat::Rasterizer<float, 1> raster;
+  const std::size_t P = b.px.size() / 2;
+  std::vector<float> c(P), d(P), a(P);
+  const float bg = 0.5f;
+  double pairs = 0;
+  for (auto _ : st) {
+    splat::project<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj);
+    raster.forward(proj, b.view, b.px.data(), P, &bg, c.data(), d.data(), a.data(), false);
+    pairs += static_cast<double>(raster.evaluated());
+  }
+  st.counters["pairs_per_s"] = benchmark::Counter(pairs, benchmark::Counter::kIsRate);
+  st.counters["tested_per_px"] = pairs / static_cast<double>(st.iterations()) / static_cast<double>(P);
+}
+/// The same view by the plain reference: every visible Gaussian tested at every pixel.
+void BM_splat_reference(benchmark::State& st) {
+  SplatBench b(static_cast<std::size_t>(st.range(0)));
+  splat::Projection<float, 1> proj;
+  const std::size_t P = b.px.size() / 2;
+  std::vector<float> c(P), d(P), a(P);
+  const float bg = 0.5f;
+  for (auto _ : st) {
+    splat::project<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj);
+    splat::reference_composite(proj, b.px.data(), P, &bg, c.data(), d.data(), a.data());
+  }
+}
+/// A training pass over 4096 scattered pixels of the view: projection, forward kept, backward, projection
+/// backward (Arg: Gaussians).
+void BM_splat_train_pass(benchmark::State& st) {
+  SplatBench b(static_cast<std::size_t>(st.range(0)));
+  splat::Projection<float, 1> proj;
+  splat::ProjectionGrad<float, 1> pg;
+  splat::Rasterizer<float, 1> raster;
+  Rng rng(3);
+  std::vector<float> px;
+  for (int k = 0; k < 4096; ++k)
+    px.push_back(static_cast<float>(rng.uniform(0, 346))), px.push_back(static_cast<float>(rng.uniform(0, 260)));
+  std::vector<float> c(4096), dc(4096, 1e-3f), grads(b.params.size());
+  const float bg = 0.5f;
+  float dbg = 0;
+  for (auto _ : st) {
+    splat::project<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj);
+    raster.forward(proj, b.view, px.data(), 4096, &bg, c.data(), nullptr, nullptr, true);
+    raster.backward(proj, px.data(), dc.data(), &bg, pg, &dbg);
+    std::fill(grads.begin(), grads.end(), 0.0f);
+    splat::project_backward<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj, pg, grads.data());
+    benchmark::DoNotOptimize(grads.data());
+  }
+  st.counters["px_per_s"] = benchmark::Counter(4096, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 }  // namespace
 
 BENCHMARK(BM_fma_peak)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -363,4 +446,7 @@ BENCHMARK(BM_train_step<presets::FastBf16>)->Unit(benchmark::kMillisecond)->UseR
 BENCHMARK(BM_train_step<presets::Paper>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_train_step<presets::PaperBf16>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_render_fast)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_splat_render)->Arg(2000)->Arg(50000)->Arg(200000)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_splat_reference)->Arg(2000)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_splat_train_pass)->Arg(50000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();

@@ -48,3 +48,11 @@ for suffix in ("", "Bf16"):
     paper = med(f"BM_train_step<presets::Paper{suffix}>", "real_time")
     print(f"Fast{suffix} step {fast:.0f} ms: {peer64 / fast:.1f}x the FP32 peer's W=64 32+32 step, {b64 / fast:.1f}x its bf16 autocast")
     print(f"Paper{suffix} step {paper:.0f} ms: {peer256 / paper:.2f}x the FP32 peer's paper step, {b256 / paper:.2f}x its bf16 autocast")
+# The Gaussian rasterizer: whole 346×260 views (tiles) against its plain reference at 2 k Gaussians.
+for n in (2000, 50000, 200000):
+    ms, pairs = med(f"BM_splat_render/{n}/", "real_time"), med(f"BM_splat_render/{n}/", "pairs_per_s")
+    line = f"splat view 346x260, {n:,} Gaussians: {ms:.1f} ms ({pairs / 1e6:.0f} M Gaussian-pixel pairs/s)"
+    if n == 2000:
+        line += f"; {med('BM_splat_reference/2000/', 'real_time') / ms:.1f}x the plain reference"
+    print(line)
+print("splat training pass, 4096 pixels of 50,000 Gaussians: %.1f ms" % med("BM_splat_train_pass/50000/", "real_time"))
