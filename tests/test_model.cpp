@@ -285,6 +285,7 @@ void check_pose_gradients() {
       m.params().values[net * Model::field_params + i] = rng.uniform() - 0.5;
   PoseRefinementSettings s;
   s.poses = s.offset = true;
+  s.prior_rotation = 30, s.prior_translation = 50;  // the pull toward the given poses, in the loss and its gradient
   m.set_pose_refinement(f.td, s);
   for (std::size_t i = 1; i <= m.n_slices(); ++i)
     m.set_pose_correction(f.td, i,
@@ -341,6 +342,31 @@ void check_pose_gradients() {
   CHECK(compared >= 20);
   CHECK(kinks * 10 <= compared);
   CHECK(nonzero * 2 >= compared);
+}
+
+// The pull toward the given poses: its gradient for the twist of c ∘ Exp(ε) against central differences, at
+// corrections far from small (the rotation's gradient is exact at any angle below π).
+TEST_CASE("pose refinement: the pull toward the given poses, finite differences in double at large corrections") {
+  PoseRefinementSettings s;
+  s.prior_rotation = 3, s.prior_translation = 7;
+  Rng rng(4);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Vec3 phi0 = Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5).normalized() * rng.uniform(0.01, 2.5);
+    const geometry::Pose c = twist_exp(phi0, Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5));
+    std::array<double, 6> g{};
+    const double l = pose_prior(s, c, g);
+    CHECK(l == doctest::Approx(0.5 * (3 * phi0.squaredNorm() + 7 * c.t.squaredNorm())));
+    for (int k = 0; k < 6; ++k) {
+      auto at = [&](double e) {
+        Vec3 phi = Vec3::Zero(), rho = Vec3::Zero();
+        (k < 3 ? phi : rho)[k % 3] = e;
+        std::array<double, 6> unused{};
+        return pose_prior(s, c * twist_exp(phi, rho), unused);
+      };
+      const double h = 1e-6;
+      CHECK(g[k] == doctest::Approx((at(h) - at(-h)) / (2 * h)).epsilon(1e-6).scale(1.0));
+    }
+  }
 }
 
 TEST_CASE_TEMPLATE("pose refinement: finite differences in double of the whole training loss for the corrections and the offset", Model,

@@ -60,12 +60,13 @@ struct StepStats {
   /// coarse pass's loss alone.
   std::array<double, 2> pass_event_loss{};
   double refractory_grad = 0;  ///< dloss/dτ of a learned refractory period (0 when none is learned)
+  double pose_prior_loss = 0;  ///< pose refinement's pull toward the given poses (in loss; model/poses.hpp's pose_prior)
 
   /// Visits every field a step's shards add up, each once and in one fixed order: every loss, count and
   /// gradient above but the window. A new statistic goes here, and shards and processes sum it.
   template <class S, class F>
   static constexpr void summed_fields(S& s, F&& f) {
-    f(s.loss), f(s.event_loss), f(s.threshold_loss), f(s.refractory_grad);
+    f(s.loss), f(s.event_loss), f(s.threshold_loss), f(s.refractory_grad), f(s.pose_prior_loss);
     f(s.rays), f(s.samples), f(s.backward_samples);
     for (auto& v : s.pass_event_loss) f(v);
     for (auto& v : s.term_loss) f(v);
@@ -248,8 +249,10 @@ class EvNerf {
     check_data(data);
     require(!s.offset || data.trajectory.size() >= 2, "pose refinement: learning the clock offset needs the recording's trajectory");
     require(std::isfinite(s.lr_rotation) && s.lr_rotation >= 0 && std::isfinite(s.lr_translation) && s.lr_translation >= 0 &&
-                std::isfinite(s.lr_offset) && s.lr_offset >= 0 && s.decay_steps > 0 && s.levels >= 0 && s.start >= 0,
-            "pose refinement: the learning rates must be finite and not negative, the decay's steps positive, the levels not negative");
+                std::isfinite(s.lr_offset) && s.lr_offset >= 0 && s.decay_steps > 0 && s.levels >= 0 && s.start >= 0 &&
+                std::isfinite(s.prior_rotation) && s.prior_rotation >= 0 && std::isfinite(s.prior_translation) && s.prior_translation >= 0,
+            "pose refinement: the learning rates and the pull's weights must be finite and not negative, the decay's steps positive, the "
+            "levels not negative");
     poses_ = {};
     poses_.settings = s;
     if (s.active()) {
@@ -269,6 +272,8 @@ class EvNerf {
     poses_.settings.decay_steps = s.decay_steps;
     poses_.settings.levels = s.levels;
     poses_.settings.start = s.start;
+    poses_.settings.prior_rotation = s.prior_rotation;
+    poses_.settings.prior_translation = s.prior_translation;
     if (poses_.active()) {
       check_data(data);
       refresh_poses(data);

@@ -39,6 +39,11 @@ struct PoseRefinementSettings {
   /// Steps the field trains on the given poses before they move: a pose gradient through a field that
   /// shows nothing yet is noise.
   long start = 1000;
+  /// A pull of each correction toward the given pose: a step's loss holds ½ κ_r |φ|² + ½ κ_t |t|² for the
+  /// correction (rotation vector φ, translation t) of every knot it renders from. Events leave some motions
+  /// nearly unobserved (along the optical axis, before a scene seen from afar); without the pull the
+  /// corrections drift along them with the field, and on exact poses that costs more than it gains.
+  double prior_rotation = 10, prior_translation = 10;
   bool active() const { return poses || offset; }
   /// The factor on the step sizes at `step` (0 before `start`).
   double decay(long step) const {
@@ -56,6 +61,20 @@ struct PoseRefinement {
   double offset = 0, offset_m = 0, offset_v = 0;  ///< seconds: knot i's pose is the trajectory's at t_i + offset
   bool active() const { return settings.active(); }
 };
+
+/// The prior's loss for one correction c, ½ κ_r |φ|² + ½ κ_t |t|² (φ the rotation vector of c, t its
+/// translation), and its gradient for the twist ε at 0 of c ∘ Exp(ε): (κ_r φ, κ_t Rcᵀ t). The rotation's is
+/// exact, not a small-angle approximation: Log(R Exp(δ)) = φ + J_r⁻¹(φ) δ + …, and J_r⁻ᵀ(φ) φ = φ.
+inline double pose_prior(const PoseRefinementSettings& s, const geometry::Pose& c, std::array<double, 6>& grad) {
+  const Eigen::AngleAxisd aa(c.q.normalized());  // the angle in [0, π]
+  const Vec3 phi = aa.axis() * aa.angle();
+  const Vec3 gt = c.q.conjugate() * c.t;
+  for (int k = 0; k < 3; ++k) {
+    grad[k] += s.prior_rotation * phi[k];
+    grad[3 + k] += s.prior_translation * gt[k];
+  }
+  return 0.5 * (s.prior_rotation * phi.squaredNorm() + s.prior_translation * c.t.squaredNorm());
+}
 
 /// The twist (φ, ρ) of Exp as pose ∘ Exp(φ, ρ) uses it: rotation by the rotation vector φ, then ρ.
 inline geometry::Pose twist_exp(const Vec3& phi, const Vec3& rho) {

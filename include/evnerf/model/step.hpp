@@ -163,6 +163,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
       [&](std::size_t j) { renderer_type::flush_part(work_[j / parts].rw, static_cast<int>(j % parts)); });
   for (int th = 0; th < threads; ++th) renderer_type::clear_deferred(work_[static_cast<std::size_t>(th)].rw);
   params_.end_accumulate(threads);
+  double prior = 0;
   if (poses_.active()) {  // the threads' pose gradients in thread order; the first knot held (the gauge)
     pose_grad_.assign(n_slices_ + 1, {});
     for (int th = 0; th < threads; ++th)
@@ -172,8 +173,12 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     pose_grad_[0] = {};
     if (!poses_.settings.poses)
       for (auto& g : pose_grad_) g = {};
+    else  // the pull toward the given poses, on the knots the step rendered from (those with a gradient)
+      for (std::size_t i = 1; i < pose_grad_.size(); ++i)
+        if (pose_grad_[i] != std::array<double, 6>{}) prior += pose_prior(poses_.settings, poses_.correction[i], pose_grad_[i]);
   }
   StepStats st;
+  st.pose_prior_loss = prior;
   st.first_slice = first;
   st.window = L;
   for (double l : loss_ev) st.event_loss += l;
@@ -199,7 +204,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
     }
   }
   st.term_loss[0] = st.event_loss;
-  st.loss = st.event_loss + st.threshold_loss;
+  st.loss = st.event_loss + st.threshold_loss + st.pose_prior_loss;
   for (int k = 1; k < n_terms; ++k) st.loss += st.term_loss[k];
   for (std::size_t r : rays) st.rays += r;
   touched_.clear();

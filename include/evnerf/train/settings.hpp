@@ -51,6 +51,7 @@ struct Config {
   double pose_lr_decay_steps = 6000;
   int pose_levels = 8;
   long pose_start = 1000;
+  double pose_prior_rotation = 10, pose_prior_translation = 10;
   long collapse_check_every = 250, collapse_check_from = 500;
   bool allow_collapse = false;
   int shards = 0;
@@ -212,6 +213,12 @@ inline const std::vector<Setting>& settings() {
       {"pose_start", &Config::pose_start, 0, inf, false, false, "steps the field trains on the given poses before they move"},
       {"pose_levels", &Config::pose_levels, 0, 64, false, false,
        "hash-grid levels the pose gradient goes through, the coarsest first (0 = all)"},
+      {"pose_prior_rotation", &Config::pose_prior_rotation, 0, inf, false, false,
+       "weight of the pull of each pose correction's rotation toward the given pose: a step's loss holds weight/2 · |rotation "
+       "vector|² (radians) for every boundary it renders from"},
+      {"pose_prior_translation", &Config::pose_prior_translation, 0, inf, false, false,
+       "weight of the pull of each pose correction's translation toward the given pose: a step's loss holds weight/2 · "
+       "|translation|² (world units) for every boundary it renders from"},
       {"collapse_check_every", &Config::collapse_check_every, 0, inf, false, false,
        "steps between collapse checks (renders almost constant, or the event loss not falling; a multiple of 50; 0 = never)"},
       {"collapse_check_from", &Config::collapse_check_from, 0, inf, false, false, "the first step of a collapse check (a multiple of 50)"},

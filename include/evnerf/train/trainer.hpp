@@ -84,6 +84,8 @@ inline PoseRefinementSettings pose_settings(const Config& cfg) {
   s.decay_steps = cfg.pose_lr_decay_steps;
   s.levels = cfg.pose_levels;
   s.start = cfg.pose_start;
+  s.prior_rotation = cfg.pose_prior_rotation;
+  s.prior_translation = cfg.pose_prior_translation;
   return s;
 }
 
