@@ -42,7 +42,8 @@ std::vector<T> scene(std::size_t n, std::uint64_t seed, double scale, double lo 
     for (int a = 0; a < 3; ++a) g[L::log_scale + a] = static_cast<T>(std::log(scale) + rng.uniform(-0.3, 0.3));
     for (int a = 0; a < 4; ++a) g[L::rotation + a] = static_cast<T>(rng.uniform(-1, 1));
     g[L::opacity] = static_cast<T>(rng.uniform(lo, hi));
-    for (int k = 0; k < L::channels * L::sh; ++k) g[L::colour + k] = static_cast<T>(k % L::sh == 0 ? rng.uniform(0.2, 1.5) : rng.uniform(-0.4, 0.4));
+    for (int k = 0; k < L::channels * L::sh; ++k)
+      g[L::colour + k] = static_cast<T>(k % L::sh == 0 ? rng.uniform(0.2, 1.5) : rng.uniform(-0.4, 0.4));
   }
   return p;
 }

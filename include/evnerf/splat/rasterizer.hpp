@@ -75,7 +75,8 @@ inline T gaussian_exp(T x) {
 template <class T, int C>
 struct Projection {
   std::size_t n = 0;
-  std::vector<T> mean2, conic, depth, opacity, colour, extent;  ///< 2n image centres, 3n inverse covariances (xx, xy, yy), n depths, n opacities, C·n colours, 2n footprint half-sizes
+  std::vector<T> mean2, conic, depth, opacity, colour,
+      extent;  ///< 2n image centres, 3n inverse covariances (xx, xy, yy), n depths, n opacities, C·n colours, 2n footprint half-sizes
   std::vector<unsigned char> visible;
 };
 
@@ -137,7 +138,8 @@ inline bool project_shape(const T* g, const View& view, const T w[9], const T tw
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) p.m[3 * a + b] = p.r[3 * a + b] * p.s[b];
   for (int a = 0; a < 3; ++a)
-    for (int b = 0; b < 3; ++b) p.cov3[3 * a + b] = p.m[3 * a] * p.m[3 * b] + p.m[3 * a + 1] * p.m[3 * b + 1] + p.m[3 * a + 2] * p.m[3 * b + 2];
+    for (int b = 0; b < 3; ++b)
+      p.cov3[3 * a + b] = p.m[3 * a] * p.m[3 * b] + p.m[3 * a + 1] * p.m[3 * b + 1] + p.m[3 * a + 2] * p.m[3 * b + 2];
   const T fx = static_cast<T>(view.fx), fy = static_cast<T>(view.fy);
   const T xz = p.pc[0] / z, yz = p.pc[1] / z;
   p.u = std::clamp(xz, lim[0], lim[1]);
@@ -150,8 +152,7 @@ inline bool project_shape(const T* g, const View& view, const T w[9], const T tw
     for (int b = 0; b < 3; ++b) p.tm[3 * a + b] = p.j[3 * a] * w[b] + p.j[3 * a + 1] * w[3 + b] + p.j[3 * a + 2] * w[6 + b];
   T tc[6];  // Tm · Σ
   for (int a = 0; a < 2; ++a)
-    for (int b = 0; b < 3; ++b)
-      tc[3 * a + b] = p.tm[3 * a] * p.cov3[b] + p.tm[3 * a + 1] * p.cov3[3 + b] + p.tm[3 * a + 2] * p.cov3[6 + b];
+    for (int b = 0; b < 3; ++b) tc[3 * a + b] = p.tm[3 * a] * p.cov3[b] + p.tm[3 * a + 1] * p.cov3[3 + b] + p.tm[3 * a + 2] * p.cov3[6 + b];
   const T dil = static_cast<T>(kDilation);
   p.cov2[0] = tc[0] * p.tm[0] + tc[1] * p.tm[1] + tc[2] * p.tm[2] + dil;
   p.cov2[1] = tc[0] * p.tm[3] + tc[1] * p.tm[4] + tc[2] * p.tm[5];
@@ -271,7 +272,8 @@ void project_backward(const T* params, std::size_t n, const View& view, const Pr
     // Σ₂ = Tm Σ Tmᵀ: dTm = 2 Gs Tm Σ, dΣ = Tmᵀ Gs Tm.
     T tc[6], dtm[6], dcov[9];
     for (int a = 0; a < 2; ++a)
-      for (int b = 0; b < 3; ++b) tc[3 * a + b] = p.tm[3 * a] * p.cov3[b] + p.tm[3 * a + 1] * p.cov3[3 + b] + p.tm[3 * a + 2] * p.cov3[6 + b];
+      for (int b = 0; b < 3; ++b)
+        tc[3 * a + b] = p.tm[3 * a] * p.cov3[b] + p.tm[3 * a + 1] * p.cov3[3 + b] + p.tm[3 * a + 2] * p.cov3[6 + b];
     for (int a = 0; a < 2; ++a)
       for (int b = 0; b < 3; ++b) dtm[3 * a + b] = 2 * (gs[2 * a] * tc[b] + gs[2 * a + 1] * tc[3 + b]);
     for (int a = 0; a < 3; ++a)
@@ -302,7 +304,8 @@ void project_backward(const T* params, std::size_t n, const View& view, const Pr
     T dm[9], dr[9];
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
-        dm[3 * a + b] = (dcov[3 * a] + dcov[a]) * p.m[b] + (dcov[3 * a + 1] + dcov[3 + a]) * p.m[3 + b] + (dcov[3 * a + 2] + dcov[6 + a]) * p.m[6 + b];
+        dm[3 * a + b] =
+            (dcov[3 * a] + dcov[a]) * p.m[b] + (dcov[3 * a + 1] + dcov[3 + a]) * p.m[3 + b] + (dcov[3 * a + 2] + dcov[6 + a]) * p.m[6 + b];
     for (int b = 0; b < 3; ++b) {
       T ds = 0;
       for (int a = 0; a < 3; ++a) {
@@ -589,8 +592,9 @@ class Rasterizer {
     }
     parallel_for(tiles, 4, [&](std::size_t t) {
       if (tile_begin_[t + 1] - tile_begin_[t] < 2) return;
-      std::sort(list_.begin() + static_cast<std::ptrdiff_t>(tile_begin_[t]), list_.begin() + static_cast<std::ptrdiff_t>(tile_begin_[t + 1]),
-                [&](std::uint32_t a, std::uint32_t b) { return proj.depth[a] < proj.depth[b] || (proj.depth[a] == proj.depth[b] && a < b); });
+      std::sort(
+          list_.begin() + static_cast<std::ptrdiff_t>(tile_begin_[t]), list_.begin() + static_cast<std::ptrdiff_t>(tile_begin_[t + 1]),
+          [&](std::uint32_t a, std::uint32_t b) { return proj.depth[a] < proj.depth[b] || (proj.depth[a] == proj.depth[b] && a < b); });
     });
     last_.assign(P, 0);
   }
