@@ -477,8 +477,7 @@ class Rasterizer {
     const int threads = std::max(1, thread_count());
     std::vector<std::size_t> evals(static_cast<std::size_t>(threads), 0);
     struct Lanes {
-      std::vector<T> ux, uy, tr, dep, col;
-      std::vector<unsigned char> live;
+      std::vector<T> ux, uy, tr, dep, col, live;  // live: 1 while the pixel's ray goes on, 0 once it stopped
     };
     std::vector<Lanes> lanes(static_cast<std::size_t>(threads));
     parallel_blocks(work.size(), 1, [&](std::size_t b, std::size_t e, int th) {
@@ -486,14 +485,15 @@ class Rasterizer {
       std::size_t tested = 0;
       for (std::size_t w = b; w < e; ++w) {
         const std::size_t t = work[w], np = start[t + 1] - start[t];
-        l.ux.resize(np), l.uy.resize(np), l.tr.assign(np, T(1)), l.dep.assign(np, T(0)), l.col.assign(C * np, T(0)), l.live.assign(np, 1);
+        l.ux.resize(np), l.uy.resize(np), l.tr.assign(np, T(1)), l.dep.assign(np, T(0)), l.col.assign(C * np, T(0)),
+            l.live.assign(np, T(1));
         for (std::size_t j = 0; j < np; ++j) l.ux[j] = px[2 * order[start[t] + j]], l.uy[j] = px[2 * order[start[t] + j] + 1];
         T* __restrict ux = l.ux.data();
         T* __restrict uy = l.uy.data();
         T* __restrict tr = l.tr.data();
         T* __restrict dep = l.dep.data();
         T* __restrict col = l.col.data();
-        unsigned char* __restrict live = l.live.data();
+        T* __restrict live = l.live.data();
         std::size_t alive = np;
         for (std::size_t k = tile_begin_[t]; k < tile_begin_[t + 1] && alive > 0; ++k) {
           const std::uint32_t gi = list_[k];
@@ -510,18 +510,19 @@ class Rasterizer {
             const T g = o * gaussian_exp(power);
             const T a = g < static_cast<T>(kMaxAlpha) ? g : static_cast<T>(kMaxAlpha);
             const T next = tr[j] * (T(1) - a);
-            const bool hit = live[j] && power <= T(0) && a >= static_cast<T>(kMinAlpha);
-            const bool stop = hit && next < static_cast<T>(kMinTransmittance);
-            const bool take = hit && !stop;
-            const T wgt = take ? a * tr[j] : T(0);
+            // The pixel loop's branches as 0/1 factors, so that the loop has no control flow.
+            const T hit = live[j] * (power <= T(0) ? T(1) : T(0)) * (a >= static_cast<T>(kMinAlpha) ? T(1) : T(0));
+            const T stop = hit * (next < static_cast<T>(kMinTransmittance) ? T(1) : T(0));
+            const T take = hit - stop;
+            const T wgt = take * (a * tr[j]);
             for (int c = 0; c < C; ++c) col[C * j + c] += ci[c] * wgt;
             dep[j] += z * wgt;
-            tr[j] = take ? next : tr[j];
-            live[j] = static_cast<unsigned char>(live[j] && !stop);
+            tr[j] = take > T(0) ? next : tr[j];
+            live[j] -= stop;
           }
           if (((k - tile_begin_[t]) & 15) == 15) {
             alive = 0;
-            for (std::size_t j = 0; j < np; ++j) alive += live[j];
+            for (std::size_t j = 0; j < np; ++j) alive += live[j] > T(0);
           }
         }
         for (std::size_t j = 0; j < np; ++j) {
