@@ -12,6 +12,7 @@
 #include "evnerf/geometry/camera.hpp"
 #include "evnerf/nn/activation.hpp"
 #include "evnerf/loss/objective.hpp"
+#include "evnerf/model/poses.hpp"
 #include "evnerf/render/scene.hpp"
 #include "evnerf/splat/pass.hpp"
 #include "evnerf/splat/rasterizer.hpp"
@@ -260,6 +261,35 @@ TEST_CASE(
     nonzero += std::abs(fd) > 1e-5;
   }
   CHECK(nonzero > static_cast<int>(params.size() + th.size()) * 3 / 4);
+
+  // The camera gradient: each end pose's twist ε of pose ∘ Exp(ε), against finite differences.
+  std::vector<std::array<double, 6>> dpose(poses.size());
+  {
+    pass.forward(params.data(), n, cam, poses.data(), rays, dirs.data(), &bg);
+    std::vector<double> gth(6, 0.0), bp{th[0], th[2], th[4]}, bm{th[1], th[3], th[5]}, dp(params.size());
+    const loss::WindowThresholds<double> wt{3, bp.data(), bm.data(), gth.data(), nullptr};
+    double l[1] = {0};
+    objective.score(t, pass.values(), wt, sc, l);
+    pass.backward(params.data(), dp.data(), nullptr, dpose.data());
+  }
+  const auto saved = poses;
+  int moved = 0;
+  for (std::size_t k : {std::size_t{1}, std::size_t{4}})
+    for (int a = 0; a < 6; ++a) {
+      auto at = [&](double e) {
+        Vec3 phi = Vec3::Zero(), rho = Vec3::Zero();
+        (a < 3 ? phi : rho)[a % 3] = e;
+        poses = saved;
+        poses[k] = saved[k] * twist_exp(phi, rho);
+        return loss_of(params, th, nullptr);
+      };
+      const double fd = (at(eps) - at(-eps)) / (2 * eps);
+      poses = saved;
+      CHECK_MESSAGE(dpose[k][a] == doctest::Approx(fd).epsilon(1e-5).scale(1e-4), "pose ", k, " twist ", a);
+      moved += std::abs(fd) > 1e-3;
+    }
+  CHECK(moved >= 10);
+  for (std::size_t k : {std::size_t{0}, std::size_t{2}, std::size_t{3}}) CHECK(dpose[k] == std::array<double, 6>{});
 }
 
 TEST_CASE("splat: a training pass's value at (pose, pixel) is that pixel of the pose's whole rendered image") {

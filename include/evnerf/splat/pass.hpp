@@ -9,6 +9,7 @@
 // geometry/, loss/step.hpp and splat/rasterizer.hpp.
 #pragma once
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -110,8 +111,10 @@ class TrainingPass {
   T opacity(std::size_t r) const { return alpha_[r]; }
 
   /// Adds the gradient of the loss whose gradient for the values is what the objective added through
-  /// values() to `dparams` (n · L::size) and, where not null, to `dbg` (C values).
-  void backward(const T* params, T* dparams, T* dbg = nullptr) {
+  /// values() to `dparams` (n · L::size) and, where not null, to `dbg` (C values) and to `dpose`: indexed
+  /// by pose (the RayList's), the gradient for each rendered pose's twist ε = (φ, ρ) of pose ∘ Exp(ε)
+  /// (splat::project_backward), what pose refinement learns from.
+  void backward(const T* params, T* dparams, T* dbg = nullptr, std::array<double, 6>* dpose = nullptr) {
     T dbg_local[C > 0 ? C : 1] = {};
     for (std::size_t g = 0; g < groups_; ++g) {
       Group& gr = group_[g];
@@ -120,7 +123,7 @@ class TrainingPass {
       for (std::size_t k = 0; k < P; ++k)
         for (int c = 0; c < C; ++c) gr.dcolour[C * k + c] = grad_[C * gr.rays[k] + c];
       gr.raster.backward(gr.proj, gr.px.data(), gr.dcolour.data(), bg_, gr.pgrad, dbg_local);
-      project_backward<L, Act>(params, n_, gr.view, gr.proj, gr.pgrad, dparams);
+      project_backward<L, Act>(params, n_, gr.view, gr.proj, gr.pgrad, dparams, dpose ? &dpose[slot_[g]] : nullptr);
     }
     if (dbg)
       for (int c = 0; c < C; ++c) dbg[c] += dbg_local[c];

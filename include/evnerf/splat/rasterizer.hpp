@@ -225,14 +225,21 @@ void project(const T* params, std::size_t n, const View& view, Projection<T, L::
 /// Adds to `dparams` (n · L::size values) the gradient of the loss whose gradient for the projection is
 /// `grad`: through the colours' activation and spherical harmonics (and their direction), the opacity's
 /// sigmoid, the conic's inverse, the EWA projection, and the covariance's scales and rotation.
+///
+/// With `dpose` not null, also adds the gradient for the view's pose: for the twist ε = (φ, ρ) at 0 of
+/// pose ∘ Exp(ε) (rotation vector φ, then translation ρ, in the camera's frame; model/poses.hpp's convention).
+/// The world-to-camera map (W, w) becomes (Eᵀ W, Eᵀ (w − ρ)) with E = Exp(φ), so a camera-frame centre moves
+/// by pc × φ − ρ and W by −[φ]ₓ W; the camera's centre, which the colours' view direction starts from, by R ρ.
+/// Per-Gaussian terms are summed in index order (the same bits at any thread count).
 template <class L, class Act, class T>
 void project_backward(const T* params, std::size_t n, const View& view, const Projection<T, L::channels>& proj,
-                      const ProjectionGrad<T, L::channels>& grad, T* dparams) {
+                      const ProjectionGrad<T, L::channels>& grad, T* dparams, std::array<double, 6>* dpose = nullptr) {
   constexpr int C = L::channels;
   T w[9], tw[3];
   detail::world_to_camera(view.pose, w, tw);
   const auto lim = detail::jacobian_limits<T>(view);
   const T fx = static_cast<T>(view.fx), fy = static_cast<T>(view.fy);
+  std::vector<std::array<T, 6>> pose_part(dpose ? n : 0);
   parallel_for(n, 4096, [&](std::size_t i) {
     if (!proj.visible[i]) return;
     const T* g = params + i * L::size;
@@ -258,6 +265,9 @@ void project_backward(const T* params, std::size_t n, const View& view, const Pr
         const T dot = dd[0] * d[0] + dd[1] * d[1] + dd[2] * d[2];
         if (len > T(0))
           for (int a = 0; a < 3; ++a) dmu[a] += (dd[a] - d[a] * dot) / len;
+        // The camera's centre moves the direction as −μ does: ρ's share is −W dμ.
+        if (dpose)
+          for (int a = 0; a < 3; ++a) pose_part[i][3 + a] -= w[3 * a] * dmu[0] + w[3 * a + 1] * dmu[1] + w[3 * a + 2] * dmu[2];
       }
     }
     const T o = proj.opacity[i];
@@ -300,6 +310,23 @@ void project_backward(const T* params, std::size_t n, const View& view, const Pr
     dpc[2] -= (dm0 * fx * x + dm1 * fy * y) / (z * z);
     for (int a = 0; a < 3; ++a) dmu[a] += w[a] * dpc[0] + w[3 + a] * dpc[1] + w[6 + a] * dpc[2];
     for (int a = 0; a < 3; ++a) dg[L::mean + a] += dmu[a];
+    if (dpose) {
+      auto& q = pose_part[i];
+      // The centre: dpc · (pc × φ − ρ) = φ · (dpc × pc) − dpc · ρ.
+      q[0] += dpc[1] * p.pc[2] - dpc[2] * p.pc[1];
+      q[1] += dpc[2] * p.pc[0] - dpc[0] * p.pc[2];
+      q[2] += dpc[0] * p.pc[1] - dpc[1] * p.pc[0];
+      for (int a = 0; a < 3; ++a) q[3 + a] -= dpc[a];
+      // W in Tm = J W: dW = Jᵀ dTm; ⟨dW, −[φ]ₓ W⟩ = −φ · (M₁₂ − M₂₁, M₂₀ − M₀₂, M₀₁ − M₁₀) with M = W dWᵀ.
+      T dw[9], mm[9];
+      for (int k = 0; k < 3; ++k)
+        for (int b = 0; b < 3; ++b) dw[3 * k + b] = p.j[k] * dtm[b] + p.j[3 + k] * dtm[3 + b];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) mm[3 * r + c] = w[3 * r] * dw[3 * c] + w[3 * r + 1] * dw[3 * c + 1] + w[3 * r + 2] * dw[3 * c + 2];
+      q[0] -= mm[5] - mm[7];
+      q[1] -= mm[6] - mm[2];
+      q[2] -= mm[1] - mm[3];
+    }
     // Σ = M Mᵀ, M = R S: dM = 2 dΣ M (dΣ symmetric); the scales and the rotation.
     T dm[9], dr[9];
     for (int a = 0; a < 3; ++a)
@@ -319,6 +346,9 @@ void project_backward(const T* params, std::size_t n, const View& view, const Pr
     const T dot = dqn[0] * p.qn[0] + dqn[1] * p.qn[1] + dqn[2] * p.qn[2] + dqn[3] * p.qn[3];
     for (int a = 0; a < 4; ++a) dg[L::rotation + a] += (dqn[a] - p.qn[a] * dot) / p.qnorm;
   });
+  if (dpose)
+    for (std::size_t i = 0; i < n; ++i)
+      for (int k = 0; k < 6; ++k) (*dpose)[k] += static_cast<double>(pose_part[i][k]);
 }
 
 /// The pixels of one view rendered from a projection: the tiles that hold them filled with the Gaussians
