@@ -3,9 +3,11 @@
 # --time-offset 0.01`; level 0 is the clean recording), trained with the default preset and steps with and
 # without pose refinement (`train --refine-poses --learn-time-offset`), and scored by eval against the
 # recording's frames (global-log-affine) with the pose error at the slice boundaries against the true poses
-# (groundtruth_true.txt). Writes $OUT/poses.csv, copies it to bench/results/ (RESULTS; empty: not copied)
-# and regenerates docs/results.md. About 4 minutes a run on 2 cores (refinement adds its share).
-# Usage: bench/poses.sh [SCENE ...]   (default: planes room object)
+# (groundtruth_true.txt). The scene `slider` is the real IJRR chunk (../shared/data/ijrr_slider_depth_chunk,
+# skipped when absent) on its own motion-capture poses, at no added noise and without true poses to score
+# them against. Writes $OUT/poses.csv, copies it to bench/results/ (RESULTS; empty: not copied) and
+# regenerates docs/results.md. About 4 minutes a run on 2 cores (refinement adds its share).
+# Usage: bench/poses.sh [SCENE ...]   (default: planes room object slider)
 # Environment: LEVELS (noise levels as T,R pairs: "0,0 0.01,0.5 0.02,1 0.05,2"), OFFSET (seconds, 0.01),
 #              SEEDS ("1 2": each is the simulation's and the training's seed), THREADS (2), OUT (out/poses),
 #              BUILD (build), EVNERF (the binary: $BUILD/examples/evnerf), KEEP=1 (reuse runs whose
@@ -21,22 +23,37 @@ REFINE_FLAGS=${REFINE_FLAGS:-"--refine-poses --learn-time-offset"}
 RESULTS=${RESULTS-bench/results}
 . bench/evnerf_bin.sh  # EV
 SCENES=("$@")
-[ ${#SCENES[@]} -gt 0 ] || SCENES=(planes room object)
+[ ${#SCENES[@]} -gt 0 ] || SCENES=(planes room object slider)
+SLIDER=../shared/data/ijrr_slider_depth_chunk
 mkdir -p "$OUT"
 CSV="$OUT/poses.csv"
 echo "scene,seed,noise_translation,noise_rotation_deg,offset_s,refine,psnr,ssim,error_translation,error_rotation_deg,given_translation,given_rotation_deg,learned_offset_s,train_seconds,threads" > "$CSV"
 for scene in "${SCENES[@]}"; do
+  levels=$LEVELS
+  if [ "$scene" = slider ]; then
+    [ -d "$SLIDER" ] || { echo "poses: $SLIDER is absent; slider skipped" >&2; continue; }
+    levels="0,0"
+  fi
   for seed in $SEEDS; do
-    for level in $LEVELS; do
+    for level in $levels; do
       IFS=',' read -r nt nr <<<"$level"
       off=$OFFSET
       if [ "$nt" = 0 ] && [ "$nr" = 0 ]; then off=0; fi
       rec="$OUT/$scene-$seed-$nt-$nr-$off/recording"
-      [ -f "$rec/events.txt" ] || "$EV" simulate "$scene" --seed "$seed" --pose-noise "$nt,$nr" --time-offset "$off" --out "$rec" > /dev/null
+      scene_flags=()
+      if [ "$scene" = slider ]; then
+        rec=$SLIDER
+        scene_flags=(--near 0.1 --far 5)
+      else
+        [ -f "$rec/events.txt" ] || "$EV" simulate "$scene" --seed "$seed" --pose-noise "$nt,$nr" --time-offset "$off" --out "$rec" > /dev/null
+      fi
       for refine in 0 1; do
         dir="$OUT/$scene-$seed-$nt-$nr-$off/refine$refine"
-        flags=()
-        [ "$refine" = 1 ] && read -r -a flags <<<"$REFINE_FLAGS"
+        flags=("${scene_flags[@]}")
+        if [ "$refine" = 1 ]; then
+          read -r -a more <<<"$REFINE_FLAGS"
+          flags+=("${more[@]}")
+        fi
         if [ "${KEEP:-0}" != 1 ] || [ ! -f "$dir/eval/metrics.json" ]; then
           rm -rf "$dir"
           mkdir -p "$dir"
