@@ -13,7 +13,6 @@
 #include <cstddef>
 #include <vector>
 
-#include "../core/error.hpp"
 #include "../core/types.hpp"
 #include "../geometry/camera.hpp"
 #include "../geometry/pose.hpp"
@@ -115,7 +114,7 @@ class TrainingPass {
   /// by pose (the RayList's), the gradient for each rendered pose's twist ε = (φ, ρ) of pose ∘ Exp(ε)
   /// (splat::project_backward), what pose refinement learns from.
   void backward(const T* params, T* dparams, T* dbg = nullptr, std::array<double, 6>* dpose = nullptr) {
-    T dbg_local[C > 0 ? C : 1] = {};
+    T dbg_local[C] = {};
     for (std::size_t g = 0; g < groups_; ++g) {
       Group& gr = group_[g];
       const std::size_t P = gr.rays.size();
