@@ -1,6 +1,6 @@
-// model/checkpoint.hpp — EvNerf (model/model.hpp) as a checkpoint and back: the format is io/checkpoint.hpp;
+// model/checkpoint.hpp — Model (model/model.hpp) as a checkpoint and back: the format is io/checkpoint.hpp;
 // here the model's part of it (box and backdrop, parameters, Adam's moments, the parameter average, the
-// sampler's state, pose refinement's) and the checks a load makes (architecture, loss, counts, finite values) before the model
+// representation's state (an occupancy grid), pose refinement's) and the checks a load makes (architecture, loss, counts, finite values) before the model
 // changes.
 // Included by model/model.hpp.
 #pragma once
@@ -18,10 +18,9 @@ namespace evnerf {
 
 /// The model and its optimiser state as a checkpoint (io/checkpoint.hpp) named `name`, with `run`'s record
 /// of what it was trained on.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::serialize(const std::string& name,
-                                                                                        const io::CheckpointRun& run) const {
-  static_assert(std::is_same_v<Scalar, float>, "EvNerf::serialize: checkpoints hold float models");
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+std::string Model<Rep, ThresholdP, NoiseP, ObjectiveP>::serialize(const std::string& name, const io::CheckpointRun& run) const {
+  static_assert(std::is_same_v<Scalar, float>, "Model::serialize: checkpoints hold float models");
   io::CheckpointHeader h;
   h.name = name;
   h.n_slices = n_slices_;
@@ -53,17 +52,16 @@ std::string EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::se
   return io::write_checkpoint(
       h,
       {params_.values.data(), adam_.m().data(), adam_.v().data(), params_.size(), average_.active() ? average_.values().data() : nullptr,
-       average_.decay(), sampler().serialize(), std::move(poses)},
+       average_.decay(), renderer_.state(), std::move(poses)},
       run);
 }
 
 /// Restores from serialize()'s bytes; errors name the file and what does not match. The file must have
 /// this model's architecture() and loss_description() (its variant name is a label); the model changes
 /// only when the whole file has been read and checked. Returns the file's record of the run.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::deserialize(const std::string& b,
-                                                                                                const std::string& file) {
-  static_assert(std::is_same_v<Scalar, float>, "EvNerf::deserialize: checkpoints hold float models");
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+io::CheckpointRun Model<Rep, ThresholdP, NoiseP, ObjectiveP>::deserialize(const std::string& b, const std::string& file) {
+  static_assert(std::is_same_v<Scalar, float>, "Model::deserialize: checkpoints hold float models");
   io::CheckpointReader r(b, file);
   const io::CheckpointHeader h = io::read_checkpoint_header(r);
   if (h.architecture != architecture())
@@ -107,9 +105,8 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   finite(adam.m(), "Adam's first moment of parameter", false);
   finite(adam.v(), "Adam's second moment of parameter", true);
   if (average.active()) finite(average.values(), "the parameter average's value", false);
-  SamplerT sampler;
-  if (!sampler.deserialize(r.str()))
-    r.fail("the sampler's state (occupancy grid) does not match this model's sampler (" + SamplerT::name() + ")");
+  Rep rep;
+  if (!rep.restore(r.str())) r.fail("the representation's state does not match this model's: " + Rep::state_name());
   const io::CheckpointPoses poses = io::read_checkpoint_poses(r, h.n_slices);
   io::CheckpointRun run = io::read_checkpoint_run(r);
   if (!run.times.empty() && run.times.size() != h.n_slices + 1)
@@ -122,7 +119,8 @@ io::CheckpointRun EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scala
   bx.density_length = h.density_length;
   if (!std::isnan(h.background)) bx.background = h.background;
   bx.background_learned = h.background_learned;
-  renderer_ = renderer_type(bx, std::move(sampler));
+  rep.box() = bx;
+  renderer_ = std::move(rep);
   n_slices_ = h.n_slices;
   refractory_ = {h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax), h.refractory_m, h.refractory_v,
                  h.refractory_learned && h.refractory >= 0};

@@ -1,8 +1,10 @@
-// model/model.hpp — EvNerf<Field, Sampler, Thresholds, Noise, Objective, Scalar>: the Ev-NeRF model as a
-// composition of its parts. The renderer (render/renderer.hpp: rays → samples → field → compositing, and
-// the sampler's state) turns rays into luminance; the objective (loss/objective.hpp) says which rays a tile
-// renders and scores them; the thresholds, one pair per slice, sit after the renderer's parameters (the
-// networks' and the backdrop's). This
+// model/model.hpp — Model<Representation, Thresholds, Noise, Objective>: an event-trained model as a
+// composition of its parts. The representation (model/representation.hpp) turns (pose, pixel) pairs into
+// luminance and takes their gradients back: a neural field through a ray-marcher (model/ray_marching.hpp;
+// EvNerf<Field, Sampler, …> is that model) or a scene of Gaussians through a rasterizer
+// (model/splatting.hpp). The objective (loss/objective.hpp) says which pairs a tile renders and scores
+// them; the thresholds, one pair per slice, sit after the representation's parameters. Both families train
+// by the same step, optimiser, checkpoints, shards and pose refinement. This
 // header declares the class and holds its state; its work is in the headers it includes at its end:
 // model/step.hpp (a training step: the draw, the tiles, the shards), model/optimiser.hpp (Adam, the
 // threshold projection, the parameter average) and model/checkpoint.hpp (the model as a checkpoint, format
@@ -33,17 +35,19 @@
 #include "../render/sampler.hpp"
 #include "../render/scene.hpp"
 #include "poses.hpp"
+#include "ray_marching.hpp"
+#include "representation.hpp"
 
 namespace evnerf {
 
-/// Which shards of a step this process computes (EvNerf::train_step): a step is `count` shards, each its own
+/// Which shards of a step this process computes (Model::train_step): a step is `count` shards, each its own
 /// window and pixels; process `rank` of `ranks` computes shards rank, rank + ranks, … (count a multiple of
 /// ranks). The default is the one-shard step of one process.
 struct StepShards {
   int count = 1, rank = 0, ranks = 1;
 };
 
-/// What a training step reports (EvNerf::train_step): the means over its shards of the losses and of
+/// What a training step reports (Model::train_step): the means over its shards of the losses and of
 /// dloss/dτ, the sums of its counts, and its window.
 struct StepStats {
   double loss = 0, event_loss = 0, threshold_loss = 0;
@@ -73,7 +77,7 @@ struct StepStats {
   }
 };
 
-/// The refractory period a model reads its counts with (EvNerf::set_refractory): `seconds` < 0 reads the
+/// The refractory period a model reads its counts with (Model::set_refractory): `seconds` < 0 reads the
 /// counts as they are; otherwise each event stands for the crossings events::dead_time_weight gives. A
 /// learned period moves with the field, by its own Adam (lr kLr seconds, the field's betas, no decay) within
 /// [0, kMax]; m and v are that Adam's moments.
@@ -84,18 +88,33 @@ struct RefractoryState {
   bool active() const { return seconds >= 0; }
 };
 
-/// An Ev-NeRF model: field, sampler, threshold policy (joint or fixed), noise injection, and the objective
-/// (loss/objective.hpp: which poses a step compares, at which pixels, with which interval). A bare bound
-/// policy (loss::SplitCounts<K>, loss::SignedCount, loss::HalfSlackCounts) as the objective means the
-/// paper's one-slice objective with that bound. `Scalar` is the precision of parameters and arithmetic:
-/// float for training; double for gradient checks (checkpoints are float models only).
-template <class FieldT, render::Sampler SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
-          class ObjectiveP = loss::SplitCounts<1>, class Scalar = float>
-class EvNerf {
+/// The field's and sampler's types and sizes of a ray-marching representation, under the names a model
+/// has always given them (none for other representations).
+template <class Rep>
+struct RepresentationTypes {};
+template <class Rep>
+requires requires { typename Rep::field_type; }
+struct RepresentationTypes<Rep> {
+  using field_type = typename Rep::field_type;
+  using sampler_type = typename Rep::sampler_type;
+  static constexpr int n_fields = Rep::networks;
+  static constexpr std::size_t field_params = Rep::field_params;
+  static constexpr int Nc = Rep::n_coarse, Nf = Rep::n_fine;
+};
+
+/// An event-trained model: representation (model/representation.hpp), threshold policy (joint or fixed),
+/// noise injection, and the objective (loss/objective.hpp: which poses a step compares, at which pixels,
+/// with which interval). A bare bound policy (loss::SplitCounts<K>, loss::SignedCount,
+/// loss::HalfSlackCounts) as the objective means the paper's one-slice objective with that bound. The
+/// representation's scalar is the precision of parameters and arithmetic: float for training; double for
+/// gradient checks (checkpoints are float models only).
+template <Representation Rep, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
+          class ObjectiveP = loss::SplitCounts<1>>
+class Model : public RepresentationTypes<Rep> {
  public:
-  using field_type = FieldT;
-  using sampler_type = SamplerT;
-  using renderer_type = render::Renderer<FieldT, SamplerT, Scalar>;
+  using Scalar = typename Rep::scalar;
+  using representation_type = Rep;
+  using renderer_type = Rep;
   using threshold_policy = ThresholdP;
   using noise_policy = NoiseP;
   using objective_type = typename loss::as_objective<ObjectiveP>::type;
@@ -103,32 +122,36 @@ class EvNerf {
   using scalar = Scalar;
   static constexpr int max_window = objective_type::max_window;
   static constexpr int n_terms = objective_type::n_terms;
-  static constexpr int channels = FieldT::channels;
-  static constexpr int n_fields = renderer_type::networks;
-  static constexpr std::size_t field_params = FieldT::n_params;
-  static constexpr int Nc = renderer_type::n_coarse, Nf = renderer_type::n_fine;
-  static_assert(channels == 1 || channels == 3, "EvNerf: the field must output 1 (grey) or 3 (RGGB colour) channels.");
-  static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "EvNerf: Scalar must be float or double.");
-  static_assert(n_terms >= 1 && n_terms <= StepStats::kMaxTerms, "EvNerf: an objective has one event term and at most three regularisers.");
+  static constexpr int channels = Rep::channels;
+  static_assert(channels == 1 || channels == 3, "Model: the representation must render 1 (grey) or 3 (RGGB colour) channels.");
+  static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>, "Model: the scalar must be float or double.");
+  static_assert(n_terms >= 1 && n_terms <= StepStats::kMaxTerms, "Model: an objective has one event term and at most three regularisers.");
 
-  EvNerf() = default;
-  /// A fresh model for `n_slices` slices, seeded initialisation.
-  EvNerf(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
+  Model() = default;
+  /// A fresh model for `n_slices` slices, seeded initialisation (the representation's own where it needs
+  /// no data: a field's networks; a Gaussian scene's points spread over the box).
+  Model(std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
+      : Model(nullptr, n_slices, box, seed, adam) {}
+  /// A fresh model for `data`, seeded initialisation; a representation may place itself by the data (a
+  /// Gaussian scene's points in the cameras' frusta). A field's networks start as without data.
+  Model(const TrainingData& data, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam = {})
+      : Model(&data, data.slices.size(), box, seed, adam) {}
+
+ private:
+  Model(const TrainingData* data, std::size_t n_slices, render::SceneBox box, std::uint64_t seed, nn::AdamConfig adam)
       : renderer_(box), n_slices_(n_slices), params_(renderer_type::n_params + 2 * n_slices),
         adam_(renderer_type::n_params + 2 * n_slices, adam) {
     Rng rng(seed);
-    for (int f = 0; f < n_fields; ++f) {
-      Rng r = rng.split(static_cast<std::uint64_t>(f));
-      FieldT::init(params_.values.data() + f * field_params, r);
-    }
+    renderer_.init(params_.values.data(), rng, data);
     for (std::size_t i = 0; i < n_slices; ++i) {
       params_.values[threshold_offset() + 2 * i] = static_cast<Scalar>(ThresholdP::init);
       params_.values[threshold_offset() + 2 * i + 1] = static_cast<Scalar>(-ThresholdP::init);
     }
   }
 
-  /// Where the thresholds lie in params(): behind the networks and the backdrop's raw values (which start
-  /// at 0: the radiance activation's middle, as an untrained field's samples).
+ public:
+  /// Where the thresholds lie in params(): behind the representation's (a field's networks and the
+  /// backdrop's raw values; a scene's Gaussians and the backdrop's).
   std::size_t threshold_offset() const { return renderer_type::n_params; }
   /// Where the backdrop's raw values lie in params() (render::Renderer::backdrop_offset; used when the box's
   /// backdrop is learned).
@@ -138,7 +161,9 @@ class EvNerf {
   Scalar threshold_neg(std::size_t i) const { return params_.values[threshold_offset() + 2 * i + 1]; }
   const render::SceneBox& box() const { return renderer_.box(); }
   const renderer_type& renderer() const { return renderer_; }
-  const SamplerT& sampler() const { return renderer_.sampler(); }
+  /// The sampler of a ray-marching representation.
+  const auto& sampler() const requires requires(const Rep& r) { r.sampler(); }
+  { return renderer_.sampler(); }
   nn::ParameterBuffer<Scalar>& params() { return params_; }
   const nn::ParameterBuffer<Scalar>& params() const { return params_; }
   nn::Adam<Scalar>& optimizer() { return adam_; }
@@ -203,8 +228,8 @@ class EvNerf {
   /// What the last gradients() (or train_step()) drew: window, pixels and their counts with the noise.
   const StepWindow& last_draw() const { return window_; }
 
-  /// Renders the full image at `pose` (the fine network where there is one) with render_params(); see
-  /// Renderer::render.
+  /// Renders the full image at `pose` (a field's fine network where there is one) with render_params(); see
+  /// the representation's render (render::Renderer::render, splat::render_image).
   Rendering render(const geometry::Camera& cam, const std::vector<Vec3f>& pixel_dirs, const geometry::Pose& pose,
                    bool early_termination = true, int rows_per_batch = renderer_type::kRenderRows) const {
     return renderer_.render(render_params().data(), cam, pixel_dirs, pose, early_termination, rows_per_batch);
@@ -215,10 +240,10 @@ class EvNerf {
   std::string serialize(const std::string& name, const io::CheckpointRun& run) const;
   /// Restores from serialize()'s bytes (errors name `file`); returns the file's record of the run.
   io::CheckpointRun deserialize(const std::string& bytes, const std::string& file);
-  /// The model's architecture as checkpoints record it: the field's (encodings, networks, activation) and
-  /// the sampler's. Two variants with the same architecture and loss can load each other's files (the
-  /// FP32 and bf16 twins do).
-  static std::string architecture() { return FieldT::architecture() + "; sampler " + SamplerT::name(); }
+  /// The model's architecture as checkpoints record it: the representation's (a field's encodings,
+  /// networks, activation and sampler; a Gaussian scene's layout, capacity and activation). Two variants
+  /// with the same architecture and loss can load each other's files (the FP32 and bf16 twins do).
+  static std::string architecture() { return Rep::architecture(); }
   /// The loss this model trains with, as checkpoints record it: interval policy, threshold policy, noise.
   /// A checkpoint written under another one is refused (resuming would silently change the objective).
   static std::string loss_description() {
@@ -330,7 +355,7 @@ class EvNerf {
   }
   template <class T>
   const T* term() const {
-    return const_cast<EvNerf*>(this)->template term<T>();
+    return const_cast<Model*>(this)->template term<T>();
   }
   /// The name of the objective's term k (0: the event term; log.jsonl writes `<name>_loss` for the others).
   static const char* term_name(int k) { return objective_type::term_name(k); }
@@ -365,19 +390,11 @@ class EvNerf {
                   std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
     require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
   }
-  static constexpr int default_tile_pixels() {
-    // About 1–4 k samples per tile: the activations of the widest layer stay within L2.
-    constexpr int per_pixel = 2 * (Nc + (n_fields == 2 ? Nc + Nf : 0));
-    return per_pixel >= 1024 ? 4 : std::max(1, 2048 / per_pixel);
-  }
-
-  /// A thread's scratch: the renderer's workspace, the tile's rays (as the objective asks for them, then
-  /// cast) and their random streams, the window's thresholds, the objective's own scratch.
+  /// A thread's scratch: the representation's, the tile's rays (as the objective asks for them), the
+  /// window's thresholds, the objective's own scratch.
   struct TileWork {
-    typename renderer_type::Workspace rw;
+    typename Rep::TileWork rw;
     loss::RayList list;
-    std::vector<Vec3> origin, dir;
-    std::vector<Rng> rng;
     std::vector<double> bp, bm;
     typename objective_type::scratch scratch;
     std::array<double, 2> pass_loss{};                 ///< the thread's event loss by pass, this step
@@ -433,6 +450,12 @@ class EvNerf {
   std::vector<std::array<double, 6>> pose_grad_;  ///< the last gradients()'s dloss/dε per knot
   double offset_grad_ = 0;                        ///< and dloss/d(offset)
 };
+
+/// The Ev-NeRF model: the neural field `FieldT` rendered by ray marching with `SamplerT`
+/// (model/ray_marching.hpp), in precision `Scalar`, with the threshold policy, noise and objective.
+template <class FieldT, render::Sampler SamplerT, class ThresholdP = loss::JointThresholds, class NoiseP = loss::DefaultNoise,
+          class ObjectiveP = loss::SplitCounts<1>, class Scalar = float>
+using EvNerf = Model<RayMarching<FieldT, SamplerT, Scalar>, ThresholdP, NoiseP, ObjectiveP>;
 
 }  // namespace evnerf
 

@@ -1,4 +1,4 @@
-// model/optimiser.hpp — the optimiser step of EvNerf (model/model.hpp), after gradients(): Adam on every
+// model/optimiser.hpp — the optimiser step of Model (model/model.hpp), after gradients(): Adam on every
 // field parameter and, lazily, on the thresholds of the slices the step touched; thresholds of a projected
 // policy kept beyond their floor; a learned refractory period moved by its own Adam; the parameter average
 // updated; pose refinement's corrections and offset moved by their Adam. Included by model/model.hpp. Depends on nn/params.hpp.
@@ -10,8 +10,8 @@
 
 namespace evnerf {
 
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::apply_update(const TrainingData& data) {
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+void Model<Rep, ThresholdP, NoiseP, ObjectiveP>::apply_update(const TrainingData& data) {
   // The field's parameters all move; of the thresholds only the step's windows' slices' (lazy Adam).
   adam_.update(params_.values, params_.grads, threshold_offset(), touched_);
   for (std::size_t t = 0; t + 1 < touched_.size(); t += 2) {
@@ -42,8 +42,8 @@ namespace evnerf {
 /// Pose refinement's Adam (the field's betas, its own step sizes): a knot's correction moves when the step
 /// gave it a gradient (lazily, like the thresholds), by the twist −step ∘ its correction; the first knot
 /// stays (the gauge). The offset moves every step it is learned.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_poses(const TrainingData& data) {
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+void Model<Rep, ThresholdP, NoiseP, ObjectiveP>::update_poses(const TrainingData& data) {
   const auto& c = adam_.config();
   const double t = static_cast<double>(adam_.step());
   const double c1 = 1 - std::pow(c.beta1, t), c2 = 1 - std::pow(c.beta2, t);

@@ -1,50 +1,28 @@
-// model/step.hpp — a training step of EvNerf (model/model.hpp): the sampler's refresh, the step's draw of a
-// window of slices, pixels and noise (loss::draw_step), the tiles of pixels rendered and handed to the
-// objective in parallel, per-thread gradients reduced in a fixed order (the result depends on neither the
-// tiling nor the thread count), the threshold floor, and the shards of a data-parallel step summed across
+// model/step.hpp — a training step of Model (model/model.hpp): the representation's preparation (a
+// sampler's refresh), the step's draw of a window of slices, pixels and noise (loss::draw_step), the tiles
+// of pixels rendered by the representation and handed to the objective in parallel, per-thread gradients
+// reduced in a fixed order, the threshold floor, and the shards of a data-parallel step summed across
 // processes (train/group.hpp's exchange). Included by model/model.hpp. Depends on ad/ (the threshold floor),
-// loss/, render/, geometry/ (the rays of a tile) and core/.
+// loss/ and core/.
 #pragma once
 #include "model.hpp"
 
 namespace evnerf {
 
-/// update_sampler: the sampler refreshed as it would be before training step `step`; a world ball is seen
-/// when its centre projects into the image of one of up to 64 boundary poses spread over the recording,
-/// within the ball's projected radius, between near and far.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-void EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::update_sampler(const TrainingData& data, long step,
-                                                                                      std::uint64_t seed) {
-  render::SamplerUpdate u;
-  u.step = step;
-  u.seed = seed;
-  const auto& knots = training_poses(data);
-  const std::size_t np = knots.size(), every = std::max<std::size_t>(1, np / 64);
-  std::vector<const geometry::Pose*> poses;
-  for (std::size_t i = 0; i < np; i += every) poses.push_back(&knots[i]);
-  if (np > 0) poses.push_back(&knots.back());
-  const auto& cam = data.camera;
-  const double near = box().near, far = box().far;
-  u.seen = [&cam, poses, near, far](const Vec3& world, double radius) {
-    for (const auto* pose : poses) {
-      const Vec3 q = pose->q.conjugate() * (world - pose->t);
-      if (q.z() < near - radius || q.z() > far + radius || q.z() <= 1e-6) continue;
-      const double mx = cam.fx() * radius / q.z(), my = cam.fy() * radius / q.z();
-      const Vec2 uv = cam.project(q);
-      if (uv.x() >= -mx && uv.x() <= cam.width() + mx && uv.y() >= -my && uv.y() <= cam.height() + my) return true;
-    }
-    return false;
-  };
-  renderer_.update_sampler(params_.values.data(), std::move(u));
+/// update_sampler: the representation prepared for step `step` (a ray-marcher's sampler refreshed from the
+/// poses the training rays start at).
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+void Model<Rep, ThresholdP, NoiseP, ObjectiveP>::update_sampler(const TrainingData& data, long step, std::uint64_t seed) {
+  if constexpr (requires { renderer_.prepare_step(params_.values.data(), data, training_poses(data), step, seed); })
+    renderer_.prepare_step(params_.values.data(), data, training_poses(data), step, seed);
 }
 
 /// train_step over shards: this process's shards, their gradients summed in shard order, exchanged with the
 /// other processes, averaged; then the optimiser step.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
 template <class Exchange>
-StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_step(const TrainingData& data, int pixels_per_step,
-                                                                                       std::uint64_t seed, int pixels_per_tile,
-                                                                                       const StepShards& shards, Exchange&& exchange) {
+StepStats Model<Rep, ThresholdP, NoiseP, ObjectiveP>::train_step(const TrainingData& data, int pixels_per_step, std::uint64_t seed,
+                                                                 int pixels_per_tile, const StepShards& shards, Exchange&& exchange) {
   check_data(data);
   require(shards.count >= 1 && shards.ranks >= 1 && shards.count % shards.ranks == 0 && shards.rank >= 0 && shards.rank < shards.ranks,
           "train_step: the shards per step (" + std::to_string(shards.count) + ") must be a positive multiple of the processes (" +
@@ -108,9 +86,9 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::trai
 
 /// gradients: the step's draw (window, pixels, noise), its tiles rendered and scored in parallel with
 /// per-thread gradients reduced in a fixed order, the deferred table gradients flushed, the threshold floor.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::gradients(const TrainingData& data, int pixels_per_step,
-                                                                                      std::uint64_t seed, int pixels_per_tile, int shard) {
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+StepStats Model<Rep, ThresholdP, NoiseP, ObjectiveP>::gradients(const TrainingData& data, int pixels_per_step, std::uint64_t seed,
+                                                                int pixels_per_tile, int shard) {
   check_data(data);
   const long s = adam_.step();
   Rng rng = Rng(seed).split(static_cast<std::uint64_t>(s));
@@ -120,7 +98,7 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
                                   data.slices_per_interval, refractory_.seconds);
   const std::size_t first = sw.first, L = sw.len;
   const int P = static_cast<int>(sw.pixels.size());
-  const int tile = pixels_per_tile > 0 ? pixels_per_tile : default_tile_pixels();
+  const int tile = pixels_per_tile > 0 ? pixels_per_tile : Rep::default_tile_pixels(P);
   const int n_tiles = (P + tile - 1) / tile;
   const int threads = std::max(1, std::min(thread_count(), n_tiles));
   params_.size_accumulators(threads);  // each thread zeroes its own below
@@ -133,35 +111,32 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   parallel_blocks(static_cast<std::size_t>(n_tiles), 1, [&](std::size_t b, std::size_t e, int th) {
     params_.zero_accumulator(th);
     TileWork& w = work_[static_cast<std::size_t>(th)];  // buffers reused from step to step
-    w.rw.evaluated = w.rw.backward_samples = 0;
     w.pass_loss = {};
     w.refractory_grad = 0;
     w.terms = {};
     w.rays = 0;
     if (poses_.active()) w.pose_grad.assign(n_slices_ + 1, {});
-    w.rw.training_termination = ray_termination_;
-    w.rw.training_cut = static_cast<scalar>(ray_cut_);
-    renderer_type::defer_encoding_grad(w.rw);  // the thread's table gradients in one batch (bit-identical)
+    Rep::begin_step(w.rw, TrainSettings{ray_termination_, ray_cut_});
     for (std::size_t t = b; t < e; ++t) {
       const int p0 = static_cast<int>(t) * tile, p1 = std::min(P, p0 + tile);
       loss_ev[th] += train_tile(data, sw, p0, p1 - p0, P, ray_key, params_.per_thread[th].data(), w);
     }
-    evaluated[th] = w.rw.evaluated;
+    evaluated[th] = Rep::evaluated(w.rw);
     pass_loss[th] = w.pass_loss;
     grad_tau[th] = w.refractory_grad;
     loss_terms[th] = w.terms;
     rays[th] = w.rays;
-    backward[th] = w.rw.backward_samples;
+    backward[th] = Rep::backward_samples(w.rw);
   });
   // The table gradients each thread held back, applied in parts (a hash grid's levels) shared out by
   // their samples: each thread's accumulator gets the same additions in the same order whichever thread
   // applies them, and the threads, whose tiles differ in samples, finish together.
-  constexpr int parts = renderer_type::flush_parts;
-  parallel_jobs_by_cost(
-      static_cast<std::size_t>(threads) * parts,
-      [&](std::size_t j) { return static_cast<double>(renderer_type::deferred_count(work_[j / parts].rw)); },
-      [&](std::size_t j) { renderer_type::flush_part(work_[j / parts].rw, static_cast<int>(j % parts)); });
-  for (int th = 0; th < threads; ++th) renderer_type::clear_deferred(work_[static_cast<std::size_t>(th)].rw);
+  constexpr int parts = Rep::flush_parts;
+  if constexpr (parts > 0)
+    parallel_jobs_by_cost(
+        static_cast<std::size_t>(threads) * parts, [&](std::size_t j) { return Rep::flush_cost(work_[j / parts].rw); },
+        [&](std::size_t j) { Rep::flush(work_[j / parts].rw, static_cast<int>(j % parts)); });
+  for (int th = 0; th < threads; ++th) Rep::end_step(work_[static_cast<std::size_t>(th)].rw);
   params_.end_accumulate(threads);
   double prior = 0;
   if (poses_.active()) {  // the threads' pose gradients in thread order; the first knot held (the gauge)
@@ -212,12 +187,12 @@ StepStats EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::grad
   return st;
 }
 
-/// train_tile: one tile's rays as the objective lists them, each with its random stream, forward through
-/// every pass, the objective's score of each pass (with the samples where a term reads them), backward.
-template <class FieldT, render::Sampler SamplerT, class ThresholdP, class NoiseP, class ObjectiveP, class Scalar>
-double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_tile(const TrainingData& data, const StepWindow& sw, int p0,
-                                                                                    int P, int batch, std::uint64_t ray_key, Scalar* grads,
-                                                                                    TileWork& w) const {
+/// train_tile: one tile's rays as the objective lists them, rendered by the representation (a ray each
+/// with its random stream keyed by the objective), the objective's score of each pass (with the samples
+/// where a term reads them), backward.
+template <Representation Rep, class ThresholdP, class NoiseP, class ObjectiveP>
+double Model<Rep, ThresholdP, NoiseP, ObjectiveP>::train_tile(const TrainingData& data, const StepWindow& sw, int p0, int P, int batch,
+                                                              std::uint64_t ray_key, Scalar* grads, TileWork& w) const {
   loss::TileView t;
   t.draw = &sw;
   t.p0 = p0;
@@ -231,22 +206,11 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   t.pixel_dirs = data.pixel_dirs.data();
   t.near = box().near;
   t.far = box().far;
-  t.log_eps = FieldT::radiance::log_eps;
+  t.log_eps = Rep::log_eps;
   t.ray_key = ray_key;
   w.list.clear();
   objective_.rays(t, w.list, w.scratch);
-  const int R = w.list.size();
-  w.origin.resize(R);
-  w.dir.resize(R);
-  w.rng.clear();
-  for (int r = 0; r < R; ++r) {
-    const std::size_t pose = w.list.pose[r], pixel = w.list.pixel[r];
-    const auto a = geometry::Camera::ray_along(poses[pose], data.pixel_dirs[pixel].cast<double>());
-    w.origin[r] = a.origin;
-    w.dir[r] = a.dir;
-    w.rng.push_back(Rng(ray_key).split(w.list.key[r]));
-  }
-  w.rays += static_cast<std::size_t>(R);
+  w.rays += static_cast<std::size_t>(w.list.size());
   const int L = static_cast<int>(sw.len);
   const std::size_t to = threshold_offset() + 2 * sw.first;
   w.bp.resize(static_cast<std::size_t>(L));
@@ -258,37 +222,25 @@ double EvNerf<FieldT, SamplerT, ThresholdP, NoiseP, ObjectiveP, Scalar>::train_t
   const loss::WindowThresholds<Scalar> th{L, w.bp.data(), w.bm.data(), ThresholdP::learnable ? grads + to : nullptr,
                                           refractory_.learned ? &w.refractory_grad : nullptr};
   const Scalar* params = params_.values.data();
-  w.rw.ray_grad = poses_.active();  // the rays' gradients too, for their poses
-  w.rw.ray_grad_levels = poses_.settings.levels > 0 ? poses_.settings.levels : 1 << 30;
-  renderer_.forward_train(params, w.origin.data(), w.dir.data(), w.rng.data(), R, w.rw);
+  TileRays in;
+  in.camera = &data.camera;
+  in.poses = poses.data();
+  in.pixel_dirs = data.pixel_dirs.data();
+  in.rays = &w.list;
+  in.ray_key = ray_key;
+  in.pose_grad = poses_.active();
+  in.pose_levels = poses_.settings.levels;
+  renderer_.forward(params, in, w.rw);
   double loss = 0;
-  for (int net = 0; net < n_fields; ++net) {
-    loss::RenderedValues<render::RayComposite<Scalar>, Scalar> v{renderer_type::composites(w.rw, net).data(), w.rw.pass[net].dcolor.data(),
-                                                                 channels};
-    if (loss::needs_samples(objective_)) {
-      const auto samples = renderer_type::samples(w.rw, net);
-      v.samples = samples.samples;
-      v.depth = samples.depth;
-      v.weight_grad = samples.weight_grad;
-    }
+  for (int pass = 0; pass < Rep::passes; ++pass) {
+    const auto v = Rep::values(w.rw, pass, loss::needs_samples(objective_));
     std::array<double, StepStats::kMaxTerms> l{};
     objective_.score(t, v, th, w.scratch, l.data());
-    w.pass_loss[net] += l[0];
+    w.pass_loss[pass] += l[0];
     loss += l[0];
     for (int k = 1; k < n_terms; ++k) w.terms[k] += l[k];
   }
-  renderer_.backward(params, w.rw, grads);
-  if (poses_.active())
-    for (int r = 0; r < R; ++r) {  // a ray's gradient as its pose's twist: do = R ρ, dd = R (φ × k)
-      const std::size_t pose = w.list.pose[r];
-      const Quat qi = poses[pose].q.conjugate();
-      const Vec3 k = data.pixel_dirs[w.list.pixel[r]].template cast<double>();
-      const Vec3 gphi = k.cross(qi * w.rw.ddir[static_cast<std::size_t>(r)]), grho = qi * w.rw.dorigin[static_cast<std::size_t>(r)];
-      for (int d = 0; d < 3; ++d) {
-        w.pose_grad[pose][d] += gphi[d];
-        w.pose_grad[pose][3 + d] += grho[d];
-      }
-    }
+  renderer_.backward(params, in, w.rw, grads, poses_.active() ? w.pose_grad.data() : nullptr);
   return loss;
 }
 

@@ -92,7 +92,7 @@ inline PoseRefinementSettings pose_settings(const Config& cfg) {
 /// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
-  Model m(td.slices.size(), scene_box(td, cfg), cfg.seed, adam_config(cfg));
+  Model m(td, scene_box(td, cfg), cfg.seed, adam_config(cfg));
   // The refractory period: given, fixed (0 reads the counts as they are); unset, learned from 0.
   if (!cfg.refractory || *cfg.refractory > 0) m.set_refractory(cfg.refractory.value_or(0.0), !cfg.refractory);
   if (cfg.refine_poses || cfg.learn_time_offset) m.set_pose_refinement(td, pose_settings(cfg));
@@ -366,7 +366,7 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       rep.logged = true;
       auto j = detail::log_line(model, period, s, rays, el);
       if (shard_count > 1) detail::log_shards(j, model, shard_count, group, exchange, cfg.exchange, s);
-      if constexpr (Model::sampler_type::skips_samples) {
+      if constexpr (requires { requires Model::sampler_type::skips_samples; }) {
         j["occupied"] = model.sampler().occupied_fraction();
         if constexpr (requires { model.sampler().grid().seen_fraction(); })
           j["occupied_of_seen"] = model.sampler().occupied_fraction() / std::max(1e-12, model.sampler().grid().seen_fraction());
