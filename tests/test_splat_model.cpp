@@ -1,0 +1,164 @@
+// Gaussians as a model's representation (model/splatting.hpp): the whole training loss's gradient against
+// finite differences in double, training through the model's step, checkpoints, the trainer, renders.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <evnerf/model/model.hpp>
+#include <evnerf/model/splatting.hpp>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "tiny_models.hpp"
+
+using namespace evnerf;
+
+namespace {
+using Window3 = loss::WindowInterval<3, loss::HalfSlackCounts>;
+template <class T>
+using TinyScene = Splatting<splat::Layout<1, 1>, nn::Softplus, 48, 40, splat::Steps3dgs, T>;
+using SplatDouble = Model<TinyScene<double>, loss::JointThresholds, loss::DefaultNoise, Window3>;
+using SplatFloat = Model<TinyScene<float>, loss::ProjectedThresholds, loss::DefaultNoise, Window3>;
+
+/// Gaussians made wider and more opaque than a fresh scene's, with colours that vary with direction, so
+/// that most of them cover drawn pixels and every group of parameters has a gradient.
+template <class M>
+void spread(M& m, std::uint64_t seed) {
+  using L = typename M::representation_type::layout;
+  const auto& rep = m.renderer();
+  Rng rng(seed);
+  auto& p = m.params().values;
+  for (std::size_t i = 0; i < M::representation_type::initial; ++i) {
+    auto set = [&](int s, double real) { p[i * L::size + s] = static_cast<typename M::Scalar>(real / rep.unit(s)); };
+    auto get = [&](int s) { return static_cast<double>(p[i * L::size + s]) * rep.unit(s); };
+    for (int a = 0; a < 3; ++a) set(L::log_scale + a, get(L::log_scale + a) + std::log(2.0) + 0.3 * (rng.uniform() - 0.5));
+    for (int a = 0; a < 4; ++a) set(L::rotation + a, (a == 0 ? 1.0 : 0.0) + 0.4 * (rng.uniform() - 0.5));
+    set(L::opacity, 0.5 * (rng.uniform() - 0.5));
+    for (int k = 0; k < L::sh; ++k) set(L::colour + k, get(L::colour + k) + 0.5 * (rng.uniform() - 0.5));
+  }
+}
+}  // namespace
+
+TEST_CASE("splatting model: finite differences in double of the whole training loss for every parameter, threshold and the backdrop") {
+  evtest::Fixture f;
+  f.cfg.learn_background = true;
+  SplatDouble m(f.td, train::scene_box(f.td, f.cfg), 5);
+  spread(m, 3);
+  Rng rng(11);
+  for (std::size_t i = 0; i < m.n_slices(); ++i) {
+    m.params().values[m.threshold_offset() + 2 * i] = 0.2 + 0.2 * rng.uniform();
+    m.params().values[m.threshold_offset() + 2 * i + 1] = -(0.2 + 0.2 * rng.uniform());
+  }
+  m.params().values[SplatDouble::backdrop_offset()] = 0.3;
+  using L = splat::Layout<1, 1>;
+  for (const std::uint64_t seed : {1u, 2u}) {
+    CAPTURE(seed);
+    const auto st0 = m.gradients(f.td, 96, seed);
+    REQUIRE(std::isfinite(st0.loss));
+    REQUIRE(st0.loss > 0);
+    CHECK(st0.samples > 0);
+    const std::vector<double> g = m.params().grads;
+    auto& x = m.params().values;
+    int checked = 0, kinks = 0, bad = 0, thresholds = 0;
+    std::array<int, L::size> by_slot{};
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const bool gaussian = i < SplatDouble::backdrop_offset();
+      if (gaussian && i / L::size >= 40) {  // unused slots: invisible, no gradient
+        CHECK(g[i] == 0);
+        continue;
+      }
+      const double x0 = x[i], h = 1e-6 * std::max(1.0, std::abs(x0));
+      x[i] = x0 + h;
+      const double lp = m.gradients(f.td, 96, seed).loss;
+      x[i] = x0 - h;
+      const double lm = m.gradients(f.td, 96, seed).loss;
+      x[i] = x0;
+      const double fwd = (lp - st0.loss) / h, bwd = (st0.loss - lm) / h, num = (lp - lm) / (2 * h);
+      ++checked;
+      if (std::abs(fwd - bwd) > 1e-3 * std::max(1.0, std::abs(num))) {  // a Gaussian crossing the 1/255 cut-off
+        ++kinks;
+        continue;
+      }
+      const double err = std::abs(num - g[i]) / std::max(1e-3, std::abs(num));
+      if (err > 1e-4 && std::abs(num - g[i]) > 1e-9) {
+        ++bad;
+        MESSAGE("parameter " << i << ": analytic " << g[i] << ", finite differences " << num);
+      }
+      if (g[i] != 0 && gaussian) ++by_slot[i % L::size];
+      if (g[i] != 0 && i >= m.threshold_offset()) ++thresholds;
+    }
+    CAPTURE(checked);
+    CAPTURE(kinks);
+    CHECK(bad == 0);
+    CHECK(kinks * 20 < checked);
+    for (int s = 0; s < L::size; ++s) {
+      CAPTURE(s);
+      CHECK(by_slot[s] >= 5);  // every group of parameters has gradients that were compared
+    }
+    CHECK(thresholds >= 2);
+    CHECK(g[SplatDouble::backdrop_offset()] != 0);
+  }
+}
+
+TEST_CASE("splatting model: the step lowers the loss, a checkpoint resumes bit for bit, another model's file is refused") {
+  evtest::Fixture f;
+  const auto box = train::scene_box(f.td, f.cfg);
+  SplatFloat m(f.td, box, 5);
+  SplatFloat fresh_copy = m;
+  for (int k = 0; k < 200; ++k) REQUIRE(std::isfinite(m.train_step(f.td, 256, 9).loss));
+  // The same draws (window, pixels, noise: keyed by the step) scored by the fresh and the trained scene.
+  fresh_copy.optimizer().set_step(m.step());
+  double before = 0, after = 0;
+  for (const std::uint64_t seed : {21u, 22u, 23u, 24u}) {
+    before += fresh_copy.gradients(f.td, 1024, seed).event_loss;
+    after += m.gradients(f.td, 1024, seed).event_loss;
+  }
+  CAPTURE(before);
+  CAPTURE(after);
+  CHECK(after < 0.8 * before);
+  auto mean_loss = [&](SplatFloat& model, int steps) {
+    for (int k = 0; k < steps; ++k) model.train_step(f.td, 256, 9);
+  };
+
+  const std::string bytes = m.serialize("splat", f.run());
+  SplatFloat resumed;
+  resumed.deserialize(bytes, "splat.ckpt");
+  mean_loss(m, 10);
+  mean_loss(resumed, 10);
+  CHECK(m.params().values == resumed.params().values);
+  CHECK(m.optimizer().m() == resumed.optimizer().m());
+
+  // A field's checkpoint names another architecture; a scene's own, cut short, is refused too.
+  using Field = EvNerf<TinyField, render::Stratified<16>, loss::ProjectedThresholds, loss::DefaultNoise, Window3>;
+  Field other(f.td, box, 5);
+  SplatFloat fresh;
+  CHECK_THROWS_WITH_AS(fresh.deserialize(other.serialize("field", f.run()), "field.ckpt"), doctest::Contains("architecture"), Error);
+  CHECK_THROWS_AS(fresh.deserialize(bytes.substr(0, bytes.size() / 2), "cut.ckpt"), Error);
+}
+
+TEST_CASE("splatting model: trained by the trainer and rendered whole, the same scene for the same seed and threads") {
+  evtest::Fixture f;
+  auto cfg = f.run_config(30, 256);
+  cfg.learn_background = false;
+  cfg.background = 0.5;
+  auto run = [&] {
+    auto model = train::make_model<SplatFloat>(f.td, cfg);
+    const auto r = train::run(model, f.td, cfg, {}, "splat", f.run());
+    CHECK_FALSE(r.diverged);
+    return model;
+  };
+  const auto a = run(), b = run();
+  CHECK(a.params().values == b.params().values);
+  const auto img = a.render(f.td.camera, f.td.pixel_dirs, f.td.boundary_poses[3]);
+  REQUIRE(img.luminance.width == f.td.camera.width());
+  double lo = 1e9, hi = -1e9;
+  for (int y = 0; y < img.luminance.height; ++y)
+    for (int x = 0; x < img.luminance.width; ++x) {
+      const double v = img.luminance.at(x, y, 0), o = img.opacity.at(x, y);
+      REQUIRE(std::isfinite(v));
+      REQUIRE(o >= 0);
+      REQUIRE(o <= 1);
+      lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+  CHECK(hi > lo);  // the plane's checker shows
+}
