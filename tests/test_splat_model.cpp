@@ -16,7 +16,7 @@ using namespace evnerf;
 namespace {
 using Window3 = loss::WindowInterval<3, loss::HalfSlackCounts>;
 template <class T>
-using TinyScene = Splatting<splat::Layout<1, 1>, nn::Softplus, 48, 40, splat::Steps3dgs, T>;
+using TinyScene = Splatting<splat::Layout<1, 1>, nn::Softplus, 48, 40, splat::Steps3dgs, splat::FixedGaussians, T>;
 using SplatDouble = Model<TinyScene<double>, loss::JointThresholds, loss::DefaultNoise, Window3>;
 using SplatFloat = Model<TinyScene<float>, loss::ProjectedThresholds, loss::DefaultNoise, Window3>;
 
@@ -115,7 +115,7 @@ TEST_CASE("splatting model: the step lowers the loss, a checkpoint resumes bit f
   }
   CAPTURE(before);
   CAPTURE(after);
-  CHECK(after < 0.8 * before);
+  CHECK(after < 0.9 * before);
   auto mean_loss = [&](SplatFloat& model, int steps) {
     for (int k = 0; k < steps; ++k) model.train_step(f.td, 256, 9);
   };
@@ -134,6 +134,91 @@ TEST_CASE("splatting model: the step lowers the loss, a checkpoint resumes bit f
   SplatFloat fresh;
   CHECK_THROWS_WITH_AS(fresh.deserialize(other.serialize("field", f.run()), "field.ckpt"), doctest::Contains("architecture"), Error);
   CHECK_THROWS_AS(fresh.deserialize(bytes.substr(0, bytes.size() / 2), "cut.ckpt"), Error);
+}
+
+TEST_CASE("splatting model: densification grows and prunes the scene; a run resumed between controls equals the whole run, bit for bit") {
+  evtest::Fixture f;
+  // Controls every 10 steps from 10 to 60: the top 15 % grow, Gaussians under 0.5 % opacity are dropped.
+  using Scene = Splatting<splat::Layout<1, 1>, nn::Softplus, 64, 24, splat::Steps3dgs, splat::Densify<10, 10, 60, 150, 10, 50>, float>;
+  using M = Model<Scene, loss::ProjectedThresholds, loss::DefaultNoise, Window3>;
+  M whole(f.td, train::scene_box(f.td, f.cfg), 5);
+  whole.set_average(0.99);
+  // A few Gaussians made faint enough to be pruned at the first control.
+  using L = Scene::layout;
+  for (std::size_t i = 0; i < 4; ++i)
+    whole.params().values[i * L::size + L::opacity] = static_cast<float>(-7.0 / whole.renderer().unit(L::opacity));
+  M part = whole;
+  std::vector<std::size_t> used;
+  int filled = 0;
+  for (int k = 0; k < 45; ++k) {
+    const auto before = whole.params().values;
+    REQUIRE(std::isfinite(whole.train_step(f.td, 256, 4).loss));
+    used.push_back(whole.renderer().in_use(whole.params().values.data()));
+    // A slot the control filled starts with Adam's moments at zero and the average at its values.
+    for (std::size_t i = 0; i < Scene::capacity; ++i) {
+      const std::size_t o = i * L::size + L::opacity;
+      if (before[o] * whole.renderer().unit(L::opacity) > Scene::kDeadLogit + 1 ||
+          whole.params().values[o] * whole.renderer().unit(L::opacity) <= Scene::kDeadLogit + 1)
+        continue;
+      ++filled;
+      for (int s = 0; s < L::size; ++s) {
+        CHECK(whole.optimizer().m()[i * L::size + s] == 0);
+        CHECK(whole.optimizer().v()[i * L::size + s] == 0);
+        CHECK(whole.average().values()[i * L::size + s] == whole.params().values[i * L::size + s]);
+      }
+    }
+  }
+  CHECK(filled > 4);
+  // One control by hand, every moment non-zero before it: the slots it changed (pruned, split, cloned into)
+  // start over, the others keep their moments and average.
+  {
+    M m = whole;
+    std::fill(m.params().grads.begin(), m.params().grads.end(), 0.01f);
+    for (std::size_t k = 0; k < m.params().size(); ++k) m.optimizer().m()[k] = 0.5f, m.optimizer().v()[k] = 0.25f;
+    m.params().values[5 * L::size + L::opacity] = static_cast<float>(-5.4 / m.renderer().unit(L::opacity));  // opacity 0.45 %: pruned
+    const auto before = m.params().values;
+    std::vector<float> shifted = before;
+    for (float& v : shifted) v += 1;
+    nn::ParameterAverage<float> average(0.99, shifted);
+    Scene rep = m.renderer();
+    rep.after_step(m.params().values, m.params().grads, m.optimizer(), average, f.td, 49, 1);
+    int changed = 0, kept = 0;
+    for (std::size_t i = 0; i < Scene::capacity; ++i) {
+      bool differs = false;
+      for (int s = 0; s < L::size; ++s) differs |= m.params().values[i * L::size + s] != before[i * L::size + s];
+      for (int s = 0; s < L::size; ++s) {
+        const std::size_t k = i * L::size + s;
+        CHECK(m.optimizer().m()[k] == (differs ? 0.0f : 0.5f));
+        CHECK(m.optimizer().v()[k] == (differs ? 0.0f : 0.25f));
+        CHECK(average.values()[k] == (differs ? m.params().values[k] : before[k] + 1));
+      }
+      (differs ? changed : kept) += 1;
+    }
+    CHECK(m.params().values[5 * L::size + L::opacity] * m.renderer().unit(L::opacity) != doctest::Approx(-5.4));
+    CHECK(changed >= 3);
+    CHECK(kept > 10);
+  }
+  CAPTURE(used[8]);
+  CAPTURE(used[9]);
+  CHECK(used[8] == 24);          // nothing changes before the first control
+  CHECK(used[9] != used[8]);     // the control at step 10
+  CHECK(used.back() > used[8]);  // the scene grew
+  for (std::size_t i = 0; i < 4; ++i)
+    CHECK(whole.params().values[i * L::size + L::opacity] * whole.renderer().unit(L::opacity) >
+          -7.5f);  // faint ones were refilled or pruned
+  // Stopped at step 28 (statistics gathered since the control at 20), written, read, run on to 45.
+  for (int k = 0; k < 28; ++k) part.train_step(f.td, 256, 4);
+  M resumed;
+  resumed.deserialize(part.serialize("splat", f.run()), "part.ckpt");
+  for (int k = 28; k < 45; ++k) resumed.train_step(f.td, 256, 4);
+  CHECK(resumed.params().values == whole.params().values);
+  CHECK(resumed.optimizer().m() == whole.optimizer().m());
+  CHECK(resumed.optimizer().v() == whole.optimizer().v());
+  CHECK(resumed.average().values() == whole.average().values());
+  // Without the statistics the resumed run would differ: a checkpoint whose statistics are cut is refused.
+  M fresh;
+  const std::string bytes = part.serialize("splat", f.run());
+  CHECK_THROWS_AS(fresh.deserialize(bytes.substr(0, bytes.size() - 100), "cut.ckpt"), Error);
 }
 
 TEST_CASE("splatting model: trained by the trainer and rendered whole, the same scene for the same seed and threads") {

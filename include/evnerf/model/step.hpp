@@ -81,6 +81,10 @@ StepStats Model<Rep, ThresholdP, NoiseP, ObjectiveP>::train_step(const TrainingD
   if (!std::isfinite(st.loss)) return st;
   last_refractory_grad_ = st.refractory_grad;
   apply_update(data);
+  // The representation's upkeep after the step (a Gaussian scene's densification and pruning), from what
+  // every process holds alike: the parameters and the exchanged gradient.
+  if constexpr (requires { renderer_.after_step(params_.values, params_.grads, adam_, average_, data, s, seed); })
+    renderer_.after_step(params_.values, params_.grads, adam_, average_, data, s, seed);
   return st;
 }
 
