@@ -20,6 +20,6 @@ int main(int argc, char** argv) {
   return evnerf::cli::main<Variant<Fast, "fast">, Variant<FastNoJointThresholds, "no-joint">, Variant<FastNoNoiseInjection, "no-noise">,
                            Variant<FastNoTv, "fast-no-tv">, Variant<FastOneSlice, "fast-slice">, Variant<FastColour, "colour">,
                            Variant<FastBf16, "fast-bf16">, Variant<Paper, "paper">, Variant<PaperNoJointThresholds, "paper-no-joint">,
-                           Variant<PaperNoNoiseInjection, "paper-no-noise">, Variant<PaperBf16, "paper-bf16">>(
-      argc, argv, "evnerf: neural radiance fields from event cameras", group);
+                           Variant<PaperNoNoiseInjection, "paper-no-noise">, Variant<PaperBf16, "paper-bf16">, Variant<Splat, "splat">,
+                           Variant<SplatColour, "splat-colour">>(argc, argv, "evnerf: neural radiance fields from event cameras", group);
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Data-parallel training under mpirun (ctest runs this as mpi.train when built with EVNERF_MPI=ON):
-#   1. `mpirun -np 2 evnerf train` ends bit-identical to one process with `--shards 2`, and to itself run
+#   1. `mpirun -np 2 evnerf train` (fast, and splat) ends bit-identical to one process with `--shards 2`, and to itself run
 #      again; sparse and dense gradient exchange give the same model;
 #   2. a run stopped at step 15 and resumed under mpirun ends bit-identical to the whole run; a checkpoint
 #      of 2 shards resumed with 1 is refused with a clear error; 2 processes with 4 shards train;
@@ -42,6 +42,11 @@ for ex in dense sparse; do
   run2 --out "$work/$ex" --exchange $ex "${ARGS[@]}" >/dev/null 2>&1 || fail "--exchange $ex"
   cmp -s "$work/two/model.ckpt" "$work/$ex/model.ckpt" || fail "--exchange $ex differs from auto"
 done
+
+# Gaussians (the splat preset) train data-parallel by the same step: two processes equal two shards.
+"$EV" train "$work/rec" --preset splat --out "$work/s_one" --shards 2 "${ARGS[@]}" >"$work/s_one.txt" 2>&1 || { cat "$work/s_one.txt"; fail "splat, one process, 2 shards"; }
+run2 --preset splat --out "$work/s_two" "${ARGS[@]}" >"$work/s_two.txt" 2>&1 || { cat "$work/s_two.txt"; fail "splat, mpirun -np 2"; }
+cmp -s "$work/s_one/model.ckpt" "$work/s_two/model.ckpt" || fail "splat: mpirun -np 2 differs from one process with --shards 2"
 
 # 2. Resume under mpirun: 15 steps, then on to 30, equals the whole run.
 SHORT=(--iterations 15 --checkpoint-every 10 --pixels 512 --seed 5 --threads 1 --quiet)

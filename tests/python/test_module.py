@@ -181,6 +181,19 @@ def test_save_load_resume(planes, tmp_path):
     assert set(tmp_path.iterdir()) == before
 
 
+def test_gaussians_train_save_load_resume_and_render(planes, tmp_path):
+    m = evnerf.train(planes, preset="splat", iterations=10, threads=2, out=tmp_path / "splat")
+    assert m.variant == "splat" and m.step == 10
+    P = m.boundary_poses[2]
+    img, depth = m.render(P)
+    assert img.shape == (H, W) and np.all(np.isfinite(img)) and np.all(np.isfinite(depth))
+    loaded = evnerf.load_model(tmp_path / "splat" / "model.ckpt")
+    assert loaded.variant == "splat" and np.array_equal(loaded.render(P)[0], img)
+    resumed = evnerf.train(planes, preset="splat", iterations=20, threads=2, out=tmp_path / "splat", resume=True)
+    straight = evnerf.train(planes, preset="splat", iterations=20, threads=2)
+    assert resumed.step == 20 and np.array_equal(resumed.render(P)[0], straight.render(P)[0])
+
+
 def test_evaluate_and_baselines(planes):
     m = evnerf.train(planes, iterations=30, threads=2)
     r = evnerf.evaluate(m, planes)

@@ -1,10 +1,11 @@
 // model/presets.hpp — the named variants: the paper's model (Paper), the fast hash-grid model (Fast), their
-// ablations, the colour model and the mixed-precision twins. Each is a type; a variant of your own is
+// ablations, the colour model, the mixed-precision twins and the Gaussian scenes (Splat, SplatColour). Each is a type; a variant of your own is
 // another alias of EvNerf in your own code (examples/custom_variant.cpp). Depends on model/model.hpp and
 // loss/total_variation.hpp.
 #pragma once
 #include "../loss/total_variation.hpp"
 #include "model.hpp"
+#include "splatting.hpp"
 
 namespace evnerf {
 
@@ -79,6 +80,15 @@ using FastColour = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 3, F
 /// gradients); checkpoints are interchangeable with the FP32 presets'.
 using PaperBf16 = PaperModel<loss::JointThresholds, loss::DefaultNoise, 1, Bf16>;
 using FastBf16 = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, FastObjective, Bf16>;
+
+/// Gaussians trained from events (model/splatting.hpp): up to N Gaussians of C channels (degree-0
+/// harmonics: one luminance from every side, softplus), all placed at the start in the cameras' frusta, each
+/// group moved by 3DGS's step size; Fast's event objective and thresholds. `splat` is grey, `splat-colour`
+/// three channels behind the recording's Bayer mosaic.
+template <int C = 1, std::size_t N = 20000>
+using SplatScene = Splatting<splat::Layout<C, 0>, nn::Softplus, N, N>;
+using Splat = Model<SplatScene<1>, loss::ProjectedThresholds, loss::DefaultNoise, FastEventObjective>;
+using SplatColour = Model<SplatScene<3>, loss::ProjectedThresholds, loss::DefaultNoise, FastEventObjective>;
 }  // namespace presets
 
 }  // namespace evnerf
