@@ -13,7 +13,8 @@
 #       with every 5th boundary held out, scored on the novel views alone), slider (the real IJRR chunk in
 #       ../shared/data, `--near 0.1 --far 5`; skipped when absent), blocks (the colour scene, colour
 #       preset), blocks-per-channel (the paper's colour method: `train --per-channel`, 1 thread), no-joint
-#       no-noise fast-no-tv (the ablation: planes with that preset).
+#       no-noise fast-no-tv (the ablation: planes with that preset), splat splat-object splat-room (the
+#       Gaussians: planes, object, room with the splat preset, beside fast's rows of the same scenes).
 # Environment: THREADS (2: a run's bits depend on its thread count), BUILD (build), EVNERF (the binary,
 #              $BUILD/examples/evnerf), OUT (out/quality), KEEP (1: a row and seed whose metrics.json is
 #              in OUT is not run again), RESULTS (bench/results; empty: nothing copied or regenerated),
@@ -48,6 +49,8 @@ setup() {
     blocks) sim=(blocks) PRESET=colour ;;
     blocks-per-channel) sim=(blocks) TRAIN=(--per-channel) ;;
     no-joint|no-noise|fast-no-tv) sim=(planes) PRESET=$r ;;
+    splat) sim=(planes) PRESET=splat ;;
+    splat-object|splat-room) sim=("${r#splat-}") PRESET=splat ;;
     *) echo "quality: unknown row '$r'" >&2; exit 2 ;;
   esac
   if [ ${#sim[@]} -gt 0 ] && [ ! -f "$REC/events.txt" ]; then

@@ -32,6 +32,8 @@ RECORDINGS = [
 ]
 ABLATION = [("planes", "`fast`"), ("no-joint", "thresholds fixed at ±0.3 (`no-joint`)"),
             ("no-noise", "no noise injection (`no-noise`)"), ("fast-no-tv", "no total-variation term (`fast-no-tv`)")]
+# The Gaussians' rows (the splat preset) and fast's rows of the same scenes.
+GAUSSIANS = [("planes", "splat", "`planes`"), ("object", "splat-object", "`object`"), ("room", "splat-room", "`room`")]
 TIMED = [("planes", "`planes`"), ("object", "`object`"), ("room", "`room`"), ("slider", "the real chunk")]
 CPU = {"avx512": "2 cores with AVX-512", "avx2+fma": "2 cores with AVX2 + FMA (no AVX-512)", "sse": "2 cores without AVX2"}
 
@@ -333,6 +335,17 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
                 m = q.mean(row, common)
                 p.append(f"| {what} | {m[0]:.2f} / {m[1]:.3f} | " +
                          ", ".join(f"{s}: {float(r['psnr']):.2f}" for s, r in q.get(row).items() if s in common) + " |")
+        gauss = [(row, sp, what, sorted(set(q.get(row)) & set(q.get(sp)))) for row, sp, what in GAUSSIANS if q.get(sp)]
+        if gauss:
+            p += ["", "## Gaussians (`splat`) beside `fast`", "",
+                  "The same scenes trained by the `splat` preset (`bench/quality.sh splat splat-object splat-room`), the seeds both",
+                  "presets have, the same steps, threads and alignment; the seconds are `evnerf train`'s wall time (a shared machine).",
+                  "", "| scene | seed | `fast` | `splat` | seconds `fast` / `splat` |", "|---|---|---|---|---|"]
+            for row, sp, what, seeds in gauss:
+                for i, seed in enumerate(seeds):
+                    f, g = q.get(row)[seed], q.get(sp)[seed]
+                    p.append(f"| {what if i == 0 else ''} | {seed} | {score(f)} | {score(g)} | "
+                             f"{float(f['train_seconds']):.0f} / {float(g['train_seconds']):.0f} |")
         timed = [(what, q.get(row).get(1)) for row, what in TIMED if q.get(row).get(1)]
         if timed:
             p += ["", "## Training time", "", f"`evnerf train`'s wall time for {first['steps']} steps at seed 1, {first['threads']} threads, on {cpu}, "
