@@ -136,7 +136,8 @@ TEST_CASE("splatting model: the step lowers the loss, a checkpoint resumes bit f
   CHECK_THROWS_AS(fresh.deserialize(bytes.substr(0, bytes.size() / 2), "cut.ckpt"), Error);
 }
 
-TEST_CASE("splatting model: densification grows and prunes the scene, and a run resumed between controls equals the whole run bit for bit") {
+TEST_CASE(
+    "splatting model: densification grows and prunes the scene, and a run resumed between controls equals the whole run bit for bit") {
   evtest::Fixture f;
   // Controls every 10 steps from 10 to 60: the top 15 % grow, Gaussians under 0.5 % opacity are dropped.
   using Scene = Splatting<splat::Layout<1, 1>, nn::Softplus, 64, 24, splat::Steps3dgs, splat::Densify<10, 10, 60, 150, 10, 50>, float>;
