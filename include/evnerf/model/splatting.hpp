@@ -138,10 +138,15 @@ class Splatting {
     if (s < L::colour) return static_cast<T>(Steps::opacity);
     return static_cast<T>(Steps::colour);
   }
-  /// The Gaussians of `params` in the scene's units (Capacity · L::size values), as splat/ reads them.
-  void to_scene(const T* params, std::vector<T>& out) const {
+  /// Every slot's unit(s), in slot order.
+  std::array<T, L::size> units() const {
     std::array<T, L::size> u;
     for (int s = 0; s < L::size; ++s) u[s] = unit(s);
+    return u;
+  }
+  /// The Gaussians of `params` in the scene's units (Capacity · L::size values), as splat/ reads them.
+  void to_scene(const T* params, std::vector<T>& out) const {
+    const auto u = units();
     out.resize(backdrop_offset);
     for (std::size_t i = 0; i < Capacity; ++i)
       for (int s = 0; s < L::size; ++s) out[i * L::size + s] = params[i * L::size + s] * u[s];
@@ -202,8 +207,7 @@ class Splatting {
     w.dscene.assign(backdrop_offset, T(0));
     T dbg[channels] = {};
     w.pass.backward(w.scene.data(), w.dscene.data(), dbg, pose_grad);
-    std::array<T, L::size> u;
-    for (int s = 0; s < L::size; ++s) u[s] = unit(s);
+    const auto u = units();
     for (std::size_t i = 0; i < Capacity; ++i)
       for (int s = 0; s < L::size; ++s) grads[i * L::size + s] += w.dscene[i * L::size + s] * u[s];
     if (learns_backdrop()) {
@@ -351,6 +355,7 @@ class Splatting {
     for (const auto& p : data.boundary_poses) centres.push_back(p.t);
     // Scores: mean gradient times the distance to the nearest camera; prune first.
     std::vector<std::pair<double, std::size_t>> score;
+    std::size_t alive_n = 0;  // in use after pruning
     for (std::size_t i = 0; i < Capacity; ++i) {
       if (!alive(params.data(), i)) {
         free_slots.push_back(i);
@@ -364,14 +369,13 @@ class Splatting {
         free_slots.push_back(i);
         continue;
       }
+      ++alive_n;
       if (grad_count_[i] == 0) continue;
       const Vec3 mu(real(i, 0), real(i, 1), real(i, 2));
       double d = 1e300;
       for (const auto& c : centres) d = std::min(d, (mu - c).norm());
       score.push_back({static_cast<double>(grad_sum_[i]) / grad_count_[i] * (centres.empty() ? 1.0 : d), i});
     }
-    std::size_t alive_n = 0;
-    for (std::size_t i = 0; i < Capacity; ++i) alive_n += alive(params.data(), i);
     const std::size_t want = std::min(score.size(), static_cast<std::size_t>(Density::top * static_cast<double>(alive_n)));
     std::partial_sort(score.begin(), score.begin() + static_cast<std::ptrdiff_t>(want), score.end(),
                       [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second < b.second); });
@@ -391,13 +395,14 @@ class Splatting {
         for (double& v : q) v /= qn;
         splat::quat_to_matrix(q, r);
         const double sc[3] = {std::exp(real(i, L::log_scale)), std::exp(real(i, L::log_scale + 1)), std::exp(real(i, L::log_scale + 2))};
+        const double centre[3] = {real(i, L::mean), real(i, L::mean + 1), real(i, L::mean + 2)};  // both children draw around it
         for (const std::size_t child : {i, j}) {
           double e[3];
           for (double& v : e) v = rng.normal();
           for (int a = 0; a < 3; ++a) {
             double off = 0;
             for (int b = 0; b < 3; ++b) off += r[3 * a + b] * sc[b] * e[b];
-            set(child, L::mean + a, real(i, L::mean + a) + off);
+            set(child, L::mean + a, centre[a] + off);
           }
         }
         for (const std::size_t child : {i, j})
