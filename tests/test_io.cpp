@@ -565,8 +565,8 @@ TEST_CASE("EVT 3.0: a whole file decoded in parallel parts gives the serial read
   words.push_back(0x3000 | 10), words.push_back(0x4000 | 0x0F0);
   std::size_t triggers = 0, other = 0;
   std::int64_t us = 3 << 12, high = 3;
-  for (int g = 0; g < 60000; ++g) {
-    us += u(4) == 0 ? u(9000) : u(40);
+  for (int g = 0; g < 30000; ++g) {
+    us += u(4) == 0 ? u(18000) : u(40);
     for (; high != us >> 12; words.push_back(static_cast<std::uint16_t>(0x8000 | (high & 0xFFF))))
       high = std::min(us >> 12, high + 0x7FF);  // steps of under half the 12-bit range
     words.push_back(static_cast<std::uint16_t>(0x6000 | (us & 0xFFF)));
