@@ -2,8 +2,8 @@
 //   MLP forward+backward (paper network W=256 and W=64): fused tiles vs the plain reference MLP;
 //   one tile's matrix products: the kernel (AVX-512 or AVX2) vs Eigen's product on the same operands;
 //   a pure-FMA loop (the machine's FP32 peak); events.txt parsing vs a naive ifstream reader; the .npy
-//   event cache; the Fast and Paper training steps; one Fast 240×180 render; the Gaussian rasterizer's whole
-//   346×260 view (tiles) vs its plain reference (every Gaussian at every pixel), and its training pass.
+//   event cache; the Fast, Paper and Splat training steps; one Fast 240×180 render; the Gaussian rasterizer's
+//   whole 346×260 view (tiles) vs its plain reference (every Gaussian at every pixel), and its training pass.
 // bench/run.sh runs this and the PyTorch peer and prints the ratios.
 #include <benchmark/benchmark.h>
 #include <evnerf/evnerf.hpp>
@@ -298,6 +298,12 @@ const TrainingData& bench_data() {
   }();
   return td;
 }
+/// Whether Model marches rays through a sampler that skips empty space (Gaussians have no sampler).
+template <class Model>
+constexpr bool skips_samples() {
+  if constexpr (requires { Model::sampler_type::skips_samples; }) return Model::sampler_type::skips_samples;
+  else return false;
+}
 /// A model past its occupancy warm-up (the grid active, as in every step after the first 256): trained
 /// once per run on the bench recording, then copied by each benchmark.
 template <class Model>
@@ -305,8 +311,8 @@ const Model& warmed_model() {
   static const Model m = [] {
     const auto& td = bench_data();
     train::Config cfg;
-    Model w(td.slices.size(), train::scene_box(td, cfg), 1, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
-    if constexpr (Model::sampler_type::skips_samples)
+    Model w(td, train::scene_box(td, cfg), 1, nn::AdamConfig{5e-3, 0.9, 0.999, 1e-7, 0.1, 250000});
+    if constexpr (skips_samples<Model>())
       for (int s = 0; s < Model::sampler_type::warmup_steps + 2 * Model::sampler_type::update_interval; ++s) w.train_step(td, 1024, 1);
     return w;
   }();
@@ -325,7 +331,7 @@ void BM_train_step(benchmark::State& st) {
   st.counters["rays_per_s"] = benchmark::Counter(2048, benchmark::Counter::kIsIterationInvariantRate);
   st.counters["samples_per_ray"] = samples / static_cast<double>(st.iterations()) / 2048;
   st.counters["backward_per_ray"] = backward / static_cast<double>(st.iterations()) / 2048;
-  if constexpr (Model::sampler_type::skips_samples) st.counters["occupied"] = m.sampler().occupied_fraction();
+  if constexpr (skips_samples<Model>()) st.counters["occupied"] = m.sampler().occupied_fraction();
 }
 /// The same step with every sample evaluated (a fresh model: the grid is not active yet).
 template <class Model>
@@ -399,7 +405,7 @@ void BM_splat_reference(benchmark::State& st) {
   }
 }
 /// A training pass over 4096 scattered pixels of the view: projection, forward kept, backward, projection
-/// backward (Arg: Gaussians).
+/// backward (Arg: Gaussians). Counters: pixels and (Gaussian, pixel) pairs of the forward per second.
 void BM_splat_train_pass(benchmark::State& st) {
   SplatBench b(static_cast<std::size_t>(st.range(0)));
   splat::Projection<float, 1> proj;
@@ -412,15 +418,18 @@ void BM_splat_train_pass(benchmark::State& st) {
   std::vector<float> c(4096), dc(4096, 1e-3f), grads(b.params.size());
   const float bg = 0.5f;
   float dbg = 0;
+  double pairs = 0;
   for (auto _ : st) {
     splat::project<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj);
     raster.forward(proj, b.view, px.data(), 4096, &bg, c.data(), nullptr, nullptr, true);
+    pairs += static_cast<double>(raster.evaluated());
     raster.backward(proj, px.data(), dc.data(), &bg, pg, &dbg);
     std::fill(grads.begin(), grads.end(), 0.0f);
     splat::project_backward<SplatBench::L, nn::Softplus>(b.params.data(), b.n, b.view, proj, pg, grads.data());
     benchmark::DoNotOptimize(grads.data());
   }
   st.counters["px_per_s"] = benchmark::Counter(4096, benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["pairs_per_s"] = benchmark::Counter(pairs, benchmark::Counter::kIsRate);
 }
 
 }  // namespace
@@ -443,6 +452,7 @@ BENCHMARK(BM_event_cache_load)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step<presets::Fast>)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step_cold<presets::Fast>)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step<presets::FastBf16>)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_train_step<presets::Splat>)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_train_step<presets::Paper>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_train_step<presets::PaperBf16>)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 BENCHMARK(BM_render_fast)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);

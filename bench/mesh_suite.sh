@@ -5,8 +5,9 @@
 # default steps (grey: the default preset; colour: the `colour` preset) and scored by `evnerf eval` on the
 # training path (against both baselines) and on the held-out views (ours only), under the global log-affine
 # fit (eval's default), EventNeRF's fit and the offset-only log correction (E-3DGS's). Writes
-# $OUT/mesh.csv, copies it to bench/results/mesh.csv with a montage per asset (bench/results/mesh/) and
-# regenerates docs/results.md (bench/results.py).
+# $OUT/mesh.csv, merges it into bench/results/mesh.csv (its rows replace those of the same asset, mode and
+# preset) with a montage per asset of the default presets (bench/results/mesh/) and regenerates
+# docs/results.md (bench/results.py).
 # Usage: bench/mesh_suite.sh [ASSET…]   (default: all six of ASSETS below; ASSET is a key of that table)
 # Environment: MODES ("grey colour"), THREADS (2), SEEDS (training seeds, "1 2": each asset and mode is recorded once and
 #              trained once per seed, in OUT/<asset>-<mode>/s<seed>), STEPS (train's default),
@@ -101,9 +102,24 @@ PY
 done <<<"$ASSETS"
 if [ -n "$RESULTS" ]; then
   mkdir -p "$RESULTS/mesh"
-  cp "$CSV" "$RESULTS/mesh.csv"
+  # The rows of this run replace those of the same asset, mode and preset; the others stay (a run of one
+  # preset, `PRESET_GREY=splat` say, keeps the default preset's rows beside it).
+  python3 - "$CSV" "$RESULTS/mesh.csv" <<'PY'
+import csv, os, sys
+new, kept = sys.argv[1:]
+rows = list(csv.DictReader(open(new)))
+keys = {(r["asset"], r["mode"], r["preset"]) for r in rows}
+old = [r for r in csv.DictReader(open(kept)) if (r["asset"], r["mode"], r["preset"]) not in keys] if os.path.exists(kept) else []
+with open(kept + ".tmp", "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0].keys()) if rows else [], lineterminator="\n")
+    w.writeheader()
+    w.writerows(old + rows)
+os.replace(kept + ".tmp", kept)
+PY
   for dir in "$OUT"/*-grey "$OUT"/*-colour; do
-    ev="$dir/s${SEEDS[0]}/eval"  # the first seed's montages
+    ev="$dir/s${SEEDS[0]}/eval"  # the first seed's montages, the default presets' only
+    [ "${PRESET_GREY:-fast}" = fast ] || [[ "$dir" == *-colour ]] || continue
+    [ "${PRESET_COLOUR:-colour}" = colour ] || [[ "$dir" == *-grey ]] || continue
     [ -f "$ev/montage.png" ] || continue
     n=$(basename "$dir")
     /usr/bin/python3 - "$ev/montage.png" "$ev/montage_novel.png" "$RESULTS/mesh/$n.png" <<'PY'

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
-time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh, step_profile_ISA.csv from bench/step_profile.sh,
-mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh), so both say the same and neither is
+time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh, step_profile[_splat]_ISA.csv from bench/step_profile.sh,
+mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh, render.csv from bench/render.sh, splat_kernels.csv from bench/splat_kernels.sh), so both say the same and neither is
 edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
@@ -136,10 +136,30 @@ NO_BACKDROP = ("These runs had no backdrop behind the samples (what `train --no-
                "the learned backdrop, the default, is not measured on them yet.")
 
 
+def ttq_reach(ttq):
+    """Per build and scene with more than one preset: the first preset's PSNR at its last step, and the training
+    seconds at which each preset first reaches it (None: not within its steps)."""
+    out = []
+    for isa, scene in dict.fromkeys((r["isa"], r["scene"]) for r in ttq):
+        rs = [r for r in ttq if (r["isa"], r["scene"]) == (isa, scene)]
+        presets = list(dict.fromkeys(r["preset"] for r in rs))
+        if len(presets) < 2:
+            continue
+        target = float([r for r in rs if r["preset"] == presets[0]][-1]["psnr"])
+        secs = {}
+        for pr in presets:
+            hit = [float(r["train_seconds"]) for r in rs if r["preset"] == pr and float(r["psnr"]) >= target - 1e-9]
+            secs[pr] = hit[0] if hit else None
+        out.append((isa, scene, target, secs))
+    return out
+
+
 def mesh_section(rows):
     """The mesh suite's table: per asset and mode, the training path against both baselines and the held-out views,
     each of ours the mean over the training seeds with every seed's PSNR beside it; runs that knew the backdrop's
     brightness (the field's protocol) in a second table beside the tool's defaults."""
+    splats = [r for r in rows if r.get("preset", "").startswith("splat")]
+    rows = [r for r in rows if not r.get("preset", "").startswith("splat")]
     known = [r for r in rows if r.get("background") not in ("", "learned")]
     rows = [r for r in rows if r.get("background") in ("", "learned")] or known
     if rows is known:
@@ -200,6 +220,83 @@ def mesh_section(rows):
         p.append(f"- {mode}: held-out views {statistics.mean(v):.2f} dB on average over {len(v)} assets{flat}{spread} (global-log-affine).")
     if known:
         p += protocols_table(rows, known)
+    if splats:
+        p += splat_mesh_table(rows, splats)
+    return p
+
+
+def splat_mesh_table(default, splats):
+    """Gaussians (the `splat` preset) on the mesh suite beside the default preset's grey runs, held-out views and
+    the training path, global-log-affine, at the seeds both ran (per-seed PSNRs in brackets)."""
+    def pick(rs, asset, view, seeds):
+        return sorted((r for r in rs if (r["asset"], r["mode"], r["view"], r["alignment"], r["method"]) ==
+                       (asset, "grey", view, "global-log-affine", "ours") and int(r["seed"]) in seeds), key=lambda r: int(r["seed"]))
+    def cell(rs):
+        if not rs:
+            return "", None
+        m = statistics.mean(float(r["psnr"]) for r in rs)
+        return f"{m:.2f} ({', '.join(r['psnr'] for r in rs)})" if len(rs) > 1 else f"{m:.2f}", m
+    seeds = sorted({int(r["seed"]) for r in splats} & {int(r["seed"]) for r in default if r["mode"] == "grey"})
+    preset = splats[0]["preset"]
+    p = ["", f"### Gaussians on the mesh suite (`PRESET_GREY={preset} MODES=grey bench/mesh_suite.sh`)", "",
+         f"The grey recordings above trained by `{preset}` beside the default preset's runs of them, {seeds_text(seeds)}, the same steps, threads",
+         "and backdrop (learned), global-log-affine; training seconds are `train`'s wall time on a shared machine.", "",
+         "| asset | held-out: default | held-out: splat | path: default | path: splat | training s: default / splat |", "|---|---|---|---|---|---|"]
+    held = {"default": [], "splat": []}
+    for asset in dict.fromkeys(r["asset"] for r in splats):
+        d_novel, d_path = pick(default, asset, "novel", seeds), pick(default, asset, "path", seeds)
+        s_novel, s_path = pick(splats, asset, "novel", seeds), pick(splats, asset, "path", seeds)
+        if not (d_novel and s_novel):
+            continue
+        (dn, dm), (sn, sm) = cell(d_novel), cell(s_novel)
+        held["default"].append(dm), held["splat"].append(sm)
+        secs = [statistics.mean(float(r["train_seconds"]) for r in rs) for rs in (d_path, s_path)]
+        p.append(f"| {asset} | {dn} | {sn} | {cell(d_path)[0]} | {cell(s_path)[0]} | {secs[0]:.0f} / {secs[1]:.0f} |")
+    if held["splat"]:
+        p += ["", f"- held-out views on average over {len(held['splat'])} assets: default {statistics.mean(held['default']):.2f} dB, "
+              f"`{preset}` {statistics.mean(held['splat']):.2f} dB."]
+    return p
+
+
+def kernels_section(rows):
+    """bench/splat_kernels.sh: the rasterizer's throughput and the Gaussians' step against Fast's, medians of one run."""
+    by = {r["what"]: r for r in rows}
+    p = ["", "## The Gaussian rasterizer and the Gaussians' step (`bench/splat_kernels.sh`)", "",
+         f"`bench/bench_main.cpp` run {rows[0]['reps']} times, 2 threads, medians (range in brackets). A view: 346 × 260 random Gaussians about",
+         "20 deep per pixel, projected, binned and composited; pairs are the (Gaussian, pixel) pairs the compositing tested, and the",
+         "share of the FMA peak (measured by the same binary) counts the 47 adds and multiplies a pair costs (an FMA as two;",
+         "compares, selects and the exponent's integer work not counted). The training pass renders 4096 scattered pixels of",
+         "the 50 k view, keeps their lists and runs backward through compositing and projection. The step: the `splat` and",
+         "`fast` presets' training step (1024 pixels at two poses) on the same short `planes` recording.", "",
+         "| what | ms | pairs per second | of the FMA peak | ratio |", "|---|---|---|---|---|"]
+    for what, label, ratio in [("view 2000", "view, 2 k Gaussians", "× the plain reference (every Gaussian at every pixel)"),
+                               ("view 50000", "view, 50 k Gaussians", ""), ("view 200000", "view, 200 k Gaussians", ""),
+                               ("training pass 50000", "training pass, 4096 pixels of 50 k", ""),
+                               ("step splat", "`splat` training step", "× the speed of `fast`'s step"), ("step fast", "`fast` training step", "")]:
+        r = by.get(what)
+        if not r:
+            continue
+        pairs = f"{float(r['pairs_per_s']) / 1e6:.0f} M" if r["pairs_per_s"] else ""
+        share = f"{100 * float(r['peak_share']):.0f} %" if r["peak_share"] else ""
+        rat = f"{r['ratio']} ({r['ratio_min']}–{r['ratio_max']}) {ratio}" if r["ratio"] else ""
+        p.append(f"| {label} | {r['ms']} ({r['ms_min']}–{r['ms_max']}) | {pairs} | {share} | {rat} |")
+    if "fma peak gflops" in by:
+        p += ["", f"The FMA peak of the same runs: {by['fma peak gflops']['ms']} GFLOP/s (2 threads)."]
+    return p
+
+
+def render_section(rows):
+    """bench/render.sh: a whole view's render time per preset, alternating evals, with the quality it renders."""
+    first = rows[0]
+    p = ["", f"## Rendering a view (`bench/render.sh {first['asset']}`)", "",
+         f"The mesh suite's `{first['asset']}` ({first['width']} × {first['height']}) trained by each preset with its defaults (seed {first['seed']}), then",
+         f"scored by `evnerf eval` {first['reps']} times, the presets alternating, {first['threads']} threads; eval's seconds per render of the training",
+         "path's frames, the median over the repetitions (range in brackets), and the ratio to the first preset's time taken per",
+         "repetition (median, range). PSNR: the training path's frames and the held-out views, " + first["alignment"] + ".", "",
+         "| preset | ms per view | speed vs first | path PSNR | held-out PSNR | training s |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        p.append(f"| `{r['preset']}` | {r['ms_per_view']} ({r['ms_min']}–{r['ms_max']}) | {r['ratio_to_first']}× ({r['ratio_min']}–{r['ratio_max']}) | "
+                 f"{r['path_psnr']} | {r['novel_psnr']} | {float(r['train_seconds']):.0f} |")
     return p
 
 
@@ -296,13 +393,13 @@ def poses_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=()):
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=(), render=(), kernels=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`, `bench/render.sh`, `bench/splat_kernels.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -377,6 +474,10 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         p += factors_section(factors)
     if mesh:
         p += mesh_section(mesh)
+    if render:
+        p += render_section(render)
+    if kernels:
+        p += kernels_section(kernels)
     if poses:
         p += poses_section(poses)
     if speed:
@@ -390,6 +491,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         for r in speed:
             p.append(f"| {r['isa']} | {r['cpu']} | {r['peer_core']} | {r['width']} | {r['pairs']} | {r['ratio']}× ({r['ratio_min']}–{r['ratio_max']}) | "
                      f"{int(r['ours_samples_per_s']):,} | {100 * float(r['peak_fraction']):.0f} % of {float(r['peak_gflops']):.0f} GFLOP/s |")
+    splat_profile = [r for r in profile if r.get("preset") == "splat"]
+    profile = [r for r in profile if r.get("preset") != "splat"]
     if profile:
         isas = list(dict.fromkeys(r["isa"] for r in profile))
         share = {(r["isa"], r["part"]): float(r["share"]) for r in profile}
@@ -401,18 +504,31 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
               "| part | " + " | ".join(isas) + " |", "|---|" + "---|" * len(isas)]
         for q in parts:
             p.append(f"| {q} | " + " | ".join(f"{100 * share.get((i, q), 0):.1f} %" for i in isas) + " |")
+    if splat_profile:
+        p += ["", "The `splat` preset's step on the same recording and pixels (`PRESET=splat bench/step_profile.sh`), build "
+              f"{splat_profile[0]['isa']}:", "", "| part | share |", "|---|---|"]
+        for r in splat_profile:
+            p.append(f"| {r['part']} | {100 * float(r['share']):.1f} % |")
     if formats:
         p += formats_section(formats)
     if ttq:
         p += ["", "## Time to quality (`bench/time_to_quality.sh`)", "",
-              "One run per scene scored every few hundred steps (`bench/results/time_to_quality.png`, the CSV beside it), `--refractory 0` (an ideal sensor);",
-              NO_BACKDROP,
+              "One run per scene and preset scored at regular steps (`bench/results/time_to_quality.png`, the CSV beside it), `--refractory 0` (an ideal sensor),",
+              "seed 1, 2 threads; the presets take turns on each scene, so their seconds compare within a build. The backdrop column says whether one was",
+              "learned behind the scene (the default) or none was (`train --no-learn-background`);",
               "build `avx2` is the same runs on the AVX2 + FMA path (`ISA=avx2`, `-DEVNERF_NO_AVX512=ON`; `time_to_quality_avx2.png`), from a run of its own:",
               "training seconds of separate runs on this shared machine compare only roughly (`bench/README.md`).", "",
-              "| build | scene | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|"]
+              "| build | scene | preset | backdrop | steps | training s | ours | best baseline |", "|---|---|---|---|---|---|---|---|"]
         for r in ttq:
-            p.append(f"| {r['isa']} | {r['scene']} | {r['steps']} | {float(r['train_seconds']):.0f} | {float(r['psnr']):.2f} / {float(r['ssim']):.3f} | "
-                     f"{float(r['best_baseline_psnr']):.2f} / {float(r['best_baseline_ssim']):.3f} |")
+            p.append(f"| {r['isa']} | {r['scene']} | {r['preset']} | {r.get('backdrop') or 'none'} | {r['steps']} | {float(r['train_seconds']):.0f} | "
+                     f"{float(r['psnr']):.2f} / {float(r['ssim']):.3f} | {float(r['best_baseline_psnr']):.2f} / {float(r['best_baseline_ssim']):.3f} |")
+        reach = ttq_reach(ttq)
+        if reach:
+            p += ["", "Seconds each preset takes to reach the first preset's score at its last step (the first row of a scene is that preset; "
+                  "a dash: not reached within the steps run):", "", "| build | scene | target (first preset, last step) | " +
+                  " | ".join(f"`{x}` s" for x in reach[0][3]) + " |", "|---|---|---|" + "---|" * len(reach[0][3])]
+            for isa, scene, target, secs in reach:
+                p.append(f"| {isa} | {scene} | {target:.2f} dB | " + " | ".join("–" if v is None else f"{v:.0f}" for v in secs.values()) + " |")
     return "\n".join(p) + "\n"
 
 
@@ -437,9 +553,13 @@ def main():
     mesh = read(os.path.join(a.results, "mesh.csv"))
     formats = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"formats_{isa}.csv"))]
     factors = read(os.path.join(a.results, "sensor_factors.csv"))
-    profile = [r for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"step_profile_{isa}.csv"))]
+    profile = [dict(r, preset=preset) for preset, name in (("fast", "step_profile"), ("splat", "step_profile_splat"))
+               for isa in ("native", "avx2") for r in read(os.path.join(a.results, f"{name}_{isa}.csv"))]
     poses = read(os.path.join(a.results, "poses.csv"))
-    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile, poses)}
+    render = read(os.path.join(a.results, "render.csv"))
+    kernels = read(os.path.join(a.results, "splat_kernels.csv"))
+    pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile, poses, render,
+                                                                    kernels)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []

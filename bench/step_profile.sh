@@ -1,13 +1,19 @@
 #!/usr/bin/env bash
-# Where a training step's time goes: the Fast preset's step (BM_train_step, 1024 pixels at two poses, on a
-# warmed model) sampled by `perf record` on one thread; each sample is given to the part of the step whose code
+# Where a training step's time goes: a preset's step (BM_train_step, 1024 pixels at two poses, on a warmed
+# model; PRESET fast, or splat for the Gaussians) sampled by `perf record` on one thread; each sample is given to the part of the step whose code
 # it was in (the innermost of evnerf's frames on its stack names it: a memcpy called by the hash grid is the
 # hash grid's). The benchmark's own scene simulation, before the timed steps, is left out. Prints the shares
-# and writes bench/results/step_profile_ISA.csv (RESULTS; empty: not copied) and docs/results.md.
+# and writes bench/results/step_profile_ISA.csv (step_profile_splat_ISA.csv for PRESET=splat; RESULTS; empty:
+# not copied) and docs/results.md.
 # ISA=avx2 builds without AVX-512 (EVNERF_NO_AVX512) in build-bench-avx2. Usage: bench/step_profile.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${1:-10}
+case "${PRESET:-fast}" in
+  fast) BENCH='BM_train_step<presets::Fast>/'; NAME=step_profile ;;
+  splat) BENCH='BM_train_step<presets::Splat>/'; NAME=step_profile_splat ;;
+  *) echo "step_profile: PRESET is fast or splat, not '$PRESET'" >&2; exit 2 ;;
+esac
 scripts/deps.sh libbenchmark-dev linux-perf
 TARGET=evnerf_bench . bench/isa.sh  # B: the build for ISA
 OUT=$B/results
@@ -15,7 +21,7 @@ mkdir -p "$OUT"
 . bench/cpu.sh  # has, CPU_FEATURES
 # perf samples its own processes where kernel.perf_event_paranoid ≤ 2 (the kernel's default).
 OMP_NUM_THREADS=1 perf record -q -g -F 997 -o "$OUT/step.perf" -- "$B"/bench/evnerf_bench \
-  --benchmark_filter='BM_train_step<presets::Fast>/' --benchmark_min_time="$SECS" >"$OUT/step_bench.txt" 2>&1 || {
+  --benchmark_filter="$BENCH" --benchmark_min_time="$SECS" >"$OUT/step_bench.txt" 2>&1 || {
   echo "step_profile: perf record failed (see $OUT/step_bench.txt; in a container perf may need kernel.perf_event_paranoid ≤ 2)" >&2
   exit 1
 }
@@ -43,12 +49,19 @@ GEMM = [
     ("MLP products: input gradients (Wᵀ·dZ ⊙ act')", re.compile(r"^evnerf::nn::gemm::\S*<.*ActivationGrad")),
 ]
 PARTS = [
+    ("Gaussians: projection", re.compile(r"evnerf::splat::(detail::project_shape|project)$")),
+    ("Gaussians: projection backward", re.compile(r"evnerf::splat::project_backward")),
+    ("Gaussians: binning into tiles", re.compile(r"evnerf::splat::Rasterizer::bin")),
+    ("Gaussians: compositing", re.compile(r"evnerf::splat::Rasterizer::forward")),
+    ("Gaussians: compositing backward", re.compile(r"evnerf::splat::Rasterizer::backward")),
+    ("Gaussians: the pass's grouping by pose", re.compile(r"evnerf::splat::TrainingPass")),
+    ("Gaussians: parameters in and out of their units", re.compile(r"evnerf::Splatting::")),
     ("hash grid: encode", re.compile(r"HashGrid::(forward|encode)")),
     ("hash grid: backward", re.compile(r"HashGrid::(backward|flush|scatter)")),
     (REST, re.compile(r"evnerf::nn::(Mlp|gemm)")),
     ("Adam", re.compile(r"Adam")),
     ("sampling and compositing", re.compile(r"evnerf::render::|Field::")),
-    ("objective (windows, thresholds, regularisers)", re.compile(r"evnerf::loss::|evnerf::model::|EvNerf::")),
+    ("objective (windows, thresholds, regularisers)", re.compile(r"evnerf::loss::|evnerf::model::|EvNerf::|evnerf::Model::")),
 ]
 SETUP = re.compile(r"evnerf::(sim|events|io)::|bench_data")  # the benchmark's recording and its slicing
 count, total, setup = {}, 0, 0
@@ -66,6 +79,9 @@ for block in open(src).read().split("\n\n"):
             part = next((name for name, rx in GEMM if rx.search(f)), REST)
             break
         name = plain(f)
+        if name.startswith("evnerf::parallel_"):  # a thread helper: the caller is named in its template arguments
+            inner = re.search(r"(evnerf::splat::\w+)<[^()]*?>::(\w+)\(", f)
+            name = f"{inner.group(1)}::{inner.group(2)}" if inner else name
         part = next((n for n, rx in PARTS if rx.search(name)), "other")
         if part != "other":
             break
@@ -85,6 +101,6 @@ PY
 grep -m1 'BM_train_step' "$OUT/step_bench.txt" || true
 RESULTS=${RESULTS-bench/results}
 if [ -n "$RESULTS" ]; then
-  mkdir -p "$RESULTS" && cp "$OUT/step_profile.csv" "$RESULTS/step_profile_${ISA:-native}.csv" && echo "copied to $RESULTS/step_profile_${ISA:-native}.csv"
+  mkdir -p "$RESULTS" && cp "$OUT/step_profile.csv" "$RESULTS/${NAME}_${ISA:-native}.csv" && echo "copied to $RESULTS/${NAME}_${ISA:-native}.csv"
   python3 bench/results.py
 fi
