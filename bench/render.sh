@@ -43,7 +43,6 @@ def metrics(p, r):
 def ours(j):
     return next(v for k, v in j["methods"].items() if k.startswith("evnerf"))
 ms = {p: [1e3 * metrics(p, r)["seconds_per_render"] for r in range(1, reps + 1)] for p in presets}
-rec = json.load(open(f"{out}/{presets[0]}/eval_1/metrics.json"))
 print("asset,preset,seed,threads,width,height,reps,ms_per_view,ms_min,ms_max,ratio_to_first,ratio_min,ratio_max,train_seconds,path_psnr,novel_psnr,alignment")
 for p in presets:
     ratio = [ms[presets[0]][i] / ms[p][i] for i in range(reps)]
