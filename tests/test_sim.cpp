@@ -1,5 +1,6 @@
 #include <evnerf/core/warn.hpp>
 #include <evnerf/events/hot_pixels.hpp>
+#include <evnerf/events/intervals.hpp>
 #include <evnerf/events/slicing.hpp>
 #include <evnerf/io/dataset.hpp>
 #include <evnerf/sim/random_scene.hpp>
@@ -847,4 +848,45 @@ TEST_CASE("simulate: poses only roughly known, the true ones kept beside, writte
   std::filesystem::remove_all(dir);
   o.pose_noise_rotation = 90;
   CHECK_THROWS_WITH(sim::simulate("planes", o), doctest::Contains("--pose-noise's rotation must be in [0, 45] degrees"));
+}
+
+TEST_CASE("pixel intervals: each pixel's consecutive events, quantiles as a sort gives them, a bound on the refractory period") {
+  // Against a plain pass: every pixel's events in time order, their differences, sorted.
+  Rng rng(11);
+  events::EventStream ev;
+  ev.width = 7;
+  ev.height = 5;
+  double t = 0;
+  for (int i = 0; i < 3000; ++i) {
+    t += rng.uniform() * 1e-4;
+    ev.push_back(t, static_cast<int>(rng.below(7)), static_cast<int>(rng.below(5)), rng.below(2) ? 1 : -1);
+  }
+  std::map<int, std::vector<double>> times;
+  for (std::size_t i = 0; i < ev.size(); ++i) times[ev.y[i] * 7 + ev.x[i]].push_back(ev.t[i]);
+  std::vector<double> want;
+  for (const auto& [p, ts] : times)
+    for (std::size_t k = 1; k < ts.size(); ++k) want.push_back(ts[k] - ts[k - 1]);
+  std::sort(want.begin(), want.end());
+  const auto s = events::interval_statistics(ev);
+  REQUIRE(s.intervals == want.size());
+  CHECK(s.minimum == want.front());
+  for (std::size_t k = 0; k < events::kIntervalQuantiles.size(); ++k)
+    CHECK(s.quantile[k] == want[static_cast<std::size_t>(events::kIntervalQuantiles[k] * static_cast<double>(want.size() - 1))]);
+  CHECK(events::interval_statistics(events::EventStream{}).intervals == 0);
+  // A sensor's period: a fine checker swept fast, so that the period binds. The bound lies above the true
+  // period (no jitter or noise here), within twice it from 1 ms on; below, the time a pixel takes to see
+  // the next crossing adds to it (0.5 ms here: the simulator's shortest step).
+  const auto spec = sim::parse_scene("plane 0 0 1 0 0 -1 1 0 0 0 0 checker 8\npath slider -0.3 0 0 0.3 0 0 0 0 1 0.3\n", "fast.txt");
+  for (double tau : {0.0, 1e-4, 3e-4, 1e-3, 2e-3}) {
+    auto cfg = small_sensor();
+    cfg.refractory = tau;
+    const auto rec = sim::Simulator(spec, cfg).run();
+    const auto st = events::interval_statistics(rec.events);
+    CAPTURE(tau);
+    CAPTURE(st.refractory_bound());
+    REQUIRE(st.intervals > 10000);
+    CHECK(st.minimum >= tau);
+    CHECK(st.refractory_bound() >= tau);
+    if (tau >= 1e-3) CHECK(st.refractory_bound() <= 2 * tau);
+  }
 }

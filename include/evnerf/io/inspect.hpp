@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "../events/hot_pixels.hpp"
+#include "../events/intervals.hpp"
 #include "dataset.hpp"
 
 namespace evnerf::io {
@@ -16,7 +17,8 @@ struct Summary {
   std::size_t events = 0, on = 0, off = 0, frames = 0, poses = 0;
   double t_begin = 0, t_end = 0, rate = 0;  ///< seconds; events per second
   double frame_begin = 0, frame_end = 0, pose_begin = 0, pose_end = 0;
-  std::vector<events::HotPixel> hot;  ///< suspected hot pixels (events::suspected_hot_pixels), busiest first
+  std::vector<events::HotPixel> hot;     ///< suspected hot pixels (events::suspected_hot_pixels), busiest first
+  events::IntervalStatistics intervals;  ///< each pixel's intervals between consecutive events
   std::vector<std::string> warnings;
 };
 
@@ -35,6 +37,7 @@ inline Summary summarize(const Dataset& d) {
   s.t_end = d.events.t_end();
   s.rate = s.t_end > s.t_begin ? static_cast<double>(s.events) / (s.t_end - s.t_begin) : 0;
   s.hot = events::suspected_hot_pixels(d.events);
+  s.intervals = events::interval_statistics(d.events);
   s.frames = d.frames.size();
   if (s.frames) {
     s.frame_begin = d.frames.t.front();
@@ -103,6 +106,14 @@ inline std::string format_summary(const Summary& s) {
                   (s.t_begin >= s.pose_begin && s.t_end <= s.pose_end) ? "all" : "partly");
   else std::snprintf(buf, sizeof buf, "poses         none\n");
   o += buf;
+  if (s.intervals.intervals > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "pixel intervals %zu between one pixel's consecutive events: shortest %.1f us; quantiles 0.1 %% %.1f us, 0.5 %% %.1f us, "
+                  "1 %% %.1f us (the refractory period is at most about %.1f us)\n",
+                  s.intervals.intervals, 1e6 * s.intervals.minimum, 1e6 * s.intervals.quantile[0], 1e6 * s.intervals.quantile[1],
+                  1e6 * s.intervals.quantile[2], 1e6 * s.intervals.refractory_bound());
+    o += buf;
+  }
   if (!s.hot.empty()) {
     std::snprintf(buf, sizeof buf, "hot pixels    %zu suspected (a count far above its neighbours'):", s.hot.size());
     o += buf;
