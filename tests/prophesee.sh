@@ -120,6 +120,19 @@ for f in mine/ours.raw mine2/ours.evt2.raw; do
   cmp "$work/expected.txt" "$work/back_${f%%/*}/events.txt" || fail "$f: evnerf's writer and reader disagree"
 done
 
+# A bare camera file (no calib.txt beside it): its events convert, and no calibration is made up for it.
+mkdir -p "$work/bare"
+cp "$work/fixture.raw" "$work/bare/"
+"$EV" convert "$work/bare/fixture.raw" "$work/bare_out" > "$work/bare.log" 2>&1 || fail "convert of a bare file: $(cat "$work/bare.log")"
+grep -q "has no calibration" "$work/bare.log" || fail "convert does not say the calibration is missing: $(cat "$work/bare.log")"
+cmp "$work/expected.txt" "$work/bare_out/events.txt" || fail "bare file: the events read are not the events encoded"
+[ ! -e "$work/bare_out/calib.txt" ] || fail "convert wrote a calibration it was not given"
+"$EV" convert "$work/bare/fixture.raw" "$work/bare_h5/ours.raw" > /dev/null 2>&1 || fail "convert of a bare file to .raw"
+[ ! -e "$work/bare_h5/calib.txt" ] || fail "convert wrote a calibration beside a file it was not given"
+"$EV" inspect "$work/bare_out" > "$work/bare_inspect.txt" 2>&1 || fail "inspect of the converted folder: $(cat "$work/bare_inspect.txt")"
+grep -q "no calibration" "$work/bare_inspect.txt" || fail "inspect of the converted folder does not warn: $(cat "$work/bare_inspect.txt")"
+grep -q "pixel intervals" "$work/bare_inspect.txt" || fail "inspect does not report the pixel intervals: $(cat "$work/bare_inspect.txt")"
+
 # Bad files: the error names the file and the byte, and what was wrong.
 refused() {  # file expected-message [flags…]
   local f=$1 want=$2

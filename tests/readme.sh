@@ -29,6 +29,7 @@ for kind in "${kinds[@]}"; do
   (cd "$dir" && bash -euo pipefail -c "$script") > "$dir/log.txt" 2>&1 || fail "$kind: the README's block failed: $(tail -5 "$dir/log.txt")"
   [ -f "$dir/run/model.ckpt" ] && [ -f "$dir/run/eval/metrics.json" ] && [ -f "$dir/run/eval/montage.png" ] &&
     ls "$dir/run/render/"novel_*.png > /dev/null 2>&1 || fail "$kind: the block's outputs are missing"
+  [ -f "$dir/run/export/transforms.json" ] && [ -f "$dir/run/export/points.ply" ] || fail "$kind: export wrote no cameras or points"
   grep -q "^format " "$dir/log.txt" || fail "$kind: inspect printed no format"
 done
 echo "readme: the own-recording block runs as written on ${kinds[*]}"

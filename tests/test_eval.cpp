@@ -1,9 +1,12 @@
 #include <evnerf/eval/baselines.hpp>
+#include <evnerf/eval/export.hpp>
 #include <evnerf/eval/metrics.hpp>
 #include <evnerf/eval/report.hpp>
 
 #include <cmath>
 #include <numbers>
+
+#include <unistd.h>
 
 #include "common.hpp"
 
@@ -422,4 +425,92 @@ TEST_CASE("error_scales_json: per method from the primary alignment's aligned im
   CHECK(j.at("methods").at("gain").contains("oracle_columns_psnr"));
   const auto kept_not = eval::score_methods({exact}, {truth, truth}, eval::Alignment::GlobalLogAffine, false);
   CHECK_THROWS_AS(eval::error_scales_json(kept_not, {truth, truth}), Error);
+}
+
+TEST_CASE("export: a PLY file round-trips, and a file of another shape is refused by line or byte") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("evnerf_ply_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  io::PlyVertices v;
+  v.names = {"x", "y", "z"};
+  v.floats = {1.5f, -2.f, 3.25f, 0.f, -0.f, 1e-30f};
+  v.colour = true;
+  v.rgb = {0, 128, 255, 7, 8, 9};
+  io::write_ply(dir / "a.ply", v, {"made by a test"});
+  const auto back = io::read_ply(dir / "a.ply");
+  CHECK(back.names == v.names);
+  CHECK(back.floats == v.floats);
+  CHECK(back.rgb == v.rgb);
+  CHECK(back.colour);
+  // No vertices: the header still declares the colours.
+  v.floats.clear();
+  v.rgb.clear();
+  io::write_ply(dir / "none.ply", v);
+  const auto none = io::read_ply(dir / "none.ply");
+  CHECK(none.size() == 0);
+  CHECK(none.colour);
+  const std::string text = read_file(dir / "a.ply");
+  CHECK(text.rfind("ply\nformat binary_little_endian 1.0\ncomment made by a test\nelement vertex 2\nproperty float x\n", 0) == 0);
+  write_file_atomic(dir / "cut.ply", text.substr(0, text.size() - 1));
+  CHECK_THROWS_WITH(io::read_ply(dir / "cut.ply"), doctest::Contains("2 vertices of 15 bytes need 30 bytes, the file has 29"));
+  write_file_atomic(dir / "ascii.ply", "ply\nformat ascii 1.0\nelement vertex 0\nend_header\n");
+  CHECK_THROWS_WITH(io::read_ply(dir / "ascii.ply"), doctest::Contains("ascii.ply:2: expected 'format binary_little_endian 1.0'"));
+  write_file_atomic(dir / "double.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty double x\nend_header\n");
+  CHECK_THROWS_WITH(io::read_ply(dir / "double.ply"), doctest::Contains("double.ply:4: unsupported property"));
+  write_file_atomic(dir / "open.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\n");
+  CHECK_THROWS_WITH(io::read_ply(dir / "open.ply"), doctest::Contains("the header ends before end_header"));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("export: a point cloud lies where the rendered depth puts it, the cameras in nerfstudio's convention") {
+  // A model that renders a plane at z-depth 2 in front of every camera, opaque on the left half only.
+  io::CheckpointRun m;
+  const geometry::Camera cam(8, 6, 10, 10, 4, 3);
+  m.camera = cam;
+  geometry::Pose a, b;
+  b.t = Vec3(1, 0, 0);
+  b.q = Quat(Eigen::AngleAxisd(0.3, Vec3::UnitY()));
+  m.poses = {a, b};
+  m.times = {0.0, 0.5};
+  const auto plane = [](const geometry::Pose&) {
+    Rendering r{Image(8, 6, 1, 0.25f), Image(8, 6, 1, 0.f), Image(8, 6, 1, 0.f)};
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 4; ++x) {
+        r.opacity.at(x, y) = 0.95f;
+        r.depth.at(x, y) = 2.f * 0.95f;  // the expected depth times the opacity, as the compositing gives it
+      }
+    return r;
+  };
+  const auto pts = evaluation::point_cloud(m, plane, 1, 1, 0.9, 0.5);
+  REQUIRE(pts.size() == 2 * 4 * 6);
+  REQUIRE(pts.names == std::vector<std::string>{"x", "y", "z", "luminance"});
+  const auto dirs = render::pixel_directions(cam);
+  std::size_t i = 0;
+  for (const auto& pose : m.poses)
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 4; ++x, ++i) {
+        const Vec3 want = pose.t + pose.q * (dirs[static_cast<std::size_t>(y) * 8 + x].cast<double>() * 2.0);
+        const Vec3 got(pts.floats[4 * i], pts.floats[4 * i + 1], pts.floats[4 * i + 2]);
+        CHECK((got - want).norm() < 1e-5);
+        CHECK((pose.q.conjugate() * (got - pose.t)).z() == doctest::Approx(2.0).epsilon(1e-6));  // on the plane
+        CHECK(pts.rgb[3 * i] == 128);                                                            // 0.25 of a white of 0.5
+      }
+  CHECK_THROWS_WITH(evaluation::point_cloud(m, plane, 0), doctest::Contains("strides must be at least 1"));
+  // transforms.json: OpenCV intrinsics, and each camera-to-world with y and z flipped (OpenGL's axes).
+  const auto j = evaluation::transforms_json(m);
+  CHECK(j["camera_model"] == "OPENCV");
+  CHECK(j["fl_x"] == 10.0);
+  CHECK(j["w"] == 8);
+  REQUIRE(j["frames"].size() == 2);
+  CHECK(j["frames"][1]["file_path"] == "boundary_0001.png");
+  CHECK(j["frames"][1]["time"] == 0.5);
+  const auto& t = j["frames"][1]["transform_matrix"];
+  const Mat3 R = b.q.toRotationMatrix();
+  for (int r = 0; r < 3; ++r) {
+    CHECK(t[r][0].get<double>() == doctest::Approx(R(r, 0)));
+    CHECK(t[r][1].get<double>() == doctest::Approx(-R(r, 1)));
+    CHECK(t[r][2].get<double>() == doctest::Approx(-R(r, 2)));
+    CHECK(t[r][3].get<double>() == doctest::Approx(b.t[r]));
+  }
+  CHECK(t[3][3].get<double>() == 1.0);
 }

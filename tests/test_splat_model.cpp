@@ -5,6 +5,7 @@
 #include <cmath>
 #include <evnerf/model/model.hpp>
 #include <evnerf/model/splatting.hpp>
+#include <evnerf/eval/export.hpp>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -247,4 +248,35 @@ TEST_CASE("splatting model: trained by the trainer and rendered whole, the same 
       lo = std::min(lo, v), hi = std::max(hi, v);
     }
   CHECK(hi > lo);  // the plane's checker shows
+}
+
+TEST_CASE("export: a Gaussian scene's drawn Gaussians in 3D Gaussian splatting's PLY layout") {
+  evtest::Fixture f;
+  SplatFloat m(f.td, train::scene_box(f.td, f.cfg), 5);
+  auto& p = m.params().values;
+  using Rep = SplatFloat::representation_type;
+  using L = Rep::layout;
+  const auto u = m.renderer().units();
+  // Slot 0: a Gaussian set by hand (in the scene's units); slot 1 under 1/255 opacity; the unused slots
+  // beyond `initial` are dead already.
+  const double g0[] = {0.1, -0.2, 1.4, std::log(0.02), std::log(0.03), std::log(0.05), 2, 0, 0, 0, 1.5};
+  for (int s = 0; s < 11; ++s) p[s] = static_cast<float>(g0[s] / u[s]);
+  p[L::colour] = static_cast<float>(splat::activation_inverse<nn::Softplus>(0.8) / evaluation::kSh0 / u[L::colour]);
+  p[L::size + L::opacity] = static_cast<float>(-6.0 / u[L::opacity]);  // sigmoid(−6) ≈ 0.0025 < 1/255
+  const auto g = evaluation::gaussians_of(m.renderer(), p.data());
+  CHECK(g.size() == Rep::initial - 1);
+  REQUIRE(g.size() > 0);
+  CHECK(g.mean[0][2] == doctest::Approx(1.4).epsilon(1e-5));
+  CHECK(g.log_scale[0][1] == doctest::Approx(std::log(0.03)).epsilon(1e-5));
+  CHECK(g.rotation[0][0] == doctest::Approx(1.0));  // (2, 0, 0, 0) normalised
+  CHECK(g.opacity_logit[0] == doctest::Approx(1.5).epsilon(1e-5));
+  CHECK(g.luminance[0] == doctest::Approx(0.8).epsilon(1e-4));
+  const auto v = evaluation::gaussians_ply(g, 1.6);
+  REQUIRE(v.names.size() == 17);
+  CHECK(v.names[6] == "f_dc_0");
+  CHECK(v.names[9] == "opacity");
+  CHECK(v.names[16] == "rot_3");
+  CHECK(v.floats[6] == doctest::Approx((0.8 / 1.6 - 0.5) / evaluation::kSh0).epsilon(1e-4));  // a viewer's 0.5 + kSh0 · f_dc
+  CHECK(v.floats[7] == v.floats[6]);                                                          // grey in every channel
+  CHECK(v.floats[10] == doctest::Approx(std::log(0.02)).epsilon(1e-5));
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "../eval/evaluate.hpp"
 #include "../io/dataset.hpp"
 #include "../io/inspect.hpp"
+#include "../io/video.hpp"
 #include "../render/novel.hpp"
 #include "../sim/simulate.hpp"
 #include "run.hpp"
@@ -263,7 +265,11 @@ struct ConvertVerb {
     return sub;
   }
   int run() const {
-    const auto d = io::load(rec.folder, rec.options());
+    auto opt = rec.options();
+    opt.calibration_optional = true;  // converting events needs no calibration: one not known is not written
+    const auto d = io::load(rec.folder, opt);
+    if (d.uncalibrated)
+      fmt::print(stderr, "note: {} has no calibration (no calib.txt beside it, no --calib): the output has none either\n", rec.folder);
     io::WriteOptions wo;
     wo.compression = compression;
     io::convert(output, d, wo);
@@ -500,6 +506,8 @@ struct RenderVerb {
   fs::path checkpoint, out;
   int novel = 8;
   std::string channel_up = "volume";
+  bool video = false;
+  double fps = 24;
   CLI::App* sub = nullptr;
 
   CLI::App* add(CLI::App& app) {
@@ -508,21 +516,109 @@ struct RenderVerb {
     sub->add_option("--out", out, "output folder")->required();
     sub->add_option("--novel", novel, "views along the novel path")->capture_default_str()->check(CLI::Range(0, 100000));
     sub->add_option("--channel-upsampling", channel_up, kUpsamplingHelp)->check(CLI::IsMember({"volume", "sites"}))->capture_default_str();
+    sub->add_flag("--video", video,
+                  "also recorded.mp4 (the slice boundaries) and novel.mp4 (the novel path): intensity beside depth, H.264 through "
+                  "ffmpeg (without it, the PNG frames only)");
+    sub->add_option("--fps", fps, "the videos' frames per second")->capture_default_str()->check(CLI::Range(1.0, 240.0));
     return sub;
   }
   int run(const Programme& programme) const {
     const auto model = load_renderable(checkpoint, parse_channel_upsampling(channel_up), programme.open);
     const auto& desc = model.desc;
     const float dlo = float(model.near), dhi = float(model.far * 0.6);
+    const bool mp4 = video && io::ffmpeg_available();
+    if (video && !mp4)
+      fmt::print(stderr, "render --video needs ffmpeg (Debian's ffmpeg package), which is not on the PATH: the PNG frames only\n");
     if (model.poses_refined)
       fmt::print("the boundary views are rendered at the model's refined poses (clock offset {:.2f} ms)\n", model.time_offset * 1e3);
-    for (std::size_t i = 0; i < desc.poses.size(); ++i)
-      write_rendering(out, fmt::format("boundary_{:04d}", i), model.render(desc.poses[i]), dlo, dhi);
-    for (int k = 0; k < novel; ++k)
-      write_rendering(out, fmt::format("novel_{:04d}", k),
-                      model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel)), dlo, dhi);
+    std::vector<Rendering> recorded, path;
+    for (std::size_t i = 0; i < desc.poses.size(); ++i) {
+      auto r = model.render(desc.poses[i]);
+      write_rendering(out, fmt::format("boundary_{:04d}", i), r, dlo, dhi);
+      if (mp4) recorded.push_back(std::move(r));
+    }
+    for (int k = 0; k < novel; ++k) {
+      auto r = model.render(render::novel_pose(desc.poses.front(), desc.poses.back(), k, novel));
+      write_rendering(out, fmt::format("novel_{:04d}", k), r, dlo, dhi);
+      if (mp4) path.push_back(std::move(r));
+    }
     fmt::print("rendered {} boundary views and {} novel views (intensity, depth PNG + .npy) → {}\n", desc.poses.size(), novel,
                out.string());
+    if (mp4) {
+      write_video(out / "recorded.mp4", recorded, dlo, dhi);
+      if (!path.empty()) write_video(out / "novel.mp4", path, dlo, dhi);
+      fmt::print("videos at {} frames a second (intensity beside depth): recorded.mp4 ({} frames){}\n", fps, recorded.size(),
+                 path.empty() ? std::string() : fmt::format(", novel.mp4 ({} frames)", path.size()));
+    }
+    return 0;
+  }
+  /// The views as an MP4 of intensity beside depth, the intensity toned alike in every frame: clamped to
+  /// [0, 1] as the PNGs are, or where a luminance passes 1 its log over the views' 0.1–99.9 % range.
+  void write_video(const fs::path& file, const std::vector<Rendering>& views, float dlo, float dhi) const {
+    if (views.empty()) return;
+    std::vector<Image> lum;
+    float top = 0;
+    for (const auto& v : views) {
+      lum.push_back(v.luminance);
+      for (float x : v.luminance.data) top = std::max(top, x);
+    }
+    std::optional<eval::HdrTone> tone;
+    if (top > 1.0f) {
+      try {
+        tone = eval::HdrTone::of(lum, eval::kLogEps);
+      } catch (const Error&) {  // every view one brightness: nothing to spread
+      }
+    }
+    const auto frame = [&](const Rendering& v) {
+      return io::montage({tone ? tone->apply(v.luminance) : v.luminance, io::colorize(v.depth, dlo, dhi)}, 3);
+    };
+    const Image first = frame(views.front());
+    io::Mp4Writer w(file, first.width, first.height, fps);
+    w.frame(first);
+    for (std::size_t i = 1; i < views.size(); ++i) w.frame(frame(views[i]));
+    w.finish();
+  }
+};
+
+/// `export`: a trained scene in the files other tools open (eval/export.hpp): transforms.json (the cameras),
+/// points.ply (a point cloud from the depth at the recorded poses), and for a Gaussian scene gaussians.ply
+/// (3D Gaussian splatting's layout).
+struct ExportVerb {
+  fs::path checkpoint, out;
+  int stride = 4, pose_stride = 1;
+  double min_opacity = 0.9;
+  CLI::App* sub = nullptr;
+
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("export",
+                             "the cameras (transforms.json), a point cloud (points.ply) and a Gaussian scene's Gaussians "
+                             "(gaussians.ply, 3D Gaussian splatting's layout) for other tools");
+    sub->add_option("checkpoint", checkpoint, "model.ckpt")->required();
+    sub->add_option("--out", out, "output folder")->required();
+    sub->add_option("--stride", stride, "points.ply: every n-th pixel in x and y")->capture_default_str()->check(CLI::Range(1, 4096));
+    sub->add_option("--pose-stride", pose_stride, "points.ply: every n-th recorded pose")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    sub->add_option("--min-opacity", min_opacity, "points.ply: a pixel's point where the rendered opacity reaches this")
+        ->capture_default_str()
+        ->check(CLI::Range(1e-6, 1.0));
+    return sub;
+  }
+  int run(const Programme& programme) const {
+    const auto model = programme.open(checkpoint);
+    std::error_code ec;
+    fs::create_directories(out, ec);
+    if (ec) throw Error(out.string(), 0, "cannot create the output folder: " + ec.message());
+    write_file_atomic(out / "transforms.json", evaluation::transforms_json(model.desc).dump(2) + "\n");
+    const auto points = evaluation::point_cloud(model.desc, model.render, stride, pose_stride, min_opacity);
+    io::write_ply(out / "points.ply", points, {"evnerf export: points at the expected depth of the recorded poses"});
+    std::string what = fmt::format("transforms.json ({} cameras), points.ply ({} points)", model.desc.poses.size(), points.size());
+    if (model.gaussians) {
+      const auto g = model.gaussians();
+      io::write_ply(out / "gaussians.ply", evaluation::gaussians_ply(g), {"evnerf export: 3D Gaussian splatting layout, degree 0"});
+      what += fmt::format(", gaussians.ply ({} Gaussians)", g.size());
+    }
+    fmt::print("wrote {} → {}\n", what, out.string());
     return 0;
   }
 };
@@ -643,6 +739,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   TrainVerb training;
   RenderVerb rendering;
   EvalVerb evaluating;
+  ExportVerb exporting;
   inspect.add(app);
   convert.add(app);
   simulate.add(app);
@@ -650,6 +747,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   training.add(app, programme);
   rendering.add(app);
   evaluating.add(app);
+  exporting.add(app);
 
   if (group && group->size() <= 1) group = nullptr;
   const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
@@ -675,6 +773,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
     if (*training.sub) return training.run(programme, group, lead);
     if (*rendering.sub) return rendering.run(programme);
     if (*evaluating.sub) return evaluating.run(programme);
+    if (*exporting.sub) return exporting.run(programme);
   } catch (const std::exception& e) {
     // In a group the others may be waiting in a sum this process will never join: end them all.
     if (group) group->abort(fmt::format("evnerf {}: error (rank {} of {}): {}", cmd, group->rank(), group->size(), e.what()), 1);

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "baselines.hpp"
+#include "export.hpp"
 #include "metrics.hpp"
 #include "report.hpp"
 #include "../geometry/bayer.hpp"
@@ -195,6 +196,8 @@ struct Renderable {
   /// clock offset it learned (seconds).
   bool poses_refined = false;
   double time_offset = 0;
+  /// A Gaussian scene's Gaussians (evaluation::gaussians_of); empty for a field.
+  std::function<GaussianCloud()> gaussians;
   /// The pose the model saw at time t on its training path: the refined knots' (interpolated between
   /// boundaries, the nearest outside them) when it refined its poses, else the recording's.
   geometry::Pose training_pose(const io::Dataset& d, double t) const {

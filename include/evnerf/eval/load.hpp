@@ -39,6 +39,8 @@ Renderable load_model(const fs::path& ckpt) {
     r.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
       return model->render(cam, render::pixel_directions(cam), pose);
     };
+    if constexpr (requires { typename Model::representation_type::layout; })
+      r.gaussians = [model] { return gaussians_of(model->renderer(), model->render_params().data()); };
     return 0;
   });
   return r;

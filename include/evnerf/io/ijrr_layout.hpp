@@ -32,8 +32,8 @@ inline Dataset::Views read_views(const fs::path& dir) {
   return v;
 }
 
-/// Loads an IJRR-layout folder. events.txt and calib.txt are required; groundtruth.txt, images.txt and
-/// depth/ are optional. Every parse error names file and line.
+/// Loads an IJRR-layout folder. events.txt and calib.txt are required (calib.txt not where the calibration is
+/// optional: LoadOptions::calibration_optional); groundtruth.txt, images.txt and depth/ are optional. Every parse error names file and line.
 inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions& opt = {}) {
   namespace fs = std::filesystem;
   if (!fs::is_directory(folder)) throw Error(folder.string(), 0, "not a folder (missing recording?)");
@@ -41,7 +41,14 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
   d.folder = folder;
   if (fs::exists(folder / "images.txt")) d.frames = read_frames_txt(folder / "images.txt");
   const auto [w, h] = sensor_size(folder, d.frames, opt.width, opt.height);
-  d.camera = opt.calib.empty() ? read_calib_txt(folder / "calib.txt", w, h) : read_calib_source(opt.calib, w, h);
+  if (!opt.calib.empty()) {
+    d.camera = read_calib_source(opt.calib, w, h);
+  } else if (opt.calibration_optional && !fs::exists(folder / "calib.txt")) {
+    d.camera = uncalibrated_camera(w, h);
+    d.uncalibrated = true;
+  } else {
+    d.camera = read_calib_txt(folder / "calib.txt", w, h);
+  }
   const fs::path ev_path = folder / "events.txt";
   if (!fs::exists(ev_path)) throw Error(ev_path.string(), 0, "missing events file");
   bool loaded = false;
@@ -102,7 +109,8 @@ inline Dataset load_ijrr(const std::filesystem::path& folder, const LoadOptions&
   return d;
 }
 
-/// Writes a recording as an IJRR-layout folder: events.txt (9 decimals of seconds), calib.txt, sensor.txt,
+/// Writes a recording as an IJRR-layout folder: events.txt (9 decimals of seconds), calib.txt (unless the
+/// recording has none: Dataset::uncalibrated), sensor.txt,
 /// groundtruth.txt when there are poses, images.txt and images/frame_*.png when there are frames. Every
 /// file is written atomically.
 inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
@@ -116,7 +124,7 @@ inline void write_ijrr(const std::filesystem::path& dir, const Dataset& d) {
     ev.append(buf, static_cast<std::size_t>(k));
   }
   write_file_atomic(dir / "events.txt", ev);
-  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
+  if (!d.uncalibrated) write_file_atomic(dir / "calib.txt", calib_text(d.camera));  // a guess is not written as known
   write_file_atomic(dir / "sensor.txt", std::to_string(d.camera.width()) + " " + std::to_string(d.camera.height()) + "\n");
   if (!d.trajectory.empty()) write_poses_txt(dir / "groundtruth.txt", d.trajectory);
   if (!d.true_trajectory.empty()) write_poses_txt(dir / "groundtruth_true.txt", d.true_trajectory);

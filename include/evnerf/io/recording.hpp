@@ -308,6 +308,12 @@ inline Format unavailable_format(const char* name, const char* description, std:
   return {name, false, description, nullptr, nullptr, nullptr, std::move(extensions), nullptr, why};
 }
 
+/// The camera a recording without calibration gets where one is optional (LoadOptions::calibration_optional):
+/// a pinhole guess, the focal length the sensor's width, centred. Writers leave it out (Dataset::uncalibrated).
+inline geometry::Camera uncalibrated_camera(int width, int height) {
+  return geometry::Camera(width, height, width, width, 0.5 * width, 0.5 * height);
+}
+
 /// A recording held in one file (HDF5, Prophesee): its calibration from LoadOptions::calib, else calib.txt
 /// beside it; its poses from LoadOptions::poses, else groundtruth.txt beside it (when present). Without a
 /// calibration, an Error naming the file to give, unless LoadOptions::calibration_optional: then a pinhole
@@ -320,7 +326,7 @@ inline void attach_calibration_and_poses(const std::filesystem::path& path, cons
   if (!opt.calib.empty() || std::filesystem::exists(calib)) {
     d.camera = read_calib_source(calib, width, height);
   } else if (opt.calibration_optional) {
-    d.camera = geometry::Camera(width, height, width, width, 0.5 * width, 0.5 * height);
+    d.camera = uncalibrated_camera(width, height);
     d.uncalibrated = true;
   } else {
     throw Error(
@@ -332,11 +338,12 @@ inline void attach_calibration_and_poses(const std::filesystem::path& path, cons
     d.trajectory = read_pose_source(d.folder / "groundtruth.txt", d.frames, origin);
 }
 
-/// Writes calib.txt and, when there are poses, groundtruth.txt beside a recording written as one file (pose
-/// times in the file's clock: `origin` added to them).
+/// Writes calib.txt (unless the recording has none: Dataset::uncalibrated) and, when there are poses,
+/// groundtruth.txt beside a recording written as one file (pose times in the file's clock: `origin` added to
+/// them).
 inline void write_calibration_and_poses_beside(const std::filesystem::path& path, const Dataset& d, double origin = 0) {
   const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
-  write_file_atomic(dir / "calib.txt", calib_text(d.camera));
+  if (!d.uncalibrated) write_file_atomic(dir / "calib.txt", calib_text(d.camera));  // a guess is not written as known
   if (d.trajectory.empty()) return;
   if (origin == 0) return write_poses_txt(dir / "groundtruth.txt", d.trajectory);
   std::vector<double> t = d.trajectory.times();

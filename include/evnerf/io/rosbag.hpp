@@ -72,11 +72,16 @@ inline Dataset load_rosbag(const std::filesystem::path& path, const LoadOptions&
     d.camera = geometry::Camera(w, h, rec.fx, rec.fy, rec.cx, rec.cy, rec.distortion);
   } else {
     const fs::path calib = d.folder / "calib.txt";
-    if (!fs::exists(calib))
+    if (fs::exists(calib)) {
+      d.camera = read_calib_txt(calib, w, h);
+    } else if (opt.calibration_optional) {
+      d.camera = uncalibrated_camera(w, h);
+      d.uncalibrated = true;
+    } else {
       throw Error(
           file, 0,
           "no camera info topic and no " + calib.string() + " beside the bag: give the calibration (fx fy cx cy [k1 k2 p1 p2 [k3]])");
-    d.camera = read_calib_txt(calib, w, h);
+    }
   }
   d.frames.t = rec.frame_times;
   if (!opt.poses.empty()) {
@@ -102,6 +107,7 @@ inline void write_rosbag_recording(const std::filesystem::path& path, const Data
   BagWriteOptions o;
   o.compression = compression;
   o.origin_sec = d.time_origin;
+  o.camera_info = !d.uncalibrated;  // a guessed camera is not written as if it were known
   write_rosbag(path, d.events, d.camera, d.trajectory, d.frames.t, frames, o);
 }
 

@@ -98,6 +98,7 @@ class Splatting {
  public:
   using scalar = T;
   using layout = L;
+  using activation = Act;  ///< the colours' (a Gaussian's luminance is Act of its harmonics' sum)
   static constexpr int channels = L::channels;
   static constexpr std::size_t capacity = Capacity, initial = Initial;
   static constexpr std::size_t backdrop_offset = Capacity * L::size;

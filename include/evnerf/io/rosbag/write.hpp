@@ -16,6 +16,7 @@ struct BagWriteOptions {
   std::int64_t origin_sec = 0;           ///< added to every time (ROS time must not be negative)
   std::size_t chunk_bytes = 768 * 1024;  ///< a chunk is closed once it holds this much (rosbag's default)
   double events_per_message = 1e-3;      ///< seconds of events per EventArray message
+  bool camera_info = true;               ///< the camera info message (off: a recording whose calibration is not known)
 };
 
 namespace detail {
@@ -255,7 +256,7 @@ inline void write_rosbag(const std::filesystem::path& path, const events::EventS
   };
   require(frames.size() == frame_times.size(), file + ": write_rosbag: frames and times differ in number");
   BagWriter w(opt.compression, opt.chunk_bytes);
-  const auto c_info = w.connect("/dvs/camera_info", kBagCameraInfo);
+  const auto c_info = opt.camera_info ? w.connect("/dvs/camera_info", kBagCameraInfo) : 0u;
   const auto c_events = w.connect("/dvs/events", kBagEventArray);
   const auto c_images = frames.empty() ? 0u : w.connect("/dvs/image_raw", kBagImage);
   const auto c_poses = poses.empty() ? 0u : w.connect("/optitrack/davis", kBagPoseStamped);
@@ -267,7 +268,7 @@ inline void write_rosbag(const std::filesystem::path& path, const events::EventS
   };
   std::vector<Item> items;
   const std::uint64_t first = ev.empty() ? ns_of(0, "time 0") : ns_of(ev.t.front(), "the first event");
-  items.push_back({first, 0, 0, 0});
+  if (opt.camera_info) items.push_back({first, 0, 0, 0});
   for (std::size_t i = 0; i < ev.size();) {
     const double until = ev.t[i] + opt.events_per_message;
     std::size_t j = i + 1;
