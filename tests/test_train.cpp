@@ -601,6 +601,11 @@ TEST_CASE("collapse detection: a forced collapse stops the run with what it saw,
     CHECK(r.checks[0].log_spread < 1e-6);
     CHECK(r.checks[0].loss_stuck);
     CHECK_CONTAINS(r.checks[0].describe(), "at step 100: the renders are almost constant");
+    // No density: every ray passes all its samples and shows the (learned) backdrop whole.
+    REQUIRE(t.model().renderer().learns_backdrop());
+    const auto views = train::view_statistics(t.model(), f.td);
+    CHECK(views.log_spread == r.checks[0].log_spread);
+    CHECK(views.backdrop_share == doctest::Approx(1.0));
     CHECK(fs::exists(base / "dead" / "model.ckpt"));
     // Asked to go on, it does, and still reports it.
     cfg.allow_collapse = true;
@@ -627,6 +632,10 @@ TEST_CASE("collapse detection: a forced collapse stops the run with what it saw,
       CHECK(c.log_spread > 3 * train::CollapseCheck::kMinLogSpread);
       CHECK(c.recent_loss < c.start_loss);
     }
+    // The plane that fills the views holds density: most of every view is opaque.
+    const double share = train::view_statistics(t.model(), f.td).backdrop_share;
+    CHECK(share >= 0);
+    CHECK(share < 0.5);
   }
   cfg.collapse_check_every = 75;  // not a multiple of the log period
   train::Trainer<Tiny> bad(f.td, cfg, base / "bad", "tiny", f.run());

@@ -52,14 +52,19 @@ struct CollapseCheck {
   }
 };
 
-/// The spread (standard deviation over all pixels) of log(ℓ + 1e-3) in renders at quarter resolution from
-/// three boundary poses (first, middle, last): near 0 for a field that renders a constant image.
+/// What renders at quarter resolution from three boundary poses (first, middle, last) show: the spread
+/// (standard deviation over all pixels) of log(ℓ + 1e-3), near 0 for a field that renders a constant image,
+/// and the backdrop's share, the mean over the pixels of the transmittance a ray leaves behind its samples
+/// (1 − opacity): what of the views a backdrop shows through.
+struct ViewStatistics {
+  double log_spread = 0, backdrop_share = 0;
+};
 template <class Model>
-double render_log_spread(const Model& model, const TrainingData& td) {
+ViewStatistics view_statistics(const Model& model, const TrainingData& td) {
   const auto cam = td.camera.resized(std::max(8, td.camera.width() / 4), std::max(8, td.camera.height() / 4));
   const auto dirs = render::pixel_directions(cam);
   const std::size_t n = td.boundary_poses.size();
-  double s = 0, ss = 0, count = 0;
+  double s = 0, ss = 0, count = 0, open = 0, pixels = 0;
   for (std::size_t i : {std::size_t{0}, n / 2, n - 1}) {
     const auto r = model.render(cam, dirs, td.boundary_poses[i]);
     for (float v : r.luminance.data) {
@@ -68,9 +73,11 @@ double render_log_spread(const Model& model, const TrainingData& td) {
       ss += l * l;
       count += 1;
     }
+    for (float o : r.opacity.data) open += std::clamp(1.0 - double(o), 0.0, 1.0);
+    pixels += static_cast<double>(r.opacity.data.size());
   }
   const double mean = s / count;
-  return std::sqrt(std::max(0.0, ss / count - mean * mean));
+  return {std::sqrt(std::max(0.0, ss / count - mean * mean)), open / pixels};
 }
 
 /// Pose refinement's settings a Config gives.
@@ -249,13 +256,13 @@ void log_shards(nlohmann::ordered_json& j, const Model& model, int shard_count, 
 
 }  // namespace detail
 
-/// A collapse check of `model` at `step`: its renders' log spread, and (where `start_steps` > 0) the event
-/// loss of the last log period against the mean of the run's first steps (`start_sum` over `start_steps`).
-template <class Model>
-CollapseCheck collapse_check(const Model& model, const TrainingData& td, long step, double start_sum, long start_steps, double recent) {
+/// A collapse check at `step` of a model whose renders show `views` (view_statistics): their log spread,
+/// and (where `start_steps` > 0) the event loss of the last log period against the mean of the run's first
+/// steps (`start_sum` over `start_steps`).
+inline CollapseCheck collapse_check(const ViewStatistics& views, long step, double start_sum, long start_steps, double recent) {
   CollapseCheck c;
   c.step = step;
-  c.log_spread = render_log_spread(model, td);
+  c.log_spread = views.log_spread;
   c.flat_renders = c.log_spread < CollapseCheck::kMinLogSpread;
   if (start_steps > 0) {  // a resumed run has no start of its own to compare with
     c.start_loss = start_sum / static_cast<double>(start_steps);
@@ -374,8 +381,9 @@ RunResult run(Model& model, const TrainingData& td, const Config& cfg, const fs:
       const bool check = cfg.collapse_check_every > 0 && cfg.collapse_check_from > 0 && s >= cfg.collapse_check_from &&
                          (s - cfg.collapse_check_from) % cfg.collapse_check_every == 0;
       if (check) {
-        const CollapseCheck c = collapse_check(model, td, s, start_event, start_steps, rep.mean_event_loss);
-        j["collapse_check"] = {{"log_spread", c.log_spread}, {"collapsed", c.collapsed()}};
+        const ViewStatistics views = view_statistics(model, td);
+        const CollapseCheck c = collapse_check(views, s, start_event, start_steps, rep.mean_event_loss);
+        j["collapse_check"] = {{"log_spread", c.log_spread}, {"backdrop_share", views.backdrop_share}, {"collapsed", c.collapsed()}};
         r.checks.push_back(c);
         if (c.collapsed()) {
           r.collapsed = true;
