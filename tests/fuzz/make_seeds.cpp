@@ -8,6 +8,7 @@
 #include <string>
 
 #include <evnerf/evnerf.hpp>
+#include <evnerf/io/ply.hpp>
 #include <evnerf/sim/random_scene.hpp>
 #include <stb_image_write.h>
 
@@ -160,6 +161,25 @@ int main(int argc, char** argv) {
     }
 #endif
     fs::remove_all(root / "prophesee_tmp");
+  }
+  {
+    // PLY files as export writes them: floats with colour bytes, floats alone, and no vertex at all.
+    io::PlyVertices v;
+    v.names = {"x", "y", "z", "luminance"};
+    v.floats = {0.f, 1.f, 2.f, 0.5f, -1.f, 0.25f, 3.f, 1e-3f};
+    v.colour = true;
+    v.rgb = {10, 20, 30, 200, 100, 0};
+    const fs::path f = root / "ply_tmp" / "seed.ply";
+    io::write_ply(f, v, {"seed"});
+    put("ply", "points", read_file(f));
+    v.colour = false;
+    v.rgb.clear();
+    io::write_ply(f, v);
+    put("ply", "floats", read_file(f));
+    v.floats.clear();
+    io::write_ply(f, v);
+    put("ply", "empty", read_file(f));
+    fs::remove_all(root / "ply_tmp");
   }
   fs::remove_all(rec_dir);
   std::printf("wrote %d seeds under %s\n", written, root.c_str());
