@@ -424,7 +424,7 @@ TEST_CASE("sensor: --sensor random draws every parameter inside its range, from 
   CHECK_CONTAINS(refused(b), "--hot-pixels must be in [0, 1000000], got -2");
   b = {};
   b.model = "perfect";
-  CHECK_CONTAINS(refused(b), "--sensor 'perfect': expected ideal, realistic or random");
+  CHECK_CONTAINS(refused(b), "--sensor 'perfect': expected ideal, realistic, davis or random");
   // The drawn values go with the recording: sensor_model.txt.
   sim::SimulateOptions so;
   so.sensor.model = "random";
@@ -889,4 +889,47 @@ TEST_CASE("pixel intervals: each pixel's consecutive events, quantiles as a sort
     CHECK(st.refractory_bound() >= tau);
     if (tau >= 1e-3) CHECK(st.refractory_bound() <= 2 * tau);
   }
+}
+
+// The pooled per-pixel intervals of the 12 IJRR event windows of ../shared/data (a DAVIS240C): their 0.1, 0.5
+// and 1 % quantiles, in seconds (SensorConfig::davis is calibrated to them).
+constexpr double kIjrrIntervalQuantiles[3] = {1.540e-3, 1.692e-3, 1.776e-3};
+
+TEST_CASE("the davis sensor: a fast sweep's interval quantiles within 15 % of the real DAVIS240C's") {
+  // A fine checker swept fast across an 80 x 60 sensor: 2-3 events per pixel and passing edge, as the IJRR
+  // rotations fire; the sensor's hot pixels and background events are in it.
+  const auto spec = sim::parse_scene("plane 0 0 1 0 0 -1 1 0 0 0 0 checker 8\npath slider -0.6 0 0 0.6 0 0 0 0 1 0.3\n", "sweep.txt");
+  sim::SensorOptions o;
+  o.model = "davis";
+  auto cfg = sim::sensor_model(o, 1);
+  CHECK(cfg.refractory == 1.5e-3);
+  CHECK(cfg.threshold_pos == sim::SensorConfig::realistic().threshold_pos);  // otherwise the realistic sensor
+  cfg.width = 80;
+  cfg.height = 60;
+  cfg.fx = cfg.fy = 80;
+  cfg.cx = cfg.cy = -1;
+  cfg.frame_rate = 10;
+  const auto st = events::interval_statistics(sim::Simulator(spec, cfg).run().events);
+  REQUIRE(st.intervals > 100000);
+  for (int k = 0; k < 3; ++k) {
+    CAPTURE(k);
+    CAPTURE(st.quantile[k]);
+    CHECK(std::abs(st.quantile[k] / kIjrrIntervalQuantiles[k] - 1) < 0.15);
+  }
+  // The numbers above are the real recordings', where they are at hand.
+  const auto root = evtest::shared_data("ijrr_event_windows");
+  if (root.empty()) {
+    MESSAGE("../shared/data absent: the real windows' quantiles not re-read");
+    return;
+  }
+  std::vector<double> pooled;
+  for (const auto& e : fs::directory_iterator(root)) {
+    if (!e.is_directory()) continue;
+    io::LoadOptions lo;
+    lo.use_cache = false;
+    const auto v = events::pixel_intervals(io::load_ijrr(e.path(), lo).events);
+    pooled.insert(pooled.end(), v.begin(), v.end());
+  }
+  REQUIRE(pooled.size() > 100000);
+  for (int k = 0; k < 3; ++k) CHECK(events::quantile_in_place(pooled, events::kIntervalQuantiles[k]) == doctest::Approx(kIjrrIntervalQuantiles[k]).epsilon(0.01));
 }

@@ -297,9 +297,10 @@ struct SimulateVerb {
     sub->add_option("--out", out, "output folder")->required();
     sub->add_option("--sensor", so.sensor.model,
                     "the sensor: ideal (thresholds 0.25 / 0.25, nothing else), realistic (C+ 0.22, C- 0.28, 3 % mismatch, 0.1 ms "
-                    "refractory, 0.1 Hz background, 3 hot pixels, 20 us jitter) or random (each parameter drawn from what cameras "
-                    "span, from --seed); the flags below set single parameters; written to <out>/sensor_model.txt")
-        ->check(CLI::IsMember({"ideal", "realistic", "random"}))
+                    "refractory, 0.1 Hz background, 3 hot pixels, 20 us jitter), davis (realistic with the 1.5 ms refractory period of "
+                    "the IJRR recordings' DAVIS240C) or random (each parameter drawn from what cameras span, from --seed); the flags "
+                    "below set single parameters; written to <out>/sensor_model.txt")
+        ->check(CLI::IsMember({"ideal", "realistic", "davis", "random"}))
         ->capture_default_str();
     sim::sensor_params([&](const auto& p) { sub->add_option(p.flag(), so.sensor.*p.given, p.help); });
     sub->add_flag("--bayer", so.bayer, "colour sensor: RGGB mosaic in front of the event pixels");

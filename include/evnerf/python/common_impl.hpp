@@ -128,7 +128,8 @@ inline void define_recordings(py::module_& m) {
       "A simulated recording of a built-in scene (evnerf.scenes), 'random', 'mesh' (mesh= a 3-D file, seen along an orbit as "
       "`evnerf simulate mesh FILE` sees it, with held-out views when written to out) or a scene file, as `evnerf simulate` makes it; "
       "width and height 0: the scene's default (240 x 180, 346 x 260 for a mesh). "
-      "sensor: 'ideal', 'realistic' or 'random' (drawn from the seed), and any of " +
+      "sensor: 'ideal', 'realistic', 'davis' (realistic with a DAVIS240C's 1.5 ms refractory period) or 'random' (drawn from the "
+      "seed), and any of " +
       sim::sensor_param_names() +
       " as keywords (evnerf.sensor_model shows the result). "
       "pose_noise=(T, R) and time_offset make the poses only roughly known (simulate's --pose-noise, --time-offset), the true ones kept. "

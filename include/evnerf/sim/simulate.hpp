@@ -33,6 +33,8 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
   SensorConfig c;
   if (o.model == "realistic") {
     c = SensorConfig::realistic();
+  } else if (o.model == "davis") {
+    c = SensorConfig::davis();
   } else if (o.model == "random") {
     Rng rng = Rng(seed).split(0x53454E534F52ull);  // "SENSOR": independent of the scene and the noise
     using R = RandomSensorRanges;
@@ -44,7 +46,7 @@ inline SensorConfig sensor_model(const SensorOptions& o, std::uint64_t seed) {
     c.hot_pixels = R::hot_pixels[0] + static_cast<int>(rng.below(static_cast<std::uint64_t>(R::hot_pixels[1] - R::hot_pixels[0] + 1)));
     c.jitter = rng.uniform(R::jitter[0], R::jitter[1]);
   } else if (o.model != "ideal") {
-    throw Error("simulate: --sensor '" + o.model + "': expected ideal, realistic or random");
+    throw Error("simulate: --sensor '" + o.model + "': expected ideal, realistic, davis or random");
   }
   sensor_params([&](const auto& p) {
     const auto& x = o.*p.given;
