@@ -193,6 +193,63 @@ TEST_CASE("training data: the slices keep their events' intervals unless the per
                     doctest::Contains("needs the slices' event intervals"));
 }
 
+TEST_CASE("training data: a learned refractory period starts at the recording's bound (hot pixels left out) and stays below it") {
+  // A fine checker swept fast, so that the period binds (as in test_sim.cpp's bound).
+  const fs::path scene = fs::temp_directory_path() / ("evnerf_sweep_" + std::to_string(::getpid()) + ".txt");
+  write_file_atomic(scene, "plane 0 0 1 0 0 -1 1 0 0 0 0 checker 8\npath slider -0.6 0 0 0.6 0 0 0 0 1 0.3\n");
+  sim::SimulateOptions so;
+  so.width = 64;
+  so.height = 48;
+  so.progress = false;
+  so.sensor.refractory = 1e-3;
+  so.sensor.hot_pixels = 3;  // firing far faster than the period allows: their intervals would set the quantile
+  so.sensor.hot_rate = 20000;
+  const auto d = sim::to_dataset(sim::simulate(scene.string(), so));
+  fs::remove(scene);
+  train::Config cfg;
+  const auto td = train::prepare(d, cfg);
+  REQUIRE(td.masked.size() == 3);
+  CAPTURE(td.refractory_bound);
+  CHECK(td.refractory_bound >= 1e-3);  // an upper bound of the true period, within twice it
+  CHECK(td.refractory_bound <= 2e-3);
+  cfg.keep_hot_pixels = true;
+  CHECK(train::prepare(d, cfg).refractory_bound < 1e-3);  // the hot pixels' own intervals
+  cfg.keep_hot_pixels = false;
+  cfg.refractory = 5e-4;  // a given period reads no bound
+  CHECK(train::prepare(d, cfg).refractory_bound < 0);
+  cfg.refractory.reset();
+  // The model starts there, learns downward and never above it; a resumed run reads the bound again.
+  cfg.iterations = 40;
+  cfg.pixels = 64;
+  cfg.threads = 1;
+  cfg.progress = false;
+  cfg.checkpoint_every = 0;
+  const fs::path base = fs::temp_directory_path() / ("evnerf_refractory_" + std::to_string(::getpid()));
+  fs::remove_all(base);
+  io::CheckpointRun run = train::describe(td, "planes");
+  train::Trainer<Tiny> whole(td, cfg, base / "whole", "tiny", run);
+  CHECK(whole.model().refractory().learned);
+  CHECK(whole.model().refractory().seconds == td.refractory_bound);
+  CHECK(whole.model().refractory().max == td.refractory_bound);
+  double highest = 0;
+  whole.run([&](const train::StepReport&) {
+    highest = std::max(highest, whole.model().refractory().seconds);
+    return true;
+  });
+  CHECK(highest <= td.refractory_bound);
+  {
+    train::Trainer<Tiny> first(td, cfg, base / "split", "tiny", run);
+    first.run([](const train::StepReport& rep) { return rep.step < 15; });
+  }
+  train::Trainer<Tiny> second(td, cfg, base / "split", "tiny", run);
+  REQUIRE(second.resume());
+  CHECK(second.model().refractory().max == td.refractory_bound);
+  second.run();
+  CHECK(second.model().refractory().seconds == whole.model().refractory().seconds);
+  CHECK(second.model().params().values == whole.model().params().values);
+  fs::remove_all(base);
+}
+
 TEST_CASE("noise injection inside training draws a fresh noise map per step") {
   Fixture f;
   TrainingData td = f.td;

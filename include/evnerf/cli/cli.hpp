@@ -98,6 +98,9 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
                "left out {} suspected hot pixel{} (busiest at x {}, y {}: {} events against {} next to it; --keep-hot-pixels keeps them)\n",
                td.masked.size(), td.masked.size() == 1 ? "" : "s", td.masked[0].x, td.masked[0].y, td.masked[0].events,
                td.masked[0].neighbours);
+  if (const auto& rp = trainer.model().refractory(); lead && rp.learned && td.refractory_bound >= 0 && trainer.model().step() == 0)
+    fmt::print(stderr, "refractory period learned from {:.1f} us down (the {:g} % quantile of the pixels' intervals between events)\n",
+               rp.seconds * 1e6, events::kRefractoryBoundQuantile * 100);
   // SIGINT (Ctrl-C) and SIGTERM (a batch system's stop) end the run after the current step with a
   // checkpoint; a second signal kills at once (the handler restores the default action).
   const StopOnSignal stop_request;

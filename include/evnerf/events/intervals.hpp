@@ -36,15 +36,19 @@ struct IntervalStatistics {
 
 /// The intervals between each pixel's consecutive events (either polarity), in the order their second
 /// events come. The stream's times must be in order (EventStream::validate); a pixel outside the sensor is
-/// skipped.
-inline std::vector<double> pixel_intervals(const EventStream& e) {
+/// skipped, and so is pixel y · width + x where `left_out` (empty, or one byte a pixel) is not 0 (hot pixels,
+/// whose own firing is no measure of the sensor's dead time).
+inline std::vector<double> pixel_intervals(const EventStream& e, const std::vector<std::uint8_t>& left_out = {}) {
   const std::size_t W = static_cast<std::size_t>(std::max(0, e.width)), H = static_cast<std::size_t>(std::max(0, e.height));
+  const bool masked = left_out.size() == W * H && W * H > 0;
   std::vector<double> last(W * H, std::numeric_limits<double>::quiet_NaN());
   std::vector<double> out;
   out.reserve(e.size());
   for (std::size_t i = 0; i < e.size(); ++i) {
     if (e.x[i] >= W || e.y[i] >= H) continue;
-    double& l = last[static_cast<std::size_t>(e.y[i]) * W + e.x[i]];
+    const std::size_t p = static_cast<std::size_t>(e.y[i]) * W + e.x[i];
+    if (masked && left_out[p]) continue;
+    double& l = last[p];
     if (l == l) out.push_back(e.t[i] - l);  // not NaN: the pixel fired before
     l = e.t[i];
   }
@@ -59,9 +63,10 @@ inline double quantile_in_place(std::vector<double>& v, double q) {
   return v[k];
 }
 
-/// The stream's per-pixel interval statistics (pixel_intervals, its minimum and kIntervalQuantiles).
-inline IntervalStatistics interval_statistics(const EventStream& e) {
-  std::vector<double> d = pixel_intervals(e);
+/// The stream's per-pixel interval statistics (pixel_intervals, its minimum and kIntervalQuantiles), the
+/// pixels of `left_out` left out.
+inline IntervalStatistics interval_statistics(const EventStream& e, const std::vector<std::uint8_t>& left_out = {}) {
+  std::vector<double> d = pixel_intervals(e, left_out);
   IntervalStatistics s;
   s.intervals = d.size();
   if (d.empty()) return s;

@@ -33,9 +33,13 @@ struct TrainingData {
                                                ///< a mosaic at the full sensor); all() = every pixel. Steps draw
                                                ///< their pixels and noise among them only.
   std::vector<events::HotPixel> masked;        ///< suspected hot pixels left out of `sites` (unless Config::keep_hot_pixels)
-  int slices_per_interval = 1;                 ///< slices per interval of the recording's own cut (train's
-                                               ///< --subslices): a window objective's W counts such intervals,
-                                               ///< so its windows span 1..W·this slices, the same time at any cut
+  /// The refractory period's upper bound read off the recording (events::IntervalStatistics::refractory_bound,
+  /// suspected hot pixels left out): where a learned period starts, and the most it may reach. Negative where
+  /// train::prepare did not read it (the period given).
+  double refractory_bound = -1;
+  int slices_per_interval = 1;  ///< slices per interval of the recording's own cut (train's
+                                ///< --subslices): a window objective's W counts such intervals,
+                                ///< so its windows span 1..W·this slices, the same time at any cut
 };
 
 }  // namespace evnerf

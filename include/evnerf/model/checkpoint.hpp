@@ -122,8 +122,11 @@ io::CheckpointRun Model<Rep, ThresholdP, NoiseP, ObjectiveP>::deserialize(const 
   rep.box() = bx;
   renderer_ = std::move(rep);
   n_slices_ = h.n_slices;
-  refractory_ = {h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax), h.refractory_m, h.refractory_v,
-                 h.refractory_learned && h.refractory >= 0};
+  refractory_ = {};  // its bound (max) is not kept: the trainer reads it off the recording again
+  refractory_.seconds = h.refractory < 0 ? -1.0 : std::min(h.refractory, RefractoryState::kMax);
+  refractory_.m = h.refractory_m;
+  refractory_.v = h.refractory_v;
+  refractory_.learned = h.refractory_learned && h.refractory >= 0;
   poses_ = {};
   poses_.settings.poses = poses.poses;
   poses_.settings.offset = poses.offset;

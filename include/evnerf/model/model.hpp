@@ -80,10 +80,13 @@ struct StepStats {
 /// The refractory period a model reads its counts with (Model::set_refractory): `seconds` < 0 reads the
 /// counts as they are; otherwise each event stands for the crossings events::dead_time_weight gives. A
 /// learned period moves with the field, by its own Adam (lr kLr seconds, the field's betas, no decay) within
-/// [0, kMax]; m and v are that Adam's moments.
+/// [0, max]; m and v are that Adam's moments. `max` is kMax unless the data bound the period (train sets it to
+/// the recording's bound, events::IntervalStatistics::refractory_bound, which is also where it starts);
+/// checkpoints do not keep it: a resumed run reads it off the recording again.
 struct RefractoryState {
   static constexpr double kLr = 2e-6, kMax = 5e-3;
   double seconds = -1, m = 0, v = 0;
+  double max = kMax;
   bool learned = false;
   bool active() const { return seconds >= 0; }
 };
@@ -257,13 +260,22 @@ class Model : public RepresentationTypes<Rep> {
   /// The refractory period the counts are read with: `seconds` ≥ 0 weighs each event by the threshold
   /// crossings it stands for (events::dead_time_weight; the slices must keep their intervals), learned with
   /// the field when `learn`; negative reads the counts as they are (the default: a new model's step is then
-  /// bit-identical to one without this setting). Checkpoints keep it with its optimiser state.
-  void set_refractory(double seconds, bool learn) {
+  /// bit-identical to one without this setting). Checkpoints keep it with its optimiser state. A learned
+  /// period stays within [0, max] (set_refractory_bound).
+  void set_refractory(double seconds, bool learn, double max = RefractoryState::kMax) {
     require(std::isfinite(seconds) && seconds <= RefractoryState::kMax,
             "the refractory period must be at most " + std::to_string(RefractoryState::kMax) + " s, not " + std::to_string(seconds));
     refractory_ = {};
     refractory_.seconds = seconds < 0 ? -1.0 : seconds;
     refractory_.learned = learn && seconds >= 0;
+    set_refractory_bound(max);
+  }
+  /// The largest period learning may reach, within [0, RefractoryState::kMax] (a recording's bound: the
+  /// period is learned downward from it).
+  void set_refractory_bound(double max) {
+    require(std::isfinite(max) && max >= 0,
+            "the refractory period's bound must be a finite number of seconds ≥ 0, not " + std::to_string(max));
+    refractory_.max = std::min(max, RefractoryState::kMax);
   }
   const RefractoryState& refractory() const { return refractory_; }
   /// Pose refinement (model/poses.hpp): a correction per pose knot (slice boundary) and a clock offset,

@@ -22,14 +22,14 @@ void Model<Rep, ThresholdP, NoiseP, ObjectiveP>::apply_update(const TrainingData
       bm = std::min(bm, static_cast<Scalar>(-ThresholdP::init));
     }
   }
-  if (refractory_.learned) {  // its own Adam, in seconds, kept within [0, kMax]
+  if (refractory_.learned) {  // its own Adam, in seconds, kept within [0, max]
     const auto& c = adam_.config();
     const double g = last_refractory_grad_, t = static_cast<double>(adam_.step());
     auto& r = refractory_;
     r.m = c.beta1 * r.m + (1 - c.beta1) * g;
     r.v = c.beta2 * r.v + (1 - c.beta2) * g * g;
     const double mh = r.m / (1 - std::pow(c.beta1, t)), vh = r.v / (1 - std::pow(c.beta2, t));
-    r.seconds = std::clamp(r.seconds - RefractoryState::kLr * mh / (std::sqrt(vh) + 1e-12), 0.0, RefractoryState::kMax);
+    r.seconds = std::clamp(r.seconds - RefractoryState::kLr * mh / (std::sqrt(vh) + 1e-12), 0.0, r.max);
   }
   if (poses_.active()) update_poses(data);
   if (average_.active()) average_.update(params_.values, adam_.step());

@@ -10,6 +10,7 @@
 
 #include "../core/error.hpp"
 #include "../events/hot_pixels.hpp"
+#include "../events/intervals.hpp"
 #include "../events/pixels.hpp"
 #include "../events/slicing.hpp"
 #include "../events/training_data.hpp"
@@ -84,6 +85,14 @@ inline TrainingData prepare(const io::Dataset& d, const Config& cfg, std::vector
       for (const auto& h : td.masked) mask[static_cast<std::size_t>(h.y) * w + h.x] = 0;
       td.sites = events::PixelSites(std::move(mask));
     }
+  }
+  if (!cfg.refractory) {  // a learned period starts from the data's bound and stays below it
+    std::vector<std::uint8_t> hot;
+    if (!td.masked.empty()) {
+      hot.assign(static_cast<std::size_t>(d.camera.width()) * d.camera.height(), 0);
+      for (const auto& h : td.masked) hot[static_cast<std::size_t>(h.y) * d.camera.width() + h.x] = 1;
+    }
+    td.refractory_bound = events::interval_statistics(d.events, hot).refractory_bound();
   }
   if (cfg.holdout > 0)
     for (std::size_t k = cfg.holdout; k + 1 < b.size(); k += cfg.holdout) {

@@ -40,7 +40,7 @@ struct Config {
   int holdout = 0;
   bool clamp_poses = false;
   bool keep_hot_pixels = false;
-  std::optional<double> refractory;  ///< unset: learned with the field (from 0); given: that period, fixed
+  std::optional<double> refractory;  ///< unset: learned with the field, downward from the recording's bound; given: that period, fixed
   bool density_per_box = false;
   std::optional<double> background;  ///< unset: no background (the last sample stops every ray)
   bool learn_background = true;      ///< a backdrop of unknown brightness, learned with the field (unless `background` is given)
@@ -186,7 +186,8 @@ inline const std::vector<Setting>& settings() {
       {"keep_hot_pixels", &Config::keep_hot_pixels, -inf, inf, false, false,
        "draw the suspected hot pixels too (pixels firing far above their neighbours, as inspect lists them; left out by default)"},
       {"refractory", &Config::refractory, 0, 0.005, false, false,
-       "the sensor's refractory period in seconds, fixed (unset: learned with the field): an event that came d after the "
+       "the sensor's refractory period in seconds, fixed (unset: learned with the field, downward from the 0.5 % quantile of the "
+       "pixels' intervals between events, which bounds it): an event that came d after the "
        "pixel's previous one stands for d / (d - period) thresholds, and one within 1.5 periods makes its count a lower bound "
        "(0 = counts read as they are)"},
       {"density_per_box", &Config::density_per_box, -inf, inf, false, false,

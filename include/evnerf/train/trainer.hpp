@@ -96,12 +96,25 @@ inline PoseRefinementSettings pose_settings(const Config& cfg) {
   return s;
 }
 
+/// Where a learned refractory period starts and the most it reaches: the recording's bound
+/// (TrainingData::refractory_bound), within RefractoryState::kMax; where the bound was not read, kMax's
+/// range from 0.
+inline double refractory_start(const TrainingData& td) {
+  return td.refractory_bound < 0 ? 0.0 : std::min(td.refractory_bound, RefractoryState::kMax);
+}
+
 /// A fresh model for the training data under `cfg` (scene box from near/far, Adam from lr/decay, seed).
 template <class Model>
 Model make_model(const TrainingData& td, const Config& cfg) {
   Model m(td, scene_box(td, cfg), cfg.seed, adam_config(cfg));
-  // The refractory period: given, fixed (0 reads the counts as they are); unset, learned from 0.
-  if (!cfg.refractory || *cfg.refractory > 0) m.set_refractory(cfg.refractory.value_or(0.0), !cfg.refractory);
+  // The refractory period: given, fixed (0 reads the counts as they are); unset, learned downward from the
+  // bound the recording's intervals set (TrainingData::refractory_bound), and never above it.
+  if (cfg.refractory) {
+    if (*cfg.refractory > 0) m.set_refractory(*cfg.refractory, false);
+  } else {
+    const double bound = refractory_start(td);
+    m.set_refractory(bound, true, bound);
+  }
   if (cfg.refine_poses || cfg.learn_time_offset) m.set_pose_refinement(td, pose_settings(cfg));
   return m;
 }
@@ -455,6 +468,7 @@ class Trainer {
                       std::to_string(shards) + " (processes × shards): resume with --shards " + std::to_string(run.shards) +
                       " (any number of processes that divides it)");
     model_.optimizer().set_config(adam_config(cfg_));
+    if (model_.refractory().learned && td_.refractory_bound >= 0) model_.set_refractory_bound(refractory_start(td_));
     follow_box();
     model_.set_pose_rates(td_, pose_settings(cfg_));
     return true;
