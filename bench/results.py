@@ -2,7 +2,7 @@
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
 time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh, step_profile[_splat]_ISA.csv from bench/step_profile.sh,
-mesh.csv from bench/mesh_suite.sh, sensor_factors.csv from bench/sensor_factors.sh, render.csv from bench/render.sh, splat_kernels.csv from bench/splat_kernels.sh), so both say the same and neither is
+mesh.csv from bench/mesh_suite.sh, mesh_export.csv from bench/mesh_export.sh, sensor_factors.csv from bench/sensor_factors.sh, render.csv from bench/render.sh, splat_kernels.csv from bench/splat_kernels.sh), so both say the same and neither is
 edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
@@ -393,13 +393,32 @@ def poses_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=(), render=(), kernels=()):
+def surfaces_section(rows):
+    """bench/mesh_export.sh: how close export's mesh.ply and points.ply lie to the true surface."""
+    first = rows[0]
+    p = ["", "## Exported surfaces (`bench/mesh_export.sh`)", "",
+         "Mesh-suite assets (grey) trained with the default preset (`--near 0.3 --far 7.0`, training seed "
+         f"{first['seed']}, {first['threads']} threads), then `evnerf export` with its defaults (mesh lattice "
+         f"{first['resolution']} cells along the longest side). Each exported vertex or point against the true surface that the",
+         "recording's depth maps see (every other pixel of every frame, back-projected): accuracy is the distance from an exported",
+         "point to the nearest true one, completeness from a true point to the nearest exported one; median and 90th percentile",
+         "in % of the true surface's bounding-box diagonal (the diagonal in world units beside them). Accuracy's upper tail is",
+         "the fog a field leaves in an object scene's empty space (no event forbids it; the points of background pixels end in it)",
+         "and the object's underside, which no camera saw and no true point covers.", "",
+         "| asset | file | elements | accuracy median / 90 % | completeness median / 90 % | diagonal |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        p.append(f"| {r['asset']} | `{r['file']}` | {int(r['elements'])} | {r['accuracy_median_pct']} / {r['accuracy_p90_pct']} % | "
+                 f"{r['completeness_median_pct']} / {r['completeness_p90_pct']} % | {r['diagonal']} |")
+    return p
+
+
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=(), render=(), kernels=(), surfaces=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`, `bench/render.sh`, `bench/splat_kernels.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/mesh_export.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`, `bench/render.sh`, `bench/splat_kernels.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -474,6 +493,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         p += factors_section(factors)
     if mesh:
         p += mesh_section(mesh)
+    if surfaces:
+        p += surfaces_section(surfaces)
     if render:
         p += render_section(render)
     if kernels:
@@ -558,8 +579,9 @@ def main():
     poses = read(os.path.join(a.results, "poses.csv"))
     render = read(os.path.join(a.results, "render.csv"))
     kernels = read(os.path.join(a.results, "splat_kernels.csv"))
+    surfaces = read(os.path.join(a.results, "mesh_export.csv"))
     pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile, poses, render,
-                                                                    kernels)}
+                                                                    kernels, surfaces)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []

@@ -3,7 +3,8 @@
 # and by the default field, exported, and each file read here in Python (struct and json, not evnerf's
 # reader): gaussians.ply has 3D Gaussian splatting's header and property order, unit quaternions, no
 # Gaussian under 1/255 opacity, centres inside the scene; points.ply's points lie in front of the cameras;
-# transforms.json has one camera-to-world matrix per slice boundary, a rotation with OpenGL's axes. A
+# a field's mesh.ply has triangles over its vertices, near its points; transforms.json has one
+# camera-to-world matrix per slice boundary, a rotation with OpenGL's axes. A
 # checkpoint that is not one is refused by name, and nothing is written. ctest runs this as cli.export.
 # Usage: tests/export.sh EVNERF_BINARY
 set -euo pipefail
@@ -21,6 +22,8 @@ for preset in splat fast; do
 done
 [ -f "$work/splat/export/gaussians.ply" ] || fail "no gaussians.ply for a Gaussian scene"
 [ ! -e "$work/fast/export/gaussians.ply" ] || fail "gaussians.ply for a field"
+[ -f "$work/fast/export/mesh.ply" ] || fail "no mesh.ply for a field: $(cat "$work/fast.export.log")"
+[ ! -e "$work/splat/export/mesh.ply" ] || fail "mesh.ply for a Gaussian scene"
 python3 - "$work" <<'PY'
 import json, math, struct, sys
 w = sys.argv[1]
@@ -31,11 +34,18 @@ def ply(path):
     head = data[:end].decode().splitlines()
     assert head[0] == "ply" and head[1] == "format binary_little_endian 1.0", head[:2]
     n = next(int(l.split()[2]) for l in head if l.startswith("element vertex"))
-    props = [(l.split()[1], l.split()[2]) for l in head if l.startswith("property")]
+    nf = next((int(l.split()[2]) for l in head if l.startswith("element face")), 0)
+    props = [(l.split()[1], l.split()[2]) for l in head if l.startswith("property") and not l.startswith("property list")]
+    if nf:
+        assert head[-2] == "property list uchar uint vertex_indices", head[-2]
     fmt = "<" + "".join("f" if t == "float" else "B" for t, _ in props)
     size = struct.calcsize(fmt)
-    assert len(data) - end == n * size, (path, n, size, len(data) - end)
+    assert len(data) - end == n * size + 13 * nf, (path, n, size, nf, len(data) - end)
     rows = [struct.unpack_from(fmt, data, end + i * size) for i in range(n)]
+    faces = [struct.unpack_from("<BIII", data, end + n * size + 13 * i) for i in range(nf)]
+    assert all(f[0] == 3 and max(f[1:]) < n for f in faces)
+    if nf:
+        return [name for _, name in props], rows, [f[1:] for f in faces]
     return [name for _, name in props], rows
 
 names, rows = ply(f"{w}/splat/export/gaussians.ply")
@@ -74,7 +84,18 @@ for model in ("splat", "fast"):
     back = [-f0[k][2] for k in range(3)]  # OpenGL's camera looks along -z: the viewing direction
     ahead = sum(1 for r in rows if sum((r[k] - c[k]) * back[k] for k in range(3)) > 0)
     assert ahead > 0.5 * len(rows), (model, ahead, len(rows))
-print("export: gaussians.ply, points.ply and transforms.json read by an independent parser")
+# The field's surface: triangles over its vertices, and its vertices near the points at the rendered depth
+# (within a tenth of the points' extent for most of them: the mesh is of the same surface).
+names, verts, tris = ply(f"{w}/fast/export/mesh.ply")
+assert names == ["x", "y", "z", "luminance", "red", "green", "blue"], names
+assert len(tris) > 50, len(tris)
+_, pts = ply(f"{w}/fast/export/points.ply")
+ext = max(max(p[k] for p in pts) - min(p[k] for p in pts) for k in range(3))
+sample = pts[:: max(1, len(pts) // 300)]
+near = sum(1 for v in verts[:: max(1, len(verts) // 300)]
+           if min(sum((v[k] - p[k]) ** 2 for k in range(3)) for p in sample) < (0.1 * ext) ** 2)
+assert near > 0.5 * len(verts[:: max(1, len(verts) // 300)]), (near, len(verts), ext)
+print("export: gaussians.ply, points.ply, mesh.ply and transforms.json read by an independent parser")
 PY
 # A checkpoint that is not one: refused by name, nothing written.
 echo "not a checkpoint" > "$work/bad.ckpt"

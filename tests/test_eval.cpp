@@ -4,6 +4,7 @@
 #include <evnerf/eval/report.hpp>
 
 #include <cmath>
+#include <map>
 #include <numbers>
 
 #include <unistd.h>
@@ -459,7 +460,109 @@ TEST_CASE("export: a PLY file round-trips, and a file of another shape is refuse
   CHECK_THROWS_WITH(io::read_ply(dir / "double.ply"), doctest::Contains("double.ply:4: unsupported property"));
   write_file_atomic(dir / "open.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\n");
   CHECK_THROWS_WITH(io::read_ply(dir / "open.ply"), doctest::Contains("the header ends before end_header"));
+  // Triangles: a face element after the vertices; a face of another size or naming a vertex beyond them is refused.
+  io::PlyVertices t;
+  t.names = {"x", "y", "z"};
+  t.floats = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  t.faces = {{0, 1, 2}, {0, 2, 3}};
+  io::write_ply(dir / "tri.ply", t);
+  const auto tri = io::read_ply(dir / "tri.ply");
+  CHECK(tri.faces == t.faces);
+  CHECK(tri.floats == t.floats);
+  std::string bytes = read_file(dir / "tri.ply");
+  CHECK(bytes.find("element face 2\nproperty list uchar uint vertex_indices\nend_header\n") != std::string::npos);
+  const std::size_t first_face = bytes.size() - 26;
+  bytes[first_face + 1] = 9;  // face 0's first vertex: 9 of 4
+  write_file_atomic(dir / "far.ply", bytes);
+  const std::string far = "byte " + std::to_string(first_face) + ": face 0 names vertex 9 of 4";
+  CHECK_THROWS_WITH(io::read_ply(dir / "far.ply"), doctest::Contains(far.c_str()));
+  bytes[first_face + 1] = 0;
+  bytes[first_face] = 4;
+  write_file_atomic(dir / "quad.ply", bytes);
+  CHECK_THROWS_WITH(io::read_ply(dir / "quad.ply"), doctest::Contains("face 0 has 4 vertices, not 3"));
+  t.faces = {{0, 1, 4}};
+  CHECK_THROWS_WITH(io::write_ply(dir / "bad.ply", t), doctest::Contains("a triangle names a vertex the file does not have"));
+  CHECK_FALSE(fs::exists(dir / "bad.ply"));
   fs::remove_all(dir);
+}
+
+TEST_CASE("mesh: marching tetrahedra of a sphere is closed, faces outward, on the sphere, and holds its volume") {
+  const double r = 0.8;
+  const auto L =
+      evaluation::lattice_over(Vec3::Constant(-1), Vec3::Constant(1), 40, [&](const std::vector<Vec3>& p, std::vector<float>& v) {
+        v.resize(p.size());
+        for (std::size_t i = 0; i < p.size(); ++i) v[i] = static_cast<float>(r - p[i].norm());  // inside: positive
+      });
+  CHECK(L.n == std::array<int, 3>{41, 41, 41});
+  CHECK(L.spacing == doctest::Approx(0.05));
+  const auto m = evaluation::marching_tetrahedra(L, 0.0);
+  REQUIRE(m.triangles.size() > 1000);
+  for (const auto& v : m.vertices) CHECK(std::abs(v.norm() - r) < 0.01);
+  // Closed and consistently oriented: every directed edge once, and its reverse once.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+  double volume = 0;
+  int inward = 0;  // a triangle whose vertices coincide (a lattice value exactly at the level) faces nowhere
+  for (const auto& t : m.triangles) {
+    for (int k = 0; k < 3; ++k) ++edges[{t[k], t[(k + 1) % 3]}];
+    const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
+    volume += a.dot(b.cross(c)) / 6;
+    inward += (b - a).cross(c - a).dot(a + b + c) < -1e-12;
+  }
+  bool closed = true;
+  for (const auto& [e, n] : edges) closed = closed && n == 1 && edges.count({e.second, e.first}) == 1;
+  CHECK(closed);
+  CHECK(inward == 0);
+  CHECK(volume == doctest::Approx(4.0 / 3.0 * std::numbers::pi * r * r * r).epsilon(0.02));
+  // Nothing to cut: no triangle.
+  CHECK(evaluation::marching_tetrahedra(L, 5.0).triangles.empty());
+  CHECK(evaluation::marching_tetrahedra(L, -5.0).triangles.empty());
+}
+
+TEST_CASE("mesh: a field's surface at the density its points sit in, inside their region, coloured as the field shows it") {
+  // A ball around (1, 0, 0) whose density falls linearly from 1000 at the centre to 0 at radius 0.5, whose
+  // luminance is the height y + 1 (a second channel twice it); its points on the sphere of radius 0.4 (density
+  // 200) and one stray point far off, whose density is 0.
+  evaluation::FieldProbe f;
+  f.channels = 3;
+  f.density_length = 2;
+  const Vec3 centre(1, 0, 0);
+  f.at = [&](const std::vector<Vec3>& p, const std::vector<Vec3>& d, std::vector<float>& sigma, std::vector<float>& lum) {
+    REQUIRE(d.size() == p.size());
+    sigma.resize(p.size());
+    lum.resize(3 * p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      sigma[i] = static_cast<float>(1000 * std::max(0.0, 1 - (p[i] - centre).norm() / 0.5));
+      for (int c = 0; c < 3; ++c) lum[3 * i + c] = static_cast<float>((c + 1) * (p[i].y() + 1));
+    }
+  };
+  std::vector<Vec3> cloud;
+  for (int k = 0; k < 200; ++k) {
+    const double u = k * 2.399963, z = 1 - 2 * (k + 0.5) / 200;  // a Fibonacci sphere's points
+    cloud.push_back(centre + 0.4 * Vec3(std::cos(u) * std::sqrt(1 - z * z), std::sin(u) * std::sqrt(1 - z * z), z));
+  }
+  cloud.push_back(Vec3(40, 40, 40));  // a stray point is not in the region
+  const auto [lo, hi] = evaluation::robust_bounds(cloud);
+  CHECK(hi.x() < 2);
+  std::vector<float> lum;
+  const auto m = evaluation::field_mesh(f, cloud, {Vec3(1, 0, -3)}, 48, 0.5, lum);
+  REQUIRE(m.vertices.size() > 100);
+  REQUIRE(lum.size() == 3 * m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    CHECK(std::abs((m.vertices[i] - centre).norm() - 0.4) < 0.01);  // the level of the points' median density, 200
+    CHECK(lum[3 * i + 1] == doctest::Approx(2 * (m.vertices[i].y() + 1)));
+  }
+  const auto ply = evaluation::mesh_ply(m, lum, 3);
+  CHECK(ply.faces == m.triangles);
+  CHECK(ply.names == std::vector<std::string>{"x", "y", "z", "luminance"});
+  // A higher quantile, a denser level: a smaller sphere. Nothing above the level: no surface.
+  const auto inner = evaluation::field_mesh(f, cloud, {Vec3(1, 0, -3)}, 48, 1.0, lum);
+  REQUIRE(!inner.vertices.empty());
+  for (const auto& v : inner.vertices) CHECK((v - centre).norm() < 0.41);
+  std::vector<Vec3> stray(10, Vec3(40, 40, 40));
+  CHECK(evaluation::field_mesh(f, stray, {Vec3::Zero()}, 8, 0.5, lum).triangles.empty());
+  CHECK_THROWS_WITH(evaluation::field_mesh(evaluation::FieldProbe{}, cloud, {Vec3::Zero()}, 8, 0.5, lum), doctest::Contains("not a field"));
+  CHECK_THROWS_WITH(evaluation::lattice_over(lo, hi, 0, [](const std::vector<Vec3>&, std::vector<float>&) {}),
+                    doctest::Contains("between 1 and 1024 cells"));
 }
 
 TEST_CASE("export: a point cloud lies where the rendered depth puts it, the cameras in nerfstudio's convention") {

@@ -163,15 +163,20 @@ int main(int argc, char** argv) {
     fs::remove_all(root / "prophesee_tmp");
   }
   {
-    // PLY files as export writes them: floats with colour bytes, floats alone, and no vertex at all.
+    // PLY files as export writes them: floats with colour bytes, a triangle over them, floats alone, and no
+    // vertex at all.
     io::PlyVertices v;
     v.names = {"x", "y", "z", "luminance"};
-    v.floats = {0.f, 1.f, 2.f, 0.5f, -1.f, 0.25f, 3.f, 1e-3f};
+    v.floats = {0.f, 1.f, 2.f, 0.5f, -1.f, 0.25f, 3.f, 1e-3f, 2.f, 2.f, 2.f, 0.f};
     v.colour = true;
-    v.rgb = {10, 20, 30, 200, 100, 0};
+    v.rgb = {10, 20, 30, 200, 100, 0, 1, 2, 3};
     const fs::path f = root / "ply_tmp" / "seed.ply";
     io::write_ply(f, v, {"seed"});
     put("ply", "points", read_file(f));
+    v.faces = {{0, 1, 2}, {2, 1, 0}};
+    io::write_ply(f, v);
+    put("ply", "mesh", read_file(f));
+    v.faces.clear();
     v.colour = false;
     v.rgb.clear();
     io::write_ply(f, v);

@@ -582,18 +582,19 @@ struct RenderVerb {
 };
 
 /// `export`: a trained scene in the files other tools open (eval/export.hpp): transforms.json (the cameras),
-/// points.ply (a point cloud from the depth at the recorded poses), and for a Gaussian scene gaussians.ply
-/// (3D Gaussian splatting's layout).
+/// points.ply (a point cloud from the depth at the recorded poses), for a field mesh.ply (its surface, by
+/// marching tetrahedra over the point cloud's extent), and for a Gaussian scene gaussians.ply (3D Gaussian
+/// splatting's layout).
 struct ExportVerb {
   fs::path checkpoint, out;
-  int stride = 4, pose_stride = 1;
-  double min_opacity = 0.9;
+  int stride = 4, pose_stride = 1, mesh_resolution = 192;
+  double min_opacity = 0.9, mesh_level = 0.9;
   CLI::App* sub = nullptr;
 
   CLI::App* add(CLI::App& app) {
     sub = app.add_subcommand("export",
-                             "the cameras (transforms.json), a point cloud (points.ply) and a Gaussian scene's Gaussians "
-                             "(gaussians.ply, 3D Gaussian splatting's layout) for other tools");
+                             "the cameras (transforms.json), a point cloud (points.ply), a field's surface (mesh.ply) and a "
+                             "Gaussian scene's Gaussians (gaussians.ply, 3D Gaussian splatting's layout) for other tools");
     sub->add_option("checkpoint", checkpoint, "model.ckpt")->required();
     sub->add_option("--out", out, "output folder")->required();
     sub->add_option("--stride", stride, "points.ply: every n-th pixel in x and y")->capture_default_str()->check(CLI::Range(1, 4096));
@@ -603,6 +604,15 @@ struct ExportVerb {
     sub->add_option("--min-opacity", min_opacity, "points.ply: a pixel's point where the rendered opacity reaches this")
         ->capture_default_str()
         ->check(CLI::Range(1e-6, 1.0));
+    sub->add_option("--mesh-resolution", mesh_resolution,
+                    "mesh.ply: lattice cells along the longest side of the box that holds the point cloud (but its outer 0.5 % "
+                    "per axis, grown by 5 %)")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 1024));
+    sub->add_option("--mesh-level", mesh_level,
+                    "mesh.ply: the surface's density, as this quantile of the field's density at the points of points.ply")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
     return sub;
   }
   int run(const Programme& programme) const {
@@ -614,6 +624,20 @@ struct ExportVerb {
     const auto points = evaluation::point_cloud(model.desc, model.render, stride, pose_stride, min_opacity);
     io::write_ply(out / "points.ply", points, {"evnerf export: points at the expected depth of the recorded poses"});
     std::string what = fmt::format("transforms.json ({} cameras), points.ply ({} points)", model.desc.poses.size(), points.size());
+    if (model.field && points.size() > 0) {
+      std::vector<Vec3> xyz(points.size()), cameras;
+      const std::size_t F = points.names.size();
+      for (std::size_t i = 0; i < xyz.size(); ++i) xyz[i] = Vec3(points.floats[i * F], points.floats[i * F + 1], points.floats[i * F + 2]);
+      for (const auto& p : model.desc.poses) cameras.push_back(p.t);
+      std::vector<float> lum;
+      const auto mesh = evaluation::field_mesh(model.field, xyz, cameras, mesh_resolution, mesh_level, lum);
+      io::write_ply(out / "mesh.ply", evaluation::mesh_ply(mesh, lum, model.field.channels),
+                    {"evnerf export: the field's surface, marching tetrahedra"});
+      what += fmt::format(", mesh.ply ({} vertices, {} triangles)", mesh.vertices.size(), mesh.triangles.size());
+    } else if (model.field) {
+      fmt::print(stderr, "no mesh.ply: no pixel of the recorded poses reaches --min-opacity {}, so there is no surface to bound\n",
+                 min_opacity);
+    }
     if (model.gaussians) {
       const auto g = model.gaussians();
       io::write_ply(out / "gaussians.ply", evaluation::gaussians_ply(g), {"evnerf export: 3D Gaussian splatting layout, degree 0"});

@@ -198,6 +198,8 @@ struct Renderable {
   double time_offset = 0;
   /// A Gaussian scene's Gaussians (evaluation::gaussians_of); empty for a field.
   std::function<GaussianCloud()> gaussians;
+  /// A field's density and luminance at any point (what export meshes); empty for Gaussians and channels.json.
+  FieldProbe field;
   /// The pose the model saw at time t on its training path: the refined knots' (interpolated between
   /// boundaries, the nearest outside them) when it refined its poses, else the recording's.
   geometry::Pose training_pose(const io::Dataset& d, double t) const {

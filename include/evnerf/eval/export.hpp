@@ -1,10 +1,11 @@
 // eval/export.hpp — a trained scene in the files other tools open (`evnerf export`): the Gaussians of a
 // Gaussian scene in the PLY layout of 3D Gaussian splatting (graphdeco-inria/gaussian-splatting), which every
-// 3DGS viewer reads; a point cloud of any model, from its depth at the recorded poses; and the cameras as
-// a NeRF / nerfstudio transforms.json. Each is a function of its own. The world frame is the recording's,
+// 3DGS viewer reads; a point cloud of any model, from its depth at the recorded poses; a field's surface as
+// a mesh (eval/mesh.hpp); and the cameras as a NeRF / nerfstudio transforms.json. Each is a function of its own. The world frame is the recording's,
 // as the poses give it: a camera looks along its +z with +y down in the image (OpenCV's and COLMAP's
 // convention, which 3DGS keeps), so a viewer that takes +y as up shows the scene upside down until it is
-// turned. Depends on io/ply.hpp, io/checkpoint.hpp (the run's cameras), render/scene.hpp and nlohmann-json.
+// turned. Depends on io/ply.hpp, io/checkpoint.hpp (the run's cameras), render/scene.hpp, eval/mesh.hpp and
+// nlohmann-json.
 #pragma once
 #include <algorithm>
 #include <array>
@@ -19,6 +20,7 @@
 #include "../io/checkpoint.hpp"
 #include "../io/ply.hpp"
 #include "../render/scene.hpp"
+#include "mesh.hpp"
 
 namespace evnerf::evaluation {
 
@@ -142,6 +144,33 @@ inline io::PlyVertices point_cloud(const io::CheckpointRun& run, const std::func
     for (int k = 0; k < 3; ++k)
       v.rgb.push_back(static_cast<std::uint8_t>(std::lround(255.0 * std::clamp(double(col[i][k]) / white, 0.0, 1.0))));
   }
+  return v;
+}
+
+/// A mesh as PLY: vertices x y z, luminance (the mean of the channels), red green blue (each channel over
+/// `white`, export_white's of the luminance when 0; grey in all three), and its triangles (`face`).
+inline io::PlyVertices mesh_ply(const TriangleMesh& m, const std::vector<float>& lum, int channels, double white = 0) {
+  require(channels == 1 || channels == 3, "export: a mesh's luminance has one or three channels");
+  require(lum.size() == m.vertices.size() * static_cast<std::size_t>(channels), "export: a mesh needs a luminance per vertex and channel");
+  std::vector<float> mean(m.vertices.size());
+  for (std::size_t i = 0; i < mean.size(); ++i) {
+    double s = 0;
+    for (int c = 0; c < channels; ++c) s += lum[i * channels + c];
+    mean[i] = static_cast<float>(s / channels);
+  }
+  if (!(white > 0)) white = export_white(mean);
+  io::PlyVertices v;
+  v.names = {"x", "y", "z", "luminance"};
+  v.colour = true;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    for (int a = 0; a < 3; ++a) v.floats.push_back(static_cast<float>(m.vertices[i][a]));
+    v.floats.push_back(mean[i]);
+    for (int c = 0; c < 3; ++c) {
+      const double l = lum[i * channels + (channels == 3 ? c : 0)] / white;
+      v.rgb.push_back(static_cast<std::uint8_t>(std::lround(255.0 * std::clamp(l, 0.0, 1.0))));
+    }
+  }
+  v.faces = m.triangles;
   return v;
 }
 

@@ -39,8 +39,18 @@ Renderable load_model(const fs::path& ckpt) {
     r.render_with = [model](const geometry::Camera& cam, const geometry::Pose& pose) {
       return model->render(cam, render::pixel_directions(cam), pose);
     };
-    if constexpr (requires { typename Model::representation_type::layout; })
+    if constexpr (requires { typename Model::representation_type::layout; }) {
       r.gaussians = [model] { return gaussians_of(model->renderer(), model->render_params().data()); };
+    } else if constexpr (requires(const Vec3* p, float* o) { model->renderer().probe(model->render_params().data(), p, p, 0, o, o); }) {
+      r.field.channels = Model::renderer_type::channels;
+      r.field.density_length = model->box().density_length;
+      r.field.at = [model](const std::vector<Vec3>& pts, const std::vector<Vec3>& dirs, std::vector<float>& sigma,
+                           std::vector<float>& lum) {
+        sigma.resize(pts.size());
+        lum.resize(pts.size() * Model::renderer_type::channels);
+        model->renderer().probe(model->render_params().data(), pts.data(), dirs.data(), pts.size(), sigma.data(), lum.data());
+      };
+    }
     return 0;
   });
   return r;

@@ -232,6 +232,37 @@ class Renderer {
     return out;
   }
 
+  /// The field at n world points seen along unit directions, by the network that makes the image (the fine
+  /// one where there are two), for exports: sigma[j] the density as α reads it (per density_length world
+  /// units, as SceneBox says), lum[j · channels + c] the luminance. Points outside the box are evaluated as
+  /// the field extends there. Parallel over blocks of points; the same for any thread count.
+  void probe(const T* params, const Vec3* world, const Vec3* dirs, std::size_t n, float* sigma, float* lum) const {
+    const T* net = params + (networks - 1) * field_params;
+    const double inv = 1.0 / box_.scale;
+    constexpr std::size_t kChunk = 4096;  // the networks' activations for this many points at a time
+    parallel_blocks(n, kChunk, [&](std::size_t b, std::size_t e, int) {
+      typename FieldT::template Workspace<T> ws;
+      std::vector<T> pts(3 * kChunk), ds(3 * kChunk);
+      for (std::size_t c0 = b; c0 < e; c0 += kChunk) {
+        const std::size_t m = std::min(kChunk, e - c0);
+        for (std::size_t j = 0; j < m; ++j) {
+          const Vec3 x = (world[c0 + j] - box_.center) * inv;
+          for (int d = 0; d < 3; ++d) {
+            pts[3 * j + d] = static_cast<T>(x[d]);
+            ds[3 * j + d] = static_cast<T>(dirs[c0 + j][d]);
+          }
+        }
+        const T *sg = nullptr, *lm = nullptr;
+        FieldT::forward(net, pts.data(), ds.data(), static_cast<int>(m), ws, &sg, &lm);
+        for (std::size_t j = 0; j < m; ++j) {
+          sigma[c0 + j] = static_cast<float>(FieldT::density_activation::f(sg[j * FieldT::density_net::out_dims]));
+          for (int c = 0; c < channels; ++c)
+            lum[(c0 + j) * channels + c] = static_cast<float>(FieldT::radiance::activation::f(lm[j * channels + c]));
+        }
+      }
+    });
+  }
+
   /// Lets the sampler refresh its state before training step `step`: `u` carries the step, seed and
   /// visibility; the box and the density of the coarse network (params) are filled in here.
   void update_sampler(const T* params, SamplerUpdate u) {
