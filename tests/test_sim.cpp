@@ -931,5 +931,6 @@ TEST_CASE("the davis sensor: a fast sweep's interval quantiles within 15 % of th
     pooled.insert(pooled.end(), v.begin(), v.end());
   }
   REQUIRE(pooled.size() > 100000);
-  for (int k = 0; k < 3; ++k) CHECK(events::quantile_in_place(pooled, events::kIntervalQuantiles[k]) == doctest::Approx(kIjrrIntervalQuantiles[k]).epsilon(0.01));
+  for (int k = 0; k < 3; ++k)
+    CHECK(events::quantile_in_place(pooled, events::kIntervalQuantiles[k]) == doctest::Approx(kIjrrIntervalQuantiles[k]).epsilon(0.01));
 }
