@@ -359,9 +359,9 @@ def factors_section(rows):
     scenes = sorted({r["scene_seed"] for r in rows})
     p = ["", "## One sensor effect at a time (`bench/sensor_factors.sh`)", "",
          f"Random scene {', '.join(scenes)} recorded by an ideal sensor with one effect of the random sensor added, then by the",
-         "realistic and the random sensor whole; the default preset and steps, training seed 1, 2 threads, global-log-affine.",
-         "By default training learns the refractory period; rows with `train --refractory` give it the sensor's and fix it",
-         "(`docs/method.md`). The period column is the one each run ended with.", NO_BACKDROP, "",
+         "realistic, the random and the DAVIS-like sensor whole; the default preset and steps, training seed 1, 2 threads, global-log-affine.",
+         "By default training learns the refractory period, downward from the recording's bound; rows with `train --refractory`",
+         "give it the sensor's and fix it (`docs/method.md`). The period column is the one each run ended with.", NO_BACKDROP, "",
          "| sensor | train | events | period µs | ours | direct integration | high-pass filter |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         p.append(f"| {r['what'].replace(', train --refractory', '')} | {('`' + r['train_flags'] + '`') if r['train_flags'] else 'default'} | "

@@ -5,7 +5,7 @@
 # collapse detector fired, our error split by scale (eval's error_scales: coarse and fine PSNR) and eval's
 # offset oracle (the score with the truth's log offsets per image row, and per row and column). A scene
 # passes when ours beats both baselines by 3 dB PSNR and 0.10 SSIM. Each scene is recorded by every sensor
-# of SENSORS (`simulate --sensor`: ideal, realistic, and random, drawn from the scene's seed), side by side in the
+# of SENSORS (`simulate --sensor`: ideal, realistic, davis, and random, drawn from the scene's seed), side by side in the
 # table, and the backdrop each run had (learned, the default; known; none). Writes $OUT/robustness.csv and prints a
 # Markdown table.
 # Usage: bench/robustness.sh [scene seeds…]   (default: 1 … 10)

@@ -5,12 +5,13 @@
 # and, where the sensor has a period, once more with `train --refractory` set to it; ours against both
 # baselines under eval's default alignment, and the period each run ended with. The effects' values are those `--sensor random` draws for scene 2 (hand-held): C+ 0.172
 # and C- 0.218, 4.4 % mismatch, 0.76 Hz background with 10 hot pixels, 47 µs jitter, 0.75 ms refractory
-# period; the refractory period also at 0.1 and 0.3 ms. Writes $OUT/sensor_factors.csv, copies it to
-# bench/results/ (RESULTS; empty: not copied) and regenerates docs/results.md. About 4 minutes a row on
-# 2 cores.
+# period; the refractory period also at 0.1 and 0.3 ms; then the DAVIS-like sensor (`--sensor davis`, the
+# realistic sensor with a 1.5 ms period). Writes $OUT/sensor_factors.csv, copies it to bench/results/
+# (RESULTS; empty: not copied) and regenerates docs/results.md. About 4 minutes a row on 2 cores.
 # Usage: bench/sensor_factors.sh [ROW ...]   (default: every row below)
 # Environment: SCENE (2), SEED (training seed, 1), THREADS (2), OUT (out/sensor_factors), BUILD (build),
-#              EVNERF (the binary: $BUILD/examples/evnerf), KEEP=1 (reuse rows whose evaluation exists).
+#              EVNERF (the binary: $BUILD/examples/evnerf), KEEP=1 (reuse rows whose evaluation exists),
+#              TRAIN_FLAGS (more train options for every row, split at spaces; not in the CSV's flags).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/sensor_factors}
@@ -36,7 +37,10 @@ ROWS=(
   "realistic-r|the realistic sensor, train --refractory|--sensor realistic|--refractory @"
   "random|the random sensor|--sensor random|"
   "random-r|the random sensor, train --refractory|--sensor random|--refractory @"
+  "davis|the DAVIS-like sensor|--sensor davis|"
+  "davis-r|the DAVIS-like sensor, train --refractory|--sensor davis|--refractory @"
 )
+read -r -a TRAIN_EXTRA <<<"${TRAIN_FLAGS:-}"
 WANT=("$@")
 mkdir -p "$OUT"
 CSV="$OUT/sensor_factors.csv"
@@ -53,7 +57,7 @@ for spec in "${ROWS[@]}"; do
   read -r -a EXTRA <<<"${train_flags//@/$refractory}"
   if [ "${KEEP:-0}" != 1 ] || [ ! -f "$dir/eval/metrics.json" ]; then
     rm -rf "$dir/run" "$dir/eval"
-    "$EV" train "$scene" --out "$dir/run" --seed "$SEED" --threads "$THREADS" --quiet --allow-collapse "${EXTRA[@]}" > "$dir/train.txt" 2>&1
+    "$EV" train "$scene" --out "$dir/run" --seed "$SEED" --threads "$THREADS" --quiet --allow-collapse "${EXTRA[@]}" "${TRAIN_EXTRA[@]}" > "$dir/train.txt" 2>&1
     "$EV" eval "$dir/run/model.ckpt" "$scene" --out "$dir/eval" > "$dir/eval.txt" 2>&1
   fi
   python3 - "$dir" "$scene" "$SCENE" "$name" "$what" "${EXTRA[*]}" >> "$CSV" <<'PY'
