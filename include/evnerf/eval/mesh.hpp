@@ -194,10 +194,9 @@ inline TriangleMesh field_mesh(const FieldProbe& f, const std::vector<Vec3>& poi
   const auto [lo, hi] = robust_bounds(points);
   std::vector<float> at_points;
   density(points, at_points);
-  std::vector<float> sorted = at_points;
-  const std::size_t qk = static_cast<std::size_t>(quantile * static_cast<double>(sorted.size() - 1));
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(qk), sorted.end());
-  const double level = sorted[qk];
+  const std::size_t qk = static_cast<std::size_t>(quantile * static_cast<double>(at_points.size() - 1));
+  std::nth_element(at_points.begin(), at_points.begin() + static_cast<std::ptrdiff_t>(qk), at_points.end());
+  const double level = at_points[qk];
   const Lattice survey = lattice_over(lo, hi, std::min(cells, kMeshSurvey), density);
   std::vector<Vec3> above;
   for (int k = 0; k < survey.n[2]; ++k)
