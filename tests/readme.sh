@@ -30,6 +30,10 @@ for kind in "${kinds[@]}"; do
   [ -f "$dir/run/model.ckpt" ] && [ -f "$dir/run/eval/metrics.json" ] && [ -f "$dir/run/eval/montage.png" ] &&
     ls "$dir/run/render/"novel_*.png > /dev/null 2>&1 || fail "$kind: the block's outputs are missing"
   [ -f "$dir/run/export/transforms.json" ] && [ -f "$dir/run/export/points.ply" ] || fail "$kind: export wrote no cameras or points"
+  # The block's field trains a few steps: too few to be opaque anywhere, so the Gaussians say they start in the
+  # frusta (test_splat_model.cpp starts them from a teacher's surfaces).
+  [ -f "$dir/gs/model.ckpt" ] && grep -q "^started [0-9]* Gaussians from the surfaces of\|the Gaussians start in the cameras' frusta, taught by it" "$dir/log.txt" ||
+    fail "$kind: the Gaussians did not take the field as their teacher"
   grep -q "^format " "$dir/log.txt" || fail "$kind: inspect printed no format"
 done
 echo "readme: the own-recording block runs as written on ${kinds[*]}"

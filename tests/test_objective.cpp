@@ -1,11 +1,12 @@
-// Objectives (loss/objective.hpp), the total-variation penalty (loss/total_variation.hpp) and pixel policies
-// (events/pixels.hpp).
+// Objectives (loss/objective.hpp), the total-variation penalty (loss/total_variation.hpp), the teacher term
+// (loss/teacher.hpp) and pixel policies (events/pixels.hpp).
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
 
 #include <evnerf/loss/objective.hpp>
+#include <evnerf/loss/teacher.hpp>
 #include <evnerf/loss/total_variation.hpp>
 
 #include "common.hpp"
@@ -244,6 +245,75 @@ TEST_CASE("total variation of log-luminance: Cauchy penalty of the log step, sym
     CHECK(evtest::max_fd_error([&](const std::vector<double>& p) { return f.evaluate(p[0], p[1])[0]; }, x, {r[1], r[2]}) < 1e-7);
     CHECK(r[1] == doctest::Approx(-r[2] * (x[1] + 1e-3) / (x[0] + 1e-3)));  // opposite pulls in log space
   }
+}
+
+TEST_CASE("teacher term: Charbonnier pull of the log toward a teacher's images at the window's ends, fading to 0; finite differences") {
+  const loss::TeacherPull f{1e-3, 0.01, 0.4};
+  CHECK(f.evaluate(0.4)[0] == 0.0);
+  CHECK(f.evaluate(0.4)[1] == 0.0);
+  const double d = std::log(0.8 + 1e-3) - std::log(0.4 + 1e-3);
+  CHECK(f.evaluate(0.8)[0] == doctest::Approx(std::sqrt(d * d + 1e-4) - 0.01));  // about |d| away from the teacher
+  for (double l : {0.01, 0.39, 0.41, 0.8, 3.0}) {
+    CAPTURE(l);
+    CHECK(evtest::max_fd_error([&](const std::vector<double>& p) { return f.evaluate(p[0])[0]; }, {l}, {f.evaluate(l)[1]}) < 1e-7);
+  }
+  // A step of three pixels over the window [1, 3) of a 4 × 3 sensor. The teacher's image at pose k is
+  // 0.1 · (k + 1) + 0.01 · pixel.
+  using Term = loss::Teacher<500, 100>;  // weight 0.5 falling to 0 at step 100
+  CHECK(Term::weight(0) == 0.5);
+  CHECK(Term::weight(50) == doctest::Approx(0.25));
+  CHECK(Term::weight(100) == 0.0);
+  CHECK(Term::weight(300) == 0.0);
+  const geometry::Camera cam(4, 3, 3, 3, 2, 1.5);
+  loss::StepDraw draw;
+  draw.first = 1;
+  draw.len = 2;
+  draw.pixels = {5, 2, 11};
+  draw.npos = {0, 0, 0, 1, 0, 0};
+  draw.nneg = {0, 0, 0, 0, 0, 0};
+  std::vector<float> teacher;
+  for (int k = 0; k < 4; ++k)
+    for (int p = 0; p < 12; ++p) teacher.push_back(static_cast<float>(0.1 * (k + 1) + 0.01 * p));
+  loss::TileView t;
+  t.draw = &draw;
+  t.P = 3;
+  t.batch = 3;
+  t.camera = &cam;
+  t.step = 20;
+  t.teacher = teacher.data();
+  const Term term;
+  Term::scratch sc;
+  loss::WindowThresholds<double> th;
+  auto score = [&](const std::vector<double>& x, std::vector<double>* grad) {
+    std::vector<double> g(6, 0.0);
+    struct Values {  // the rendered values in double, for the differences
+      const std::vector<double>* x;
+      double* g;
+      double at(int ray, int) const { return (*x)[ray]; }
+      void add(int ray, int, double v) const { g[ray] += v; }
+    } v{&x, g.data()};
+    const double l = term.score(t, v, th, sc);
+    if (grad) *grad = g;
+    return l;
+  };
+  const std::vector<double> x{0.25, 0.5, 0.3, 0.41, 0.6, 0.2};
+  std::vector<double> g;
+  const double l = score(x, &g);
+  // By hand: weight 0.4 at step 20, a mean over 3 pixels, 1 channel and 2 ends.
+  auto pull = [](double v, double tv) { return loss::TeacherPull{1e-3, 0.01, tv}.evaluate(v)[0]; };
+  const double expect = 0.4 / 6 *
+                        (pull(0.25, float(0.2 + 0.05)) + pull(0.5, float(0.4 + 0.05)) + pull(0.3, float(0.2 + 0.02)) +
+                         pull(0.41, float(0.4 + 0.02)) + pull(0.6, float(0.2 + 0.11)) + pull(0.2, float(0.4 + 0.11)));
+  CHECK(l == doctest::Approx(expect).epsilon(1e-12));
+  CHECK(evtest::max_fd_error([&](const std::vector<double>& p) { return score(p, nullptr); }, x, g) < 1e-7);
+  // Past the schedule's end, or without a teacher, the term adds nothing.
+  t.step = 100;
+  CHECK(score(x, &g) == 0.0);
+  CHECK(g == std::vector<double>(6, 0.0));
+  t.step = 20;
+  t.teacher = nullptr;
+  CHECK(score(x, &g) == 0.0);
+  CHECK(g == std::vector<double>(6, 0.0));
 }
 
 namespace {

@@ -2,12 +2,16 @@
 // finite differences in double, training through the model's step, checkpoints, the trainer, renders.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <evnerf/model/model.hpp>
 #include <evnerf/model/splatting.hpp>
 #include <evnerf/eval/export.hpp>
+#include <evnerf/eval/seeds.hpp>
+#include <evnerf/loss/teacher.hpp>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tiny_models.hpp"
@@ -18,7 +22,9 @@ namespace {
 using Window3 = loss::WindowInterval<3, loss::HalfSlackCounts>;
 template <class T>
 using TinyScene = Splatting<splat::Layout<1, 1>, nn::Softplus, 48, 40, splat::Steps3dgs, splat::FixedGaussians, T>;
-using SplatDouble = Model<TinyScene<double>, loss::JointThresholds, loss::DefaultNoise, Window3>;
+/// The double model's objective carries the teacher term (a weight of 1 that lasts), so that the whole
+/// loss's differences include it where a test gives a teacher.
+using SplatDouble = Model<TinyScene<double>, loss::JointThresholds, loss::DefaultNoise, loss::Plus<Window3, loss::Teacher<1000, 1000000>>>;
 using SplatFloat = Model<TinyScene<float>, loss::ProjectedThresholds, loss::DefaultNoise, Window3>;
 
 /// Gaussians made wider and more opaque than a fresh scene's, with colours that vary with direction, so
@@ -40,9 +46,14 @@ void spread(M& m, std::uint64_t seed) {
 }
 }  // namespace
 
-TEST_CASE("splatting model: finite differences in double of the whole training loss for every parameter, threshold and the backdrop") {
+TEST_CASE(
+    "splatting model: finite differences in double of the whole training loss (events and a teacher) for every parameter, threshold and "
+    "the backdrop") {
   evtest::Fixture f;
   f.cfg.learn_background = true;
+  Rng trng(7);  // a teacher's images: any luminance in [0.2, 0.8] at every boundary pose and pixel
+  f.td.teacher.resize(f.td.boundary_poses.size() * static_cast<std::size_t>(f.td.camera.width()) * f.td.camera.height());
+  for (float& v : f.td.teacher) v = static_cast<float>(0.2 + 0.6 * trng.uniform());
   SplatDouble m(f.td, train::scene_box(f.td, f.cfg), 5);
   spread(m, 3);
   Rng rng(11);
@@ -57,6 +68,7 @@ TEST_CASE("splatting model: finite differences in double of the whole training l
     const auto st0 = m.gradients(f.td, 96, seed);
     REQUIRE(std::isfinite(st0.loss));
     REQUIRE(st0.loss > 0);
+    CHECK(st0.term_loss[1] > 0);  // the teacher's term
     CHECK(st0.samples > 0);
     const std::vector<double> g = m.params().grads;
     auto& x = m.params().values;
@@ -279,4 +291,109 @@ TEST_CASE("export: a Gaussian scene's drawn Gaussians in 3D Gaussian splatting's
   CHECK(v.floats[6] == doctest::Approx((0.8 / 1.6 - 0.5) / evaluation::kSh0).epsilon(1e-4));  // a viewer's 0.5 + kSh0 · f_dc
   CHECK(v.floats[7] == v.floats[6]);                                                          // grey in every channel
   CHECK(v.floats[10] == doctest::Approx(std::log(0.02)).epsilon(1e-5));
+}
+
+namespace {
+constexpr double kStrip = 0.15;  ///< the half-width of strip_teacher's strip
+/// Where the ray of pixel (x, y) at `pose` meets the fixture's plane z = 1.5, and its depth (0: never).
+std::pair<Vec3, double> on_plane(const geometry::Camera& cam, const std::vector<Vec3f>& dirs, const geometry::Pose& pose, int x, int y) {
+  const Vec3 d = pose.q * dirs[static_cast<std::size_t>(y) * cam.width() + x].cast<double>();
+  const double s = (1.5 - pose.t.z()) / d.z();
+  return {pose.t + s * d, s > 0 ? s : 0.0};  // the directions' camera z is 1: s is the depth
+}
+/// A teacher that knows the fixture's scene as a field would: the plane z = 1.5 opaque over |x| ≤ kStrip
+/// (luminance 0.2 left of x = 0, 0.8 right of it) and empty elsewhere.
+Rendering strip_teacher(const geometry::Camera& cam, const geometry::Pose& pose) {
+  Rendering r{Image(cam.width(), cam.height()), Image(cam.width(), cam.height()), Image(cam.width(), cam.height())};
+  const auto dirs = render::pixel_directions(cam);
+  for (int y = 0; y < cam.height(); ++y)
+    for (int x = 0; x < cam.width(); ++x) {
+      const auto [p, s] = on_plane(cam, dirs, pose, x, y);
+      if (!(s > 0) || std::abs(p.x()) > kStrip) continue;
+      r.opacity.at(x, y) = 1;
+      r.depth.at(x, y) = static_cast<float>(s);
+      r.luminance.at(x, y) = p.x() < 0 ? 0.2f : 0.8f;
+    }
+  return r;
+}
+}  // namespace
+
+TEST_CASE("splatting model: Gaussians started from a teacher's surfaces (train --start-from)") {
+  evtest::Fixture f;
+  const auto& poses = f.td.boundary_poses;
+  REQUIRE(poses.size() >= 4);
+  // Every opaque pixel of every pose, unmerged: a point on the plane inside the strip, as wide as a pixel.
+  const auto all = evaluation::gaussian_seeds(strip_teacher, f.td.camera, poses, 1000000, {.stride = 2});
+  std::size_t opaque = 0, pixels = 0;
+  for (const auto& pose : poses) {
+    const auto r = strip_teacher(f.td.camera.resized(16, 12), pose);
+    for (float o : r.opacity.data) opaque += o > 0.5f, ++pixels;
+  }
+  REQUIRE(opaque > 0);
+  REQUIRE(opaque < pixels);  // some rays see nothing: they seed nothing
+  CHECK(all.size() == opaque);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    CHECK(all.position[i].z() == doctest::Approx(1.5).epsilon(1e-5));
+    CHECK(std::abs(all.position[i].x()) <= kStrip + 1e-6);
+    CHECK((all.luminance[i] == 0.2f || all.luminance[i] == 0.8f));
+    CHECK(all.width[i] >= 1.5 / 15 - 1e-6);  // a pixel of the 16 x 12 camera (fx 15) at depth 1.5, or a little more off-axis
+    CHECK(all.width[i] <= 1.5 * 1.25 / 15);
+  }
+  // Merged down to a capacity: the points of a lattice cell averaged, on the plane, as wide as the spacing.
+  using Rep = SplatFloat::representation_type;
+  auto seeds = evaluation::gaussian_seeds(strip_teacher, f.td.camera, poses, Rep::capacity - 4, {.stride = 2});
+  CHECK(seeds.size() <= Rep::capacity - 4);
+  CHECK(seeds.size() >= (Rep::capacity - 4) / 4);  // the smallest spacing that fits, not a coarse one
+  for (std::size_t i = 0; i < seeds.size(); ++i) {
+    CHECK(seeds.position[i].z() == doctest::Approx(1.5).epsilon(1e-5));
+    CHECK(seeds.luminance[i] >= 0.2f - 1e-6f);
+    CHECK(seeds.luminance[i] <= 0.8f + 1e-6f);
+    const double level = std::log2(seeds.width[i]);  // cells a power of two wide
+    CHECK(level == std::round(level));
+  }
+  // The model takes the seeds, the teacher's thresholds and backdrop; the other slots stay unused.
+  auto cfg = f.run_config(10, 128);
+  SplatFloat m = train::make_model<SplatFloat>(f.td, cfg);
+  for (std::size_t k = 0; k < m.n_slices(); ++k) seeds.thresholds.insert(seeds.thresholds.end(), {0.17 + 0.001 * k, -0.23});
+  seeds.backdrop = {0.05};
+  m.start_from(seeds);
+  for (std::size_t k = 0; k < m.n_slices(); ++k) {
+    CHECK(m.threshold_pos(k) == doctest::Approx(0.17 + 0.001 * k));
+    CHECK(m.threshold_neg(k) == doctest::Approx(-0.23));
+  }
+  CHECK(m.renderer().learns_backdrop());
+  CHECK((*m.renderer().backdrop(m.params().values.data()))[0] == doctest::Approx(0.05).epsilon(1e-3));
+  const auto g = evaluation::gaussians_of(m.renderer(), m.params().values.data());
+  REQUIRE(g.size() == seeds.size());
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      CHECK(g.mean[i][a] == doctest::Approx(seeds.position[i][a]).epsilon(1e-4));
+      CHECK(g.log_scale[i][a] == doctest::Approx(std::log(seeds.width[i])).epsilon(1e-4));
+    }
+    CHECK(g.opacity_logit[i] == doctest::Approx(0.0).epsilon(1e-5));  // opacity 0.5
+    CHECK(g.luminance[i] == doctest::Approx(seeds.luminance[i]).epsilon(1e-3));
+  }
+  // Rendered at a recorded pose: the strip is drawn; the plane beyond three widths of the widest Gaussian
+  // stays empty.
+  const auto& pose = poses[poses.size() / 2];
+  const auto img = m.render(f.td.camera, f.td.pixel_dirs, pose);
+  const auto truth = strip_teacher(f.td.camera, pose);
+  const double reach = kStrip + 3 * *std::max_element(seeds.width.begin(), seeds.width.end());
+  double in = 0, out = 0;
+  int n_in = 0, n_out = 0;
+  for (int y = 0; y < img.opacity.height; ++y)
+    for (int x = 0; x < img.opacity.width; ++x) {
+      if (truth.opacity.at(x, y) > 0.5f) in += img.opacity.at(x, y), ++n_in;
+      else if (std::abs(on_plane(f.td.camera, f.td.pixel_dirs, pose, x, y).first.x()) > reach) out += img.opacity.at(x, y), ++n_out;
+    }
+  REQUIRE(n_in > 0);
+  REQUIRE(n_out > 0);
+  CHECK(in / n_in > 0.3);
+  CHECK(out / n_out < 0.1);
+  // No seeds (a teacher opaque nowhere) is refused, and so is a model that has stepped.
+  SplatFloat fresh = train::make_model<SplatFloat>(f.td, cfg);
+  CHECK_THROWS_AS(fresh.start_from(splat::Seeds{}), Error);
+  const auto r = train::run(m, f.td, cfg, {}, "splat", f.run());
+  CHECK_FALSE(r.diverged);
+  CHECK_THROWS_AS(m.start_from(seeds), Error);
 }

@@ -37,6 +37,7 @@
 #include "loss/step.hpp"
 #include "loss/distortion.hpp"
 #include "loss/objective.hpp"
+#include "loss/teacher.hpp"
 #include "loss/total_variation.hpp"
 #include "nn/activation.hpp"
 #include "nn/encoding.hpp"

@@ -70,6 +70,12 @@ class StopOnSignal {
 
 }  // namespace detail
 
+/// Whether a model can start from another model's scene (Gaussians: Model::start_from, train --start-from).
+template <class M>
+inline constexpr bool starts_from_scene = requires(M& m, const splat::Seeds& s) {
+  m.start_from(s);
+};
+
 /// `train` for one model type: a Trainer over `td` writing to `dir`, resumed if asked, stopped cleanly by
 /// SIGINT or SIGTERM; returns the exit code (cli::main's list).
 template <class Model>
@@ -86,6 +92,30 @@ int train_model(const TrainJob& job, const std::string& name, const TrainingData
     if (kept.near != cfg.near || kept.far != cfg.far)
       fmt::print(stderr, "note: the checkpoint's scene box is kept (near {}, far {}); --near and --far apply to new runs\n", kept.near,
                  kept.far);
+  }
+  if (job.teacher && trainer.model().step() == 0) {
+    if constexpr (starts_from_scene<Model>) {
+      const evaluation::Renderable& t = *job.teacher;
+      splat::Seeds seeds = evaluation::gaussian_seeds(t.render_with, td.camera, td.boundary_poses, Model::renderer_type::capacity);
+      seeds.backdrop = t.backdrop;
+      seeds.thresholds = t.thresholds;
+      if (seeds.size() == 0) {  // a field that has not learned its surfaces yet: it can still teach
+        if (lead)
+          fmt::print(stderr,
+                     "note: the teacher ({}) is opaque at no pixel of the recorded poses: the Gaussians start in the cameras' frusta, "
+                     "taught by it\n",
+                     t.name);
+      } else {
+        trainer.model().start_from(seeds);
+        if (lead)
+          fmt::print(stderr, "started {} Gaussians from the surfaces of the teacher ({}: {}{}{})\n",
+                     std::min(seeds.size(), Model::renderer_type::capacity), t.name, seeds.channels == 1 ? "grey" : "colour",
+                     seeds.thresholds.size() == 2 * td.slices.size() ? ", its thresholds" : "",
+                     !seeds.backdrop.empty() && trainer.model().renderer().learns_backdrop() ? ", its backdrop" : "");
+      }
+    } else {
+      throw Error("train --start-from: the variant '" + name + "' does not start from another model's scene (the Gaussians' presets do)");
+    }
   }
   if (lead)
     fmt::print(stderr, "training {} on {} slices, {} events, {} threads{}\n", name, td.slices.size(), n_events,
@@ -153,7 +183,8 @@ int main(int argc, char** argv, const std::string& description = "evnerf: neural
   static_assert(sizeof...(V) >= 1, "cli::main needs at least one variant");
   Programme p;
   p.description = description;
-  p.variants = {VariantEntry{std::string(V::name), V::model::channels, &train_model<typename V::model>}...};
+  p.variants = {
+      VariantEntry{std::string(V::name), V::model::channels, &train_model<typename V::model>, starts_from_scene<typename V::model>}...};
   p.open = &evaluation::load_model<V...>;
   return run(argc, argv, p, group);
 }

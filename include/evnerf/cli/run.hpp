@@ -16,13 +16,17 @@
 namespace evnerf::cli {
 
 /// What `train` gives a variant's training function besides the data: the settings, the recording's path
-/// (the checkpoint names it), whether to resume, whether this process prints (rank 0), and its group.
+/// (the checkpoint names it), whether to resume, whether this process prints (rank 0), its group, and the
+/// model a new scene starts from.
 struct TrainJob {
   const train::Config* cfg = nullptr;
   std::string recording;
   bool resume = false;
   bool lead = true;
   train::Group* group = nullptr;
+  /// A trained model the scene starts from (train --start-from: Gaussians from a field's surfaces; null: the
+  /// variant's own start).
+  const evaluation::Renderable* teacher = nullptr;
 };
 
 /// Trains one model of a variant on `td` into `dir` (the model type is the function's); returns the exit
@@ -35,6 +39,7 @@ struct VariantEntry {
   std::string name;
   int channels = 1;
   TrainFunction train = nullptr;
+  bool starts_from_scene = false;  ///< whether it can start from another model's scene (train --start-from: Gaussians)
 };
 
 /// A program's command line: its description (the first line of --help), its variants (the first is

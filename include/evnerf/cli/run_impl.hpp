@@ -430,6 +430,7 @@ struct TrainVerb {
   std::string variant;
   bool resume = false, quiet = false, per_channel = false;
   std::string green_sites = "first";
+  fs::path start_from;
   CLI::App* sub = nullptr;
 
   CLI::App* add(CLI::App& app, const Programme& programme) {
@@ -447,6 +448,10 @@ struct TrainVerb {
                     "like red's and blue's (first), or on both at the full sensor, with twice the events (both)")
         ->check(CLI::IsMember({"first", "both"}))
         ->capture_default_str();
+    sub->add_option("--start-from", start_from,
+                    "Gaussians: start from a field trained on the same recording (its model.ckpt): a Gaussian wherever the field's "
+                    "opacity reaches one half at the recorded poses, with its luminance, and the field's thresholds and backdrop")
+        ->check(CLI::ExistingFile);
     sub->add_flag("--resume", resume,
                   "continue from <out>/model.ckpt when it exists (a resumed run keeps its checkpoint's near, far and background)");
     sub->add_flag("--quiet", quiet, "no progress bar, and no progress line for a recording that takes more than a second to read");
@@ -478,7 +483,26 @@ struct TrainVerb {
     job.resume = resume;
     job.lead = lead;
     job.group = group;
-    if (!per_channel) return entry->train(job, entry->name, train::prepare(d, cfg), out, d.events.size());
+    evaluation::Renderable teacher;
+    if (!start_from.empty()) {
+      require(!per_channel, "train --start-from: one model starts from another, not the channels of --per-channel");
+      require(entry->starts_from_scene,
+              "train --start-from: the variant '" + variant + "' does not start from another model's scene (the Gaussians' presets do)");
+      teacher = programme.open(start_from);
+      require(static_cast<bool>(teacher.render_with), "train --start-from: " + start_from.string() + " renders no other camera");
+      job.teacher = &teacher;
+    }
+    if (!per_channel) {
+      TrainingData td = train::prepare(d, cfg);
+      if (job.teacher) {
+        const auto t0 = std::chrono::steady_clock::now();
+        td.teacher = evaluation::teacher_images(teacher.render_with, td.camera, td.boundary_poses, entry->channels);
+        if (lead)
+          fmt::print(stderr, "rendered {} at the {} boundary poses as the teacher ({:.1f} s)\n", start_from.string(),
+                     td.boundary_poses.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      }
+      return entry->train(job, entry->name, td, out, d.events.size());
+    }
     if (entry->channels != 1)
       throw Error("train --per-channel: the variant '" + entry->name +
                   "' renders colour; name a grey one (each channel gets a grey model)");

@@ -22,6 +22,7 @@
 #include "export.hpp"
 #include "metrics.hpp"
 #include "report.hpp"
+#include "seeds.hpp"
 #include "../geometry/bayer.hpp"
 #include "../io/dataset.hpp"
 #include "../render/scene.hpp"
@@ -200,6 +201,10 @@ struct Renderable {
   std::function<GaussianCloud()> gaussians;
   /// A field's density and luminance at any point (what export meshes); empty for Gaussians and channels.json.
   FieldProbe field;
+  /// What the model learned of the recording beside its scene, for a model that starts from it (train
+  /// --start-from): its learned backdrop's luminance per channel (empty: none learned) and its thresholds
+  /// per slice, B⁺ and B⁻ interleaved (empty for channels.json).
+  std::vector<double> backdrop, thresholds;
   /// The pose the model saw at time t on its training path: the refined knots' (interpolated between
   /// boundaries, the nearest outside them) when it refined its poses, else the recording's.
   geometry::Pose training_pose(const io::Dataset& d, double t) const {

@@ -32,6 +32,10 @@ Renderable load_model(const fs::path& ckpt) {
       r.poses_refined = true;
       r.time_offset = model->pose_refinement().offset;
     }
+    const auto& values = model->render_params();
+    for (std::size_t i = 0; i < 2 * model->n_slices(); ++i) r.thresholds.push_back(double(values[model->threshold_offset() + i]));
+    if (const auto b = model->renderer().backdrop(values.data()); b && model->renderer().learns_backdrop())
+      for (const auto v : *b) r.backdrop.push_back(double(v));
     r.near = model->box().near;
     r.far = model->box().far;
     auto dirs = std::make_shared<const std::vector<Vec3f>>(render::pixel_directions(r.desc.camera));

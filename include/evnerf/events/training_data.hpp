@@ -37,6 +37,10 @@ struct TrainingData {
   /// suspected hot pixels left out): where a learned period starts, and the most it may reach. Negative where
   /// train::prepare did not read it (the period given).
   double refractory_bound = -1;
+  /// A teacher's rendered luminance at every boundary pose (train --start-from: the field a scene of
+  /// Gaussians starts from), pose-major, then pixel (y · width + x) and channel; empty: none. loss::Teacher
+  /// pulls the rendered log-luminance toward it where the events are silent.
+  std::vector<float> teacher;
   int slices_per_interval = 1;  ///< slices per interval of the recording's own cut (train's
                                 ///< --subslices): a window objective's W counts such intervals,
                                 ///< so its windows span 1..W·this slices, the same time at any cut

@@ -145,7 +145,8 @@ struct DeadTimeCounts {
 /// Everything an objective may read about one tile of a step: the step's draw, the tile's pixels
 /// (draw.pixels[p0 .. p0 + P)), the step's pixel count (every loss is a mean over it), the sensor, the
 /// boundary poses and pixel directions rays are cast from, the scene's depth range, the ε of the field's
-/// log(ℓ + ε), and the step's ray key (a ray's random stream is Rng(ray_key).split(its key)).
+/// log(ℓ + ε), the step's ray key (a ray's random stream is Rng(ray_key).split(its key)), the step, and a
+/// teacher's images where the model has one (loss::Teacher).
 struct TileView {
   const StepDraw* draw = nullptr;
   int p0 = 0, P = 0, batch = 1;
@@ -156,6 +157,8 @@ struct TileView {
   const Vec3f* pixel_dirs = nullptr;      ///< render::pixel_directions of the camera
   double near = 0, far = 0, log_eps = 1e-3;
   std::uint64_t ray_key = 0;
+  long step = 0;                   ///< the training step (a term's schedule)
+  const float* teacher = nullptr;  ///< TrainingData::teacher (a teacher's images at the boundary poses), or null
 
   int width() const { return camera->width(); }
   int height() const { return camera->height(); }

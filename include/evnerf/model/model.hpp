@@ -34,6 +34,7 @@
 #include "../render/renderer.hpp"
 #include "../render/sampler.hpp"
 #include "../render/scene.hpp"
+#include "../splat/gaussians.hpp"
 #include "poses.hpp"
 #include "ray_marching.hpp"
 #include "representation.hpp"
@@ -172,6 +173,18 @@ class Model : public RepresentationTypes<Rep> {
   nn::Adam<Scalar>& optimizer() { return adam_; }
   const nn::Adam<Scalar>& optimizer() const { return adam_; }
   long step() const { return adam_.step(); }
+
+  /// A representation that can start from a teacher's seeds (Gaussians: Splatting::start_from) starts
+  /// there instead of its own init; the thresholds take the teacher's where it learned them on as many
+  /// slices. Only for a model that has not stepped yet (its Adam moments and average are still empty).
+  void start_from(const splat::Seeds& seeds) requires requires(const Rep& r, Scalar* p, const splat::Seeds& s) { r.start_from(p, s); }
+  {
+    require(step() == 0, "a model starts from seeds only before its first step");
+    renderer_.start_from(params_.values.data(), seeds);
+    if (seeds.thresholds.size() == 2 * n_slices_)
+      for (std::size_t i = 0; i < 2 * n_slices_; ++i) params_.values[threshold_offset() + i] = static_cast<Scalar>(seeds.thresholds[i]);
+    if (average_.active()) average_ = nn::ParameterAverage<Scalar>(average_.decay(), params_.values);
+  }
 
   /// Keeps a moving average of the parameters (nn::ParameterAverage with `decay`), updated after every
   /// train_step; the model then renders with the average. Averaging never changes training itself. A model
@@ -401,6 +414,10 @@ class Model : public RepresentationTypes<Rep> {
       throw Error("train_step: the model has " + std::to_string(n_slices_) + " slices' thresholds but the training data has " +
                   std::to_string(data.slices.size()) + " slices (a checkpoint resumed with another slicing?)");
     require(data.boundary_poses.size() == n_slices_ + 1, "train_step: need one boundary pose more than slices");
+    require(data.teacher.empty() || data.teacher.size() == data.boundary_poses.size() * static_cast<std::size_t>(data.camera.width()) *
+                                                               data.camera.height() * channels,
+            "train_step: the teacher's images must cover every boundary pose's pixels in the model's " + std::to_string(channels) +
+                " channel(s)");
   }
   /// A thread's scratch: the representation's, the tile's rays (as the objective asks for them), the
   /// window's thresholds, the objective's own scratch.

@@ -3,6 +3,7 @@
 // another alias of EvNerf in your own code (examples/custom_variant.cpp). Depends on model/model.hpp and
 // loss/total_variation.hpp.
 #pragma once
+#include "../loss/teacher.hpp"
 #include "../loss/total_variation.hpp"
 #include "model.hpp"
 #include "splatting.hpp"
@@ -87,8 +88,11 @@ using FastBf16 = FastModel<loss::ProjectedThresholds, loss::DefaultNoise, 1, Fas
 /// three channels behind the recording's Bayer mosaic.
 template <int C = 1, std::size_t N = 20000>
 using SplatScene = Splatting<splat::Layout<C, 0>, nn::Softplus, N, N>;
-using Splat = Model<SplatScene<1>, loss::ProjectedThresholds, loss::DefaultNoise, FastEventObjective>;
-using SplatColour = Model<SplatScene<3>, loss::ProjectedThresholds, loss::DefaultNoise, FastEventObjective>;
+/// Fast's event objective and the teacher term (loss::Teacher): it pulls toward a field's images where the
+/// events are silent when train --start-from gives one, and adds nothing otherwise.
+using SplatObjective = loss::Plus<FastEventObjective, loss::Teacher<>>;
+using Splat = Model<SplatScene<1>, loss::ProjectedThresholds, loss::DefaultNoise, SplatObjective>;
+using SplatColour = Model<SplatScene<3>, loss::ProjectedThresholds, loss::DefaultNoise, SplatObjective>;
 }  // namespace presets
 
 }  // namespace evnerf

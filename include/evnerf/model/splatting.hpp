@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "../core/error.hpp"
 #include "../core/rng.hpp"
 #include "../core/types.hpp"
 #include "../events/training_data.hpp"
@@ -183,6 +184,48 @@ class Splatting {
       }
       for (int s = 0; s < L::size; ++s) params[i * L::size + s] = static_cast<T>(g[s] / unit(s));
     }
+  }
+
+  /// A scene started from what a teacher knows (splat::Seeds): the first min(seeds, Capacity) slots hold
+  /// one isotropic Gaussian per seed (its point, width, luminance and the seeds' opacity; a grey seed
+  /// gives every channel its luminance, a colour seed a grey scene its channels' mean), the other slots
+  /// are unused; a learned backdrop takes the teacher's luminance where it has one. Replaces init's scene.
+  void start_from(T* params, const splat::Seeds& seeds) const {
+    require(seeds.channels >= 1 && seeds.luminance.size() == seeds.size() * static_cast<std::size_t>(seeds.channels) &&
+                seeds.width.size() == seeds.size(),
+            "Gaussians' seeds: a luminance per channel and a width for every point");
+    require(seeds.opacity > 0 && seeds.opacity < 1, "Gaussians' seeds: the opacity must lie in (0, 1)");
+    require(seeds.size() > 0, "Gaussians' seeds: none (the teacher is opaque nowhere it was seen from; a field trained longer is)");
+    auto luminance = [&](std::size_t i, int c) {
+      const float* l = &seeds.luminance[i * static_cast<std::size_t>(seeds.channels)];
+      if (seeds.channels == channels) return double(l[c]);
+      if (seeds.channels == 1) return double(l[0]);
+      double m = 0;
+      for (int k = 0; k < seeds.channels; ++k) m += l[k];
+      return m / seeds.channels;
+    };
+    // Act's inverse at the luminance (bounded below: softplus reaches 0 only at −∞).
+    auto raw = [](double lum) { return splat::activation_inverse<Act>(std::max(lum, 1e-4)); };
+    for (std::size_t i = 0; i < Capacity; ++i) {
+      std::array<double, L::size> g{};
+      g[L::rotation] = 1;
+      g[L::opacity] = kDeadLogit;
+      if (i < seeds.size()) {
+        const double width = seeds.width[i];
+        require(seeds.position[i].allFinite() && std::isfinite(width) && width > 0,
+                "Gaussians' seeds: point " + std::to_string(i) + " has a non-finite position or no width");
+        for (int a = 0; a < 3; ++a) g[L::mean + a] = seeds.position[i][a], g[L::log_scale + a] = std::log(width);
+        g[L::opacity] = std::log(seeds.opacity / (1 - seeds.opacity));
+        for (int c = 0; c < channels; ++c) g[L::colour + c * L::sh] = raw(luminance(i, c)) / 0.28209479177387814;
+      }
+      for (int s = 0; s < L::size; ++s) params[i * L::size + s] = static_cast<T>(g[s] / unit(s));
+    }
+    if (learns_backdrop() && !seeds.backdrop.empty())
+      for (int c = 0; c < channels; ++c) {
+        const double b =
+            seeds.backdrop.size() == static_cast<std::size_t>(channels) ? seeds.backdrop[static_cast<std::size_t>(c)] : seeds.backdrop[0];
+        params[backdrop_offset + c] = static_cast<T>(raw(b) / backdrop_unit());
+      }
   }
 
   /// A thread's scratch through a step: the training pass and the scene in its own units with its gradient.

@@ -212,6 +212,8 @@ double Model<Rep, ThresholdP, NoiseP, ObjectiveP>::train_tile(const TrainingData
   t.far = box().far;
   t.log_eps = Rep::log_eps;
   t.ray_key = ray_key;
+  t.step = adam_.step();
+  t.teacher = data.teacher.empty() ? nullptr : data.teacher.data();
   w.list.clear();
   objective_.rays(t, w.list, w.scratch);
   w.rays += static_cast<std::size_t>(w.list.size());

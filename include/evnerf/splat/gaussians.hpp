@@ -8,6 +8,7 @@
 #pragma once
 #include <cmath>
 #include <cstddef>
+#include <vector>
 
 #include "../core/types.hpp"
 
@@ -49,6 +50,22 @@ inline void sh_basis_dir_grad(const T w[], T dd[3]) {
     dd[2] = c1 * w[2];
   }
 }
+
+/// Where a scene of Gaussians starts when a teacher already knows the scene (a field trained on the same
+/// recording: evaluation::gaussian_seeds): one isotropic Gaussian per point, with its luminance
+/// (`channels` values a point, point-major) and width (the spacing of its neighbours), all at `opacity`;
+/// and what the teacher learned of the recording beside the scene: its backdrop's luminance per channel
+/// (empty: none learned) and its thresholds per slice (B⁺ and B⁻ interleaved; empty: the model's own).
+struct Seeds {
+  int channels = 1;
+  std::vector<Vec3> position;
+  std::vector<float> luminance;
+  std::vector<double> width;
+  double opacity = 0.5;
+  std::vector<double> backdrop;
+  std::vector<double> thresholds;
+  std::size_t size() const { return position.size(); }
+};
 
 /// The rotation matrix of the unit quaternion (w, x, y, z), row-major.
 template <class T>
