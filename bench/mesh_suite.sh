@@ -14,7 +14,9 @@
 #              PRESET_GREY (fast), PRESET_COLOUR (colour): the variants trained (with EVNERF, a program's own),
 #              BACKGROUND (empty: none; 0.5: train knows simulate mesh's grey backdrop, as EventNeRF's runs
 #              know theirs), DEPTHS (empty: train's near and far; "1.5 4.5": where the object can lie seen
-#              from the orbit, radius 3 ± 1.5), TRAIN_FLAGS (more train options, split at spaces), BUILD
+#              from the orbit, radius 3 ± 1.5), START_FROM (an OUT of an earlier run of the default preset: each
+#              run starts from its field, `train --start-from OUT/<asset>-<mode>/s<seed>/run/model.ckpt`, and is
+#              recorded as preset `<preset>-from-field`), TRAIN_FLAGS (more train options, split at spaces), BUILD
 #              (build), EVNERF (the binary), OUT (out/mesh), KEEP (1:
 #              an asset and mode whose metrics.json is in OUT is not run again), RESULTS (bench/results;
 #              empty: not copied).
@@ -66,11 +68,14 @@ while read -r key kind file; do
         [ -n "${STEPS:-}" ] && train+=(--iterations "$STEPS")
         [ -n "$BACKGROUND" ] && train+=(--background "$BACKGROUND")
         [ -n "$DEPTHS" ] && train+=(--near "${DEPTHS% *}" --far "${DEPTHS#* }")
+        [ -n "${START_FROM:-}" ] && train+=(--start-from "$START_FROM/$key-$mode/s$seed/run/model.ckpt")
         train+=("${TRAIN_EXTRA[@]}")
         "$EV" train "$dir/rec" --out "$run/run" "${train[@]}" > "$run/train.txt" 2>&1
         "$EV" eval "$run/run/model.ckpt" "$dir/rec" --out "$run/eval" > "$run/eval.txt" 2>&1
       fi
-      python3 - "$dir" "$run" "$key" "$kind" "$mode" "$preset" "$THREADS" "$seed" "$CPU" >> "$CSV" <<'PY'
+      label=$preset
+      [ -n "${START_FROM:-}" ] && label=$preset-from-field
+      python3 - "$dir" "$run" "$key" "$kind" "$mode" "$label" "$THREADS" "$seed" "$CPU" >> "$CSV" <<'PY'
 import json, sys
 d, run, key, kind, mode, preset, threads, seed, cpu = sys.argv[1:]
 st = json.load(open(f"{run}/run/settings.json"))["runs"][-1]

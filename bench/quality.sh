@@ -14,7 +14,9 @@
 #       ../shared/data, `--near 0.1 --far 5`; skipped when absent), blocks (the colour scene, colour
 #       preset), blocks-per-channel (the paper's colour method: `train --per-channel`, 1 thread), no-joint
 #       no-noise fast-no-tv (the ablation: planes with that preset), splat splat-object splat-room (the
-#       Gaussians: planes, object, room with the splat preset, beside fast's rows of the same scenes).
+#       Gaussians: planes, object, room with the splat preset, beside fast's rows of the same scenes),
+#       splat-field splat-field-object splat-field-room (the Gaussians started from and taught by the field
+#       of fast's row of that scene and seed, `train --start-from`: run the fast row first).
 # Environment: THREADS (2: a run's bits depend on its thread count), BUILD (build), EVNERF (the binary,
 #              $BUILD/examples/evnerf), OUT (out/quality), KEEP (1: a row and seed whose metrics.json is
 #              in OUT is not run again), RESULTS (bench/results; empty: nothing copied or regenerated),
@@ -51,6 +53,11 @@ setup() {
     no-joint|no-noise|fast-no-tv) sim=(planes) PRESET=$r ;;
     splat) sim=(planes) PRESET=splat ;;
     splat-object|splat-room) sim=("${r#splat-}") PRESET=splat ;;
+    splat-field|splat-field-object|splat-field-room)  # the recording and field of fast's row; @SEED@ is the seed's
+      local scene=${r#splat-field-}
+      [ "$scene" = splat-field ] && scene=planes
+      REC="$OUT/$scene/recording" PRESET=splat TRAIN=(--start-from "$OUT/$scene/seed@SEED@/run/model.ckpt")
+      [ -f "$REC/events.txt" ] || { echo "quality: $r needs the $scene row first" >&2; exit 2; } ;;
     *) echo "quality: unknown row '$r'" >&2; exit 2 ;;
   esac
   if [ ${#sim[@]} -gt 0 ] && [ ! -f "$REC/events.txt" ]; then
@@ -72,7 +79,8 @@ for spec in "${ROWS[@]}"; do
     mkdir -p "$dir"
     threads=$THREADS
     [ "$r" = blocks-per-channel ] && threads=1  # one model per channel; its bits as measured with 1 thread
-    "$EV" train "$REC" --out "$dir/run" --preset "$PRESET" --seed "$s" --threads "$threads" --quiet "${TRAIN[@]}" "${TRAIN_EXTRA[@]}" \
+    train=("${TRAIN[@]//@SEED@/$s}")
+    "$EV" train "$REC" --out "$dir/run" --preset "$PRESET" --seed "$s" --threads "$threads" --quiet "${train[@]}" "${TRAIN_EXTRA[@]}" \
       > "$dir/train.txt" 2>&1 || { cat "$dir/train.txt"; exit 1; }
     model="$dir/run/model.ckpt"
     [ -f "$model" ] || model="$dir/run/channels.json"

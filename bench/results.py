@@ -32,8 +32,9 @@ RECORDINGS = [
 ]
 ABLATION = [("planes", "`fast`"), ("no-joint", "thresholds fixed at ±0.3 (`no-joint`)"),
             ("no-noise", "no noise injection (`no-noise`)"), ("fast-no-tv", "no total-variation term (`fast-no-tv`)")]
-# The Gaussians' rows (the splat preset) and fast's rows of the same scenes.
-GAUSSIANS = [("planes", "splat", "`planes`"), ("object", "splat-object", "`object`"), ("room", "splat-room", "`room`")]
+# The Gaussians' rows (the splat preset, from its own start and from fast's field) and fast's rows of the same scenes.
+GAUSSIANS = [("planes", "splat", "splat-field", "`planes`"), ("object", "splat-object", "splat-field-object", "`object`"),
+             ("room", "splat-room", "splat-field-room", "`room`")]
 TIMED = [("planes", "`planes`"), ("object", "`object`"), ("room", "`room`"), ("slider", "the real chunk")]
 CPU = {"avx512": "2 cores with AVX-512", "avx2+fma": "2 cores with AVX2 + FMA (no AVX-512)", "sse": "2 cores without AVX2"}
 
@@ -226,8 +227,9 @@ def mesh_section(rows):
 
 
 def splat_mesh_table(default, splats):
-    """Gaussians (the `splat` preset) on the mesh suite beside the default preset's grey runs, held-out views and
-    the training path, global-log-affine, at the seeds both ran (per-seed PSNRs in brackets)."""
+    """Gaussians (the `splat` preset, from its own start and, where run, from the default preset's field:
+    preset `splat-from-field`) on the mesh suite beside the default preset's grey runs, held-out views and the
+    training path, global-log-affine, at the seeds all ran (per-seed PSNRs in brackets)."""
     def pick(rs, asset, view, seeds):
         return sorted((r for r in rs if (r["asset"], r["mode"], r["view"], r["alignment"], r["method"]) ==
                        (asset, "grey", view, "global-log-affine", "ours") and int(r["seed"]) in seeds), key=lambda r: int(r["seed"]))
@@ -236,25 +238,40 @@ def splat_mesh_table(default, splats):
             return "", None
         m = statistics.mean(float(r["psnr"]) for r in rs)
         return f"{m:.2f} ({', '.join(r['psnr'] for r in rs)})" if len(rs) > 1 else f"{m:.2f}", m
-    seeds = sorted({int(r["seed"]) for r in splats} & {int(r["seed"]) for r in default if r["mode"] == "grey"})
-    preset = splats[0]["preset"]
+    own = [r for r in splats if not r["preset"].endswith("-from-field")]
+    taught = [r for r in splats if r["preset"].endswith("-from-field")]
+    seeds = sorted({int(r["seed"]) for r in own} & {int(r["seed"]) for r in default if r["mode"] == "grey"})
+    preset = own[0]["preset"] if own else "splat"
     p = ["", f"### Gaussians on the mesh suite (`PRESET_GREY={preset} MODES=grey bench/mesh_suite.sh`)", "",
          f"The grey recordings above trained by `{preset}` beside the default preset's runs of them, {seeds_text(seeds)}, the same steps, threads",
-         "and backdrop (learned), global-log-affine; training seconds are `train`'s wall time on a shared machine.", "",
-         "| asset | held-out: default | held-out: splat | path: default | path: splat | training s: default / splat |", "|---|---|---|---|---|---|"]
-    held = {"default": [], "splat": []}
+         "and backdrop (learned), global-log-affine; training seconds are `train`'s wall time on a shared machine. From the field:",
+         f"`{preset}` started from and taught by the default preset's field of the same asset and seed (`START_FROM=OUT PRESET_GREY={preset}`,",
+         "`train --start-from`; its seconds are its own, after the field's).", "",
+         "| asset | held-out: default | held-out: splat | held-out: splat from the field | path: default | path: splat | path: splat from the field | training s: default / splat / from the field |",
+         "|---|---|---|---|---|---|---|---|"]
+    held = {"default": [], "splat": [], "taught": []}
     for asset in dict.fromkeys(r["asset"] for r in splats):
         d_novel, d_path = pick(default, asset, "novel", seeds), pick(default, asset, "path", seeds)
-        s_novel, s_path = pick(splats, asset, "novel", seeds), pick(splats, asset, "path", seeds)
-        if not (d_novel and s_novel):
+        s_novel, s_path = pick(own, asset, "novel", seeds), pick(own, asset, "path", seeds)
+        t_novel, t_path = pick(taught, asset, "novel", seeds), pick(taught, asset, "path", seeds)
+        if not (d_novel and (s_novel or t_novel)):
             continue
-        (dn, dm), (sn, sm) = cell(d_novel), cell(s_novel)
-        held["default"].append(dm), held["splat"].append(sm)
-        secs = [statistics.mean(float(r["train_seconds"]) for r in rs) for rs in (d_path, s_path)]
-        p.append(f"| {asset} | {dn} | {sn} | {cell(d_path)[0]} | {cell(s_path)[0]} | {secs[0]:.0f} / {secs[1]:.0f} |")
+        (dn, dm), (sn, sm), (tn, tm) = cell(d_novel), cell(s_novel), cell(t_novel)
+        if sm is not None:
+            held["default"].append(dm), held["splat"].append(sm)
+        if tm is not None:  # compared with the default at the seeds the taught runs have
+            t_seeds = {int(r["seed"]) for r in t_novel}
+            held["taught"].append((cell(pick(default, asset, "novel", t_seeds))[1], tm))
+            if len(t_novel) < len(seeds):
+                tn += f" (seed {', '.join(str(s) for s in sorted(t_seeds))})"
+        secs = [f"{statistics.mean(float(r['train_seconds']) for r in rs):.0f}" if rs else "" for rs in (d_path, s_path, t_path)]
+        p.append(f"| {asset} | {dn} | {sn} | {tn} | {cell(d_path)[0]} | {cell(s_path)[0]} | {cell(t_path)[0]} | {' / '.join(secs)} |")
     if held["splat"]:
         p += ["", f"- held-out views on average over {len(held['splat'])} assets: default {statistics.mean(held['default']):.2f} dB, "
               f"`{preset}` {statistics.mean(held['splat']):.2f} dB."]
+    if held["taught"]:
+        p += [f"- held-out views on average over the {len(held['taught'])} assets run from the field: default "
+              f"{statistics.mean(d for d, _ in held['taught']):.2f} dB, `{preset}` from the field {statistics.mean(t for _, t in held['taught']):.2f} dB."]
     return p
 
 
@@ -451,17 +468,20 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
                 m = q.mean(row, common)
                 p.append(f"| {what} | {m[0]:.2f} / {m[1]:.3f} | " +
                          ", ".join(f"{s}: {float(r['psnr']):.2f}" for s, r in q.get(row).items() if s in common) + " |")
-        gauss = [(row, sp, what, sorted(set(q.get(row)) & set(q.get(sp)))) for row, sp, what in GAUSSIANS if q.get(sp)]
+        gauss = [(row, sp, sf, what, sorted(set(q.get(row)) & set(q.get(sp)))) for row, sp, sf, what in GAUSSIANS if q.get(sp)]
         if gauss:
             p += ["", "## Gaussians (`splat`) beside `fast`", "",
-                  "The same scenes trained by the `splat` preset (`bench/quality.sh splat splat-object splat-room`), the seeds both",
-                  "presets have, the same steps, threads and alignment; the seconds are `evnerf train`'s wall time (a shared machine).",
-                  "", "| scene | seed | `fast` | `splat` | seconds `fast` / `splat` |", "|---|---|---|---|---|"]
-            for row, sp, what, seeds in gauss:
+                  "The same scenes trained by the `splat` preset from its own start (`bench/quality.sh splat splat-object splat-room`) and",
+                  "started from and taught by `fast`'s field of the same seed (`train --start-from`; `bench/quality.sh splat-field",
+                  "splat-field-object splat-field-room`), the seeds both presets have, the same steps, threads and alignment; the seconds",
+                  "are `evnerf train`'s wall time (a shared machine; the Gaussians from the field add theirs to the field's).",
+                  "", "| scene | seed | `fast` | `splat` | `splat` from `fast` | seconds `fast` / `splat` / from `fast` |", "|---|---|---|---|---|---|"]
+            for row, sp, sf, what, seeds in gauss:
                 for i, seed in enumerate(seeds):
-                    f, g = q.get(row)[seed], q.get(sp)[seed]
-                    p.append(f"| {what if i == 0 else ''} | {seed} | {score(f)} | {score(g)} | "
-                             f"{float(f['train_seconds']):.0f} / {float(g['train_seconds']):.0f} |")
+                    f, g, h = q.get(row)[seed], q.get(sp)[seed], q.get(sf).get(seed)
+                    from_field = f"{float(h['train_seconds']):.0f}" if h else ""
+                    p.append(f"| {what if i == 0 else ''} | {seed} | {score(f)} | {score(g)} | {score(h) if h else ''} | "
+                             f"{float(f['train_seconds']):.0f} / {float(g['train_seconds']):.0f} / {from_field} |")
         timed = [(what, q.get(row).get(1)) for row, what in TIMED if q.get(row).get(1)]
         if timed:
             p += ["", "## Training time", "", f"`evnerf train`'s wall time for {first['steps']} steps at seed 1, {first['threads']} threads, on {cpu}, "
