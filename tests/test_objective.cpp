@@ -269,8 +269,6 @@ TEST_CASE("teacher term: Charbonnier pull of the log toward a teacher's images a
   draw.first = 1;
   draw.len = 2;
   draw.pixels = {5, 2, 11};
-  draw.npos = {0, 0, 0, 1, 0, 0};
-  draw.nneg = {0, 0, 0, 0, 0, 0};
   std::vector<float> teacher;
   for (int k = 0; k < 4; ++k)
     for (int p = 0; p < 12; ++p) teacher.push_back(static_cast<float>(0.1 * (k + 1) + 0.01 * p));
