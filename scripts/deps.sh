@@ -3,7 +3,7 @@
 # Usage: scripts/deps.sh [extra-package ...]
 set -euo pipefail
 pkgs=(cmake ninja-build g++ libeigen3-dev libxtensor-dev xtl-dev libstb-dev doctest-dev nlohmann-json3-dev libcli11-dev libfmt-dev libhdf5-dev libbz2-dev liblz4-dev libzstd-dev \
-  hdf5-filter-plugin-blosc-serial hdf5-filter-plugin libassimp-dev libembree-dev "$@")
+  hdf5-filter-plugin-blosc-serial hdf5-filter-plugin libassimp-dev libembree-dev libcpp-httplib-dev "$@")
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

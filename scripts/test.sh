@@ -9,9 +9,10 @@ cd "$(dirname "$0")/.."
 # libopenmpi-dev and openmpi-bin: the tool's data-parallel training (mpirun), tested by mpi.train.
 # clang-format-14: docs.format checks every C++ file against .clang-format.
 # ffmpeg: render --video's MP4 files, which the cli.video test reads back with ffprobe.
+# chromium and chromium-driver: the cli.view test opens evnerf view's page in headless Chromium.
 # ccache: a compile repeated with the same source and flags (the Python module that python.pip builds
 # through `pip install .`, a rebuild after a checkout) comes from its cache.
-scripts/deps.sh ccache ffmpeg clang-format-14 python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil \
+scripts/deps.sh ccache ffmpeg chromium chromium-driver clang-format-14 python3-rosbag python3-genpy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-pil \
   python3-flatbuffers python3-lz4 python3-zstandard assimp-testmodels \
   pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib python3-venv libopenmpi-dev openmpi-bin
 BUILD=${BUILD:-build}

@@ -2,10 +2,15 @@
 #include <evnerf/eval/export.hpp>
 #include <evnerf/eval/metrics.hpp>
 #include <evnerf/eval/report.hpp>
+#include <evnerf/view/session.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numbers>
+#include <optional>
+
+#include <stb_image.h>
 
 #include <unistd.h>
 
@@ -616,4 +621,118 @@ TEST_CASE("export: a point cloud lies where the rendered depth puts it, the came
     CHECK(t[r][3].get<double>() == doctest::Approx(b.t[r]));
   }
   CHECK(t[3][3].get<double>() == 1.0);
+}
+
+TEST_CASE("view: a frame request read from a query, and a session's info, tone and frames") {
+  using view::parse_frame_request;
+  std::map<std::string, std::string> q;
+  const auto param = [&q](const std::string& k) -> std::optional<std::string> {
+    const auto it = q.find(k);
+    return it == q.end() ? std::nullopt : std::optional<std::string>(it->second);
+  };
+  geometry::Pose p;
+  p.q = Quat(Eigen::AngleAxisd(0.4, Vec3(1, 2, 3).normalized()));
+  p.t = Vec3(0.5, -1, 2);
+  std::string numbers;
+  for (const double v : view::pose_numbers(p)) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    numbers += (numbers.empty() ? "" : ",") + std::string(b);
+  }
+  q["pose"] = numbers;
+  auto r = parse_frame_request(param);
+  CHECK(r.pose.q.angularDistance(p.q) < 1e-9);
+  CHECK((r.pose.t - p.t).norm() < 1e-12);
+  CHECK(r.scale == 1);
+  CHECK(!r.depth);
+  q["scale"] = "4";
+  q["show"] = "depth";
+  r = parse_frame_request(param);
+  CHECK(r.scale == 4);
+  CHECK(r.depth);
+  const auto refused = [&](const char* key, const std::string& value, const char* words) {
+    auto bad = q;
+    bad[key] = value;
+    std::swap(bad, q);
+    CHECK_THROWS_WITH(parse_frame_request(param), doctest::Contains(words));
+    std::swap(bad, q);
+  };
+  refused("pose", "1,0,0,0,0,1,0,0,0,0,1", "twelve numbers");
+  refused("pose", "1,0,0,0,0,1,0,0,0,0,1,0,5", "twelve numbers");
+  refused("pose", "1,0,0,0,0,1,0,0,0,0,1,x", "pose value 12 'x'");
+  refused("pose", "1,0,0,0,0,1,0,0,0,0,1,inf", "not a finite number");
+  refused("pose", "-1,0,0,0,0,1,0,0,0,0,1,0", "not a rotation");
+  refused("pose", "2,0,0,0,0,1,0,0,0,0,1,0", "not a rotation");
+  refused("scale", "0", "scale '0'");
+  refused("scale", "17", "scale '17'");
+  refused("scale", "2.5", "scale '2.5'");
+  refused("show", "colour", "show 'colour'");
+  q.erase("pose");
+  CHECK_THROWS_WITH(parse_frame_request(param), doctest::Contains("no pose"));
+
+  // A scene that renders a horizontal ramp of luminance at depth 2, opaque where x < width / 2.
+  evaluation::Renderable m;
+  m.name = "ramp";
+  m.desc.camera = geometry::Camera(16, 12, 20, 20, 8, 6);
+  m.desc.poses = {geometry::Pose{}, p};
+  m.desc.times = {0.0, 1.0};
+  m.near = 0.5;
+  m.far = 5;
+  float peak = 0.8f;
+  m.render_with = [&peak](const geometry::Camera& cam, const geometry::Pose&) {
+    render::Rendering out{Image(cam.width(), cam.height(), 1), Image(cam.width(), cam.height(), 1), Image(cam.width(), cam.height(), 1)};
+    for (int y = 0; y < cam.height(); ++y)
+      for (int x = 0; x < cam.width(); ++x) {
+        out.luminance.at(x, y) = peak * static_cast<float>(x + 1) / static_cast<float>(cam.width());
+        out.opacity.at(x, y) = x < cam.width() / 2 ? 1.f : 0.f;
+        out.depth.at(x, y) = 2.f * out.opacity.at(x, y);
+      }
+    return out;
+  };
+  const view::Session s(m);
+  const auto info = s.info();
+  CHECK(info["width"] == 16);
+  CHECK(info["kind"] == "field");
+  CHECK(info["moving_scale"] == 2);
+  CHECK(info["focus"].get<double>() == doctest::Approx(2.0));
+  CHECK(info["tone"]["kind"] == "clamp");
+  REQUIRE(info["recorded"].size() == 2);
+  CHECK(info["recorded"][1].get<std::vector<double>>() == view::pose_numbers(p));
+  CHECK(info["novel"].size() == view::Session::kNovelViews);
+  const Vec3 up = -p.rotation().col(1);
+  CHECK(info["up"][0].get<double>() == doctest::Approx(up.x()));  // −y of the first camera: the identity's
+  CHECK(info["up"][1].get<double>() == doctest::Approx(-1.0));
+  // Frames at the requested resolution, toned as info says; JPEG bytes that decode to the same image.
+  view::FrameRequest fr;
+  fr.scale = 2;
+  const Image img = s.image(fr);
+  CHECK(img.width == 8);
+  CHECK(img.height == 6);
+  CHECK(img.at(7, 0) == doctest::Approx(0.8));
+  const auto f = s.frame(fr);
+  CHECK(f.width == 8);
+  int w = 0, h = 0, c = 0;
+  unsigned char* px =
+      stbi_load_from_memory(reinterpret_cast<const unsigned char*>(f.jpeg.data()), static_cast<int>(f.jpeg.size()), &w, &h, &c, 1);
+  REQUIRE(px != nullptr);
+  CHECK(w == 8);
+  CHECK(h == 6);
+  double err = 0;
+  for (int i = 0; i < w * h; ++i) err += std::abs(px[i] / 255.0 - img.data[static_cast<std::size_t>(i)]);
+  stbi_image_free(px);
+  CHECK(err / (w * h) < 0.02);
+  fr.depth = true;
+  const Image d = s.image(fr);
+  CHECK(d.channels == 3);
+  // Brighter than 1 somewhere: the log tone of the sampled views, fixed for the session.
+  peak = 4.f;
+  const view::Session bright(m);
+  REQUIRE(bright.tone().has_value());
+  CHECK(bright.info()["tone"]["kind"] == "log");
+  fr.depth = false;
+  const Image t = bright.image(fr);
+  CHECK(t.at(7, 0) == doctest::Approx(1.0));
+  CHECK(t.at(0, 0) < 0.1f);
+  m.render_with = nullptr;
+  CHECK_THROWS_WITH(view::Session{m}, doctest::Contains("view takes a model.ckpt"));
 }

@@ -24,7 +24,13 @@
 #include "../io/video.hpp"
 #include "../render/novel.hpp"
 #include "../sim/simulate.hpp"
+#include "../view/session.hpp"
 #include "run.hpp"
+#ifdef EVNERF_HAVE_VIEW
+#include <evnerf_view_page.hpp>  // the page's files as bytes (cmake/embed_page.cmake)
+
+#include "../view/server.hpp"
+#endif
 
 namespace evnerf::cli {
 
@@ -672,6 +678,45 @@ struct ExportVerb {
   }
 };
 
+/// `view`: a trained scene in the browser (view/session.hpp, view/server.hpp): a page on 127.0.0.1 whose
+/// camera the mouse moves, each frame rendered by this process.
+struct ViewVerb {
+  fs::path checkpoint;
+  int port = 7007;
+  CLI::App* sub = nullptr;
+
+  CLI::App* add(CLI::App& app) {
+    sub = app.add_subcommand("view",
+                             "a trained scene in the browser: a page on 127.0.0.1 (orbit, pan and zoom with the mouse; the "
+                             "recorded and a novel path; intensity or depth), each frame rendered by this process");
+    sub->add_option("checkpoint", checkpoint, "model.ckpt")->required();
+    sub->add_option("--port", port, "the loopback port the page is served on (0: a free one, printed)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 65535));
+    return sub;
+  }
+  int run(const Programme& programme) const {
+#ifdef EVNERF_HAVE_VIEW
+    const view::Session session(programme.open(checkpoint));
+    std::vector<view::PageFile> page;
+    for (const auto& f : view::page::files)
+      page.push_back({f.path, f.type, std::string_view(reinterpret_cast<const char*>(f.data), f.size)});
+    view::serve(session, page, port, [&](int bound) {
+      const auto& m = session.model();
+      fmt::print("serving {} ({}, {}, {}x{}) at http://127.0.0.1:{}/ until this process ends (Ctrl-C)\n", checkpoint.string(), m.name,
+                 m.gaussians ? "Gaussians" : "a field", m.desc.camera.width(), m.desc.camera.height(), bound);
+      std::fflush(stdout);
+    });
+    return 0;
+#else
+    (void)programme;
+    throw Error(
+        "view: this evnerf was built without cpp-httplib (Debian's libcpp-httplib-dev), which serves the page; install it "
+        "and build again");
+#endif
+  }
+};
+
 /// The fine error by true depth of metrics.json, as eval --verbose prints it: a band reads "lo-hi m", or
 /// "at z m" where its edges meet (a depth that a third of the pixels share, such as a back wall).
 inline void print_fine_by_depth(const nlohmann::json& fd) {
@@ -789,6 +834,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   RenderVerb rendering;
   EvalVerb evaluating;
   ExportVerb exporting;
+  ViewVerb viewing;
   inspect.add(app);
   convert.add(app);
   simulate.add(app);
@@ -797,6 +843,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
   rendering.add(app);
   evaluating.add(app);
   exporting.add(app);
+  viewing.add(app);
 
   if (group && group->size() <= 1) group = nullptr;
   const bool lead = !group || group->rank() == 0;  // prints (every process parses the same arguments)
@@ -823,6 +870,7 @@ EVNERF_COMPILED int run(int argc, char** argv, const Programme& programme, train
     if (*rendering.sub) return rendering.run(programme);
     if (*evaluating.sub) return evaluating.run(programme);
     if (*exporting.sub) return exporting.run(programme);
+    if (*viewing.sub) return viewing.run(programme);
   } catch (const std::exception& e) {
     // In a group the others may be waiting in a sum this process will never join: end them all.
     if (group) group->abort(fmt::format("evnerf {}: error (rank {} of {}): {}", cmd, group->rank(), group->size(), e.what()), 1);

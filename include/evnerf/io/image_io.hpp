@@ -9,6 +9,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <stb_image.h>
 #include <stb_image_write.h>
@@ -184,6 +185,26 @@ inline void write_png(const std::filesystem::path& path, const Image& img) {
   if (!stbi_write_png_to_func(sink, &out, img.width, img.height, img.channels, px.data(), img.width * img.channels))
     throw Error(path.string(), 0, "PNG encoding failed");
   write_file_atomic(path, out);
+}
+
+/// A float image (values clamped to [0, 1], 1 or 3 channels) as the bytes of a baseline JPEG file of
+/// `quality` 1..100 (what the viewer sends: a 346 × 260 frame in a few kilobytes).
+inline std::string encode_jpeg(const Image& img, int quality = 90) {
+  require(img.width > 0 && img.height > 0 && (img.channels == 1 || img.channels == 3),
+          "encode_jpeg: image must be 1 or 3 channels and non-empty");
+  require(quality >= 1 && quality <= 100, "encode_jpeg: quality must be 1..100");
+  std::vector<unsigned char> px(img.data.size());
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    const float v = std::isfinite(img.data[i]) ? std::clamp(img.data[i], 0.f, 1.f) : 0.f;
+    px[i] = static_cast<unsigned char>(std::lround(v * 255.f));
+  }
+  std::string out;
+  auto sink = [](void* ctx, void* data, int size) {
+    static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
+  };
+  if (!stbi_write_jpg_to_func(sink, &out, img.width, img.height, img.channels, px.data(), quality))
+    throw Error("encode_jpeg: JPEG encoding failed");
+  return out;
 }
 
 /// Maps values in [lo, hi] to colours for depth maps: a piecewise-linear ramp through dark blue, cyan,
