@@ -56,6 +56,8 @@ int main(int argc, char** argv) {
   put("calib", "four", "199.092366 198.643274 132.192548 110.712803\n");
   put("calib", "eight", "199.092366 198.643274 132.192548 110.712803 -0.368436 0.150947 -0.000296 -0.000759\n");
   put("calib", "sensor", read_file(rec_dir / "sensor.txt"));
+  put("frame", "recorded", "pose=1,0,0,0.25,0,0.98,-0.2,0,0,0.2,0.98,1.5&scale=2&show=depth");
+  put("frame", "identity", "pose=1,0,0,0,0,1,0,0,0,0,1,0");
   put("images", "simulated", read_file(rec_dir / "images.txt"));
   put("images", "spaces", "# timestamp filename\n1468938.000000 images/frame 00.png\n1468938.05 images/f01.png  \n");
   const std::string poses = read_file(rec_dir / "groundtruth.txt");

@@ -24,7 +24,7 @@ HARNESSES=("$@")
 # fuzz_hdf5 runs by name only (`run.sh SECONDS hdf5`): it finds memory errors inside Debian's libhdf5 1.10.8
 # itself (a heap over-read in H5Aexists on a corrupt object header, after 21 k inputs), which evnerf cannot
 # fix; io::load isolates the library's crashes in a child process (README, Reliability).
-[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz layouts prophesee aedat4 ply)
+[ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(events calib images poses colmap npy png scene checkpoint rosbag npz layouts prophesee aedat4 ply frame)
 SEEDS="$BUILD/seeds.$$"  # per invocation: runs may go side by side
 trap 'rm -rf "$SEEDS"' EXIT
 "$BUILD/make_seeds" "$SEEDS" >/dev/null
