@@ -12,7 +12,7 @@ generate() {
   echo "accepts. It is the tool's own \`--help\`, written by \`tests/cli_doc.sh build/examples/evnerf --write\`;"
   echo "ctest \`docs.cli\` fails when the two differ. The training settings are one table (\`train::settings()\`):"
   echo "the same names are the Python module's keywords and \`settings.json\`'s keys."
-  for verb in "" inspect simulate baselines train render eval export convert; do
+  for verb in "" inspect simulate baselines train render eval export view convert; do
     echo
     if [ -z "$verb" ]; then echo "## evnerf"; else echo "## evnerf $verb"; fi
     echo
