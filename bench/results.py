@@ -2,7 +2,7 @@
 """Writes docs/results.md and the README's results table from the benchmarks' current CSV files in
 bench/results (quality.csv from bench/quality.sh, robustness.csv from bench/robustness.sh,
 time_to_quality[_avx2].csv from bench/time_to_quality.sh, speed_ISA.csv from bench/pairs.sh, formats_ISA.csv from bench/formats.sh, step_profile[_splat]_ISA.csv from bench/step_profile.sh,
-mesh.csv from bench/mesh_suite.sh, mesh_export.csv from bench/mesh_export.sh, sensor_factors.csv from bench/sensor_factors.sh, render.csv from bench/render.sh, splat_kernels.csv from bench/splat_kernels.sh), so both say the same and neither is
+mesh.csv from bench/mesh_suite.sh, mesh_export.csv from bench/mesh_export.sh, sensor_factors.csv from bench/sensor_factors.sh, render.csv from bench/render.sh, view.csv from bench/view.sh, splat_kernels.csv from bench/splat_kernels.sh), so both say the same and neither is
 edited by hand.
 
 Usage: bench/results.py [--results DIR] [--check]
@@ -317,6 +317,22 @@ def render_section(rows):
     return p
 
 
+def view_section(rows):
+    """bench/view.sh: evnerf view's frames a second while the camera moves, and the full-resolution frame at rest."""
+    first = rows[0]
+    p = ["", "## Viewing a scene (`bench/view.sh`)", "",
+         f"The built-in `{first['scene']}` recorded at {first['width']} × {first['height']}, trained by `fast` (seed {first['seed']}) and by `splat` started from",
+         f"that field, each served by `evnerf view` ({first['threads']} threads) and asked for frames by `bench/view_client.py` as the page asks:",
+         "the camera orbits by 1° a frame, one frame in flight, at the resolution the page asks for while moving; then it rests",
+         "and the full-resolution frame is timed (the page asks for it 150 ms after the camera stops, so a field's full frame arrives 150 ms plus that time after the camera rests). The viewers take turns,",
+         f"{first['reps']} rounds; frames a second are the client's (HTTP, render and JPEG), medians with the range in brackets.", "",
+         "| preset | while moving: size | frames a second | server ms a frame | full-resolution frame at rest, ms |", "|---|---|---|---|---|"]
+    for r in rows:
+        p.append(f"| `{r['preset']}` | {r['moving_width']} × {r['moving_height']} | {r['moving_fps']} ({r['moving_fps_min']}–{r['moving_fps_max']}) | "
+                 f"{r['moving_server_ms']} | {r['rest_ms']} ({r['rest_ms_min']}–{r['rest_ms_max']}) |")
+    return p
+
+
 def protocols_table(default, known):
     """The tool's defaults (nothing known of the backdrop) beside the field's protocol (`train --background L`, the
     backdrop's brightness known, as EventNeRF's synthetic runs assume), global-log-affine, at the seeds both ran."""
@@ -429,13 +445,14 @@ def surfaces_section(rows):
     return p
 
 
-def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=(), render=(), kernels=(), surfaces=()):
+def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), profile=(), poses=(), render=(), kernels=(), surfaces=(),
+                 viewer=()):
     first = q.any_row()
     p = ["# Results at the current defaults", "",
          "After this page you know how well the default preset reconstructs each suite, against what, measured",
          "how, and how fast its network runs against PyTorch. The page is written by `bench/results.py` from the CSV",
          "files the benchmarks leave in `bench/results/` (`bench/quality.sh`, `bench/robustness.sh`,",
-         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/mesh_export.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`, `bench/render.sh`, `bench/splat_kernels.sh`); the README's table comes from the same files. Every quality",
+         "`bench/time_to_quality.sh`, `bench/pairs.sh`, `bench/formats.sh`, `bench/mesh_suite.sh`, `bench/mesh_export.sh`, `bench/sensor_factors.sh`, `bench/step_profile.sh`, `bench/poses.sh`, `bench/render.sh`, `bench/view.sh`, `bench/splat_kernels.sh`); the README's table comes from the same files. Every quality",
          "figure is PSNR dB / SSIM against the recording's frames under the named alignment",
          "(`global-log-affine`, `eval`'s default: one log-affine map per channel fitted over the sequence); the",
          "baselines are `evnerf baselines`, direct integration and the high-pass filter of the same events with a",
@@ -517,6 +534,8 @@ def results_page(q, robust, ttq, speed=(), mesh=(), formats=(), factors=(), prof
         p += surfaces_section(surfaces)
     if render:
         p += render_section(render)
+    if viewer:
+        p += view_section(viewer)
     if kernels:
         p += kernels_section(kernels)
     if poses:
@@ -600,8 +619,9 @@ def main():
     render = read(os.path.join(a.results, "render.csv"))
     kernels = read(os.path.join(a.results, "splat_kernels.csv"))
     surfaces = read(os.path.join(a.results, "mesh_export.csv"))
+    viewer = read(os.path.join(a.results, "view.csv"))
     pages = {os.path.join(ROOT, "docs", "results.md"): results_page(q, robust, ttq, speed, mesh, formats, factors, profile, poses, render,
-                                                                    kernels, surfaces)}
+                                                                    kernels, surfaces, viewer)}
     rd = os.path.join(ROOT, "README.md")
     pages[rd] = readme(open(rd).read(), headline(q))
     stale = []

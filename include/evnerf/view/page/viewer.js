@@ -1,7 +1,7 @@
 // evnerf view's page script. The camera lives here (camera to world: x right, y down, z forward); frames
 // come from the evnerf process (GET /frame). At most one frame is in flight and it carries the latest
 // camera; while the camera moves the page asks for a coarser frame (info.moving_scale), and once it has
-// rested for 200 ms for the full resolution. window.evnerfViewer exposes the state to tests.
+// rested for 150 ms for the full resolution. window.evnerfViewer exposes the state to tests.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
@@ -149,7 +149,7 @@ async function request(scale) {
 
 function tick() {
   if (state.camera && !state.inFlight) {
-    const moving = performance.now() - state.lastMove < 200;
+    const moving = performance.now() - state.lastMove < 150;
     if (state.dirty) request(moving ? state.info.moving_scale : 1);
     else if (!moving && state.shownScale !== 1) request(1);
   }
