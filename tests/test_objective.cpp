@@ -247,7 +247,8 @@ TEST_CASE("total variation of log-luminance: Cauchy penalty of the log step, sym
   }
 }
 
-TEST_CASE("teacher term: Charbonnier pull of the log toward a teacher's images at the window's ends, fading to 0, and by finite differences") {
+TEST_CASE(
+    "teacher term: Charbonnier pull of the log toward a teacher's images at the window's ends, fading to 0, and by finite differences") {
   const loss::TeacherPull f{1e-3, 0.01, 0.4};
   CHECK(f.evaluate(0.4)[0] == 0.0);
   CHECK(f.evaluate(0.4)[1] == 0.0);
