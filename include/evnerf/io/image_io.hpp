@@ -169,20 +169,29 @@ inline Image read_png(const std::filesystem::path& path, int want_channels = 0) 
   return decode_png(read_file(path), path.string(), want_channels);
 }
 
-/// Writes a float image (values clamped to [0, 1]) as an 8-bit PNG, atomically.
-inline void write_png(const std::filesystem::path& path, const Image& img) {
-  require(img.width > 0 && img.height > 0 && (img.channels == 1 || img.channels == 3 || img.channels == 4),
-          "write_png: image must be 1, 3 or 4 channels and non-empty");
+namespace detail {
+/// A float image's values clamped to [0, 1] as 8-bit samples (non-finite as 0), and the stb writers' sink
+/// that appends their output to a std::string.
+inline std::vector<unsigned char> to_bytes(const Image& img) {
   std::vector<unsigned char> px(img.data.size());
   for (std::size_t i = 0; i < px.size(); ++i) {
     const float v = std::isfinite(img.data[i]) ? std::clamp(img.data[i], 0.f, 1.f) : 0.f;
     px[i] = static_cast<unsigned char>(std::lround(v * 255.f));
   }
+  return px;
+}
+inline void append_to_string(void* ctx, void* data, int size) {
+  static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
+}
+}  // namespace detail
+
+/// Writes a float image (values clamped to [0, 1]) as an 8-bit PNG, atomically.
+inline void write_png(const std::filesystem::path& path, const Image& img) {
+  require(img.width > 0 && img.height > 0 && (img.channels == 1 || img.channels == 3 || img.channels == 4),
+          "write_png: image must be 1, 3 or 4 channels and non-empty");
+  const auto px = detail::to_bytes(img);
   std::string out;
-  auto sink = [](void* ctx, void* data, int size) {
-    static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
-  };
-  if (!stbi_write_png_to_func(sink, &out, img.width, img.height, img.channels, px.data(), img.width * img.channels))
+  if (!stbi_write_png_to_func(detail::append_to_string, &out, img.width, img.height, img.channels, px.data(), img.width * img.channels))
     throw Error(path.string(), 0, "PNG encoding failed");
   write_file_atomic(path, out);
 }
@@ -193,16 +202,9 @@ inline std::string encode_jpeg(const Image& img, int quality = 90) {
   require(img.width > 0 && img.height > 0 && (img.channels == 1 || img.channels == 3),
           "encode_jpeg: image must be 1 or 3 channels and non-empty");
   require(quality >= 1 && quality <= 100, "encode_jpeg: quality must be 1..100");
-  std::vector<unsigned char> px(img.data.size());
-  for (std::size_t i = 0; i < px.size(); ++i) {
-    const float v = std::isfinite(img.data[i]) ? std::clamp(img.data[i], 0.f, 1.f) : 0.f;
-    px[i] = static_cast<unsigned char>(std::lround(v * 255.f));
-  }
+  const auto px = detail::to_bytes(img);
   std::string out;
-  auto sink = [](void* ctx, void* data, int size) {
-    static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
-  };
-  if (!stbi_write_jpg_to_func(sink, &out, img.width, img.height, img.channels, px.data(), quality))
+  if (!stbi_write_jpg_to_func(detail::append_to_string, &out, img.width, img.height, img.channels, px.data(), quality))
     throw Error("encode_jpeg: JPEG encoding failed");
   return out;
 }
