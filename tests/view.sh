@@ -142,7 +142,7 @@ if browser:
             except Exception:
                 time.sleep(0.1)
         caps = {"capabilities": {"alwaysMatch": {"browserName": "chrome", "goog:chromeOptions": {
-            "binary": shutil.which("chromium"), "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=900,700"]}}}}
+            "binary": shutil.which("chromium"), "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=900,700"]}}}}
         sid = call("POST", "/session", caps)["sessionId"]
         js = lambda script: call("POST", f"/session/{sid}/execute/sync", {"script": script, "args": []})
 
