@@ -1,9 +1,9 @@
 // view/session.hpp — what `evnerf view` serves, without the HTTP: a trained scene (evaluation::Renderable)
 // answering the page's two questions. `info`: the sensor, the recorded and the novel path, where the scene
 // lies in front of the first camera, and how frames are toned. `frame`: the scene seen by any camera pose
-// (view/request.hpp reads it from the query),
-// at the sensor's resolution divided by a factor (the page asks for a coarser frame while the camera moves),
-// intensity or depth, as a JPEG. view/server.hpp puts it on a loopback port. Depends on eval/ and io/.
+// (view/request.hpp reads it from the query) at the sensor's resolution divided by a factor (the page asks
+// for a coarser frame while the camera moves), intensity or depth, as a JPEG. view/server.hpp puts it on a
+// loopback port. Depends on eval/, io/ and render/.
 #pragma once
 #include <algorithm>
 #include <chrono>
